@@ -1,0 +1,35 @@
+#include "core/interval.h"
+
+#include <cmath>
+
+namespace sweptccd {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}
+
+Interval Sin(const Interval& x) {
+  if (!(x.width() < 2 * kPi) || !std::isfinite(x.lo()) || !std::isfinite(x.hi())) {
+    return Interval(-1, 1);
+  }
+  // sin has maxima at pi/2 + 2k pi and minima at -pi/2 + 2k pi. Check whether
+  // one lies in x; the guard band of 1e-12 rad absorbs the rounding of the
+  // k computations (it only widens the answer).
+  auto contains_point = [&](double phase) {
+    const double k = std::ceil((x.lo() - phase) / (2 * kPi) - 1e-12);
+    const double p = phase + 2 * kPi * k;
+    return p <= x.hi() + 1e-12;
+  };
+  const double s0 = std::sin(x.lo()), s1 = std::sin(x.hi());
+  double lo = std::min(s0, s1), hi = std::max(s0, s1);
+  Interval r = Interval::Outward(lo, hi, Interval::kLibmUlps);
+  lo = r.lo();
+  hi = r.hi();
+  if (contains_point(kPi / 2)) hi = 1;
+  if (contains_point(-kPi / 2)) lo = -1;
+  return Interval(std::max(-1.0, lo), std::min(1.0, hi));
+}
+
+Interval Cos(const Interval& x) { return Sin(x + Interval(kPi / 2 - 1e-16, kPi / 2 + 1e-16)); }
+
+}  // namespace sweptccd

@@ -1,0 +1,98 @@
+#pragma once
+// Outward-rounded interval arithmetic on doubles.
+//
+// Every operation computes the result in round-to-nearest and then widens it
+// by one unit in the last place on each side (std::nextafter). Round-to-nearest
+// is within half an ulp of the exact result, so the widened interval encloses
+// the exact result of the operation on any real numbers in the operands. The
+// elementary functions (sqrt, sin, cos, atan2) of glibc are accurate to a few
+// ulps; those widen by kLibmUlps on each side.
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace sweptccd {
+
+class Interval {
+ public:
+  static constexpr int kLibmUlps = 4;
+
+  constexpr Interval() = default;
+  constexpr Interval(double v) : lo_(v), hi_(v) {}  // NOLINT: implicit by design
+  constexpr Interval(double lo, double hi) : lo_(lo), hi_(hi) {}
+
+  double lo() const { return lo_; }
+  double hi() const { return hi_; }
+  double width() const { return hi_ - lo_; }
+  double mid() const { return 0.5 * (lo_ + hi_); }
+  /// Largest absolute value of a member.
+  double mag() const { return std::max(std::fabs(lo_), std::fabs(hi_)); }
+  bool contains(double v) const { return lo_ <= v && v <= hi_; }
+  bool is_valid() const { return lo_ <= hi_; }
+  /// The same interval with its lower end raised to 0 (for squares and norms).
+  Interval ClampLow0() const { return Interval(std::max(0.0, lo_), hi_); }
+
+  friend Interval operator+(const Interval& a, const Interval& b) {
+    return Outward(a.lo_ + b.lo_, a.hi_ + b.hi_, 1);
+  }
+  friend Interval operator-(const Interval& a, const Interval& b) {
+    return Outward(a.lo_ - b.hi_, a.hi_ - b.lo_, 1);
+  }
+  friend Interval operator-(const Interval& a) { return Interval(-a.hi_, -a.lo_); }
+  friend Interval operator*(const Interval& a, const Interval& b) {
+    const double p[4] = {a.lo_ * b.lo_, a.lo_ * b.hi_, a.hi_ * b.lo_, a.hi_ * b.hi_};
+    return Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
+  }
+  /// Division; the divisor must not contain zero (else the result is everything).
+  friend Interval operator/(const Interval& a, const Interval& b) {
+    if (b.lo_ <= 0 && b.hi_ >= 0) return Everything();
+    const double p[4] = {a.lo_ / b.lo_, a.lo_ / b.hi_, a.hi_ / b.lo_, a.hi_ / b.hi_};
+    return Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
+  }
+  Interval& operator+=(const Interval& o) { return *this = *this + o; }
+  Interval& operator*=(const Interval& o) { return *this = *this * o; }
+
+  static Interval Everything() {
+    return Interval(-std::numeric_limits<double>::infinity(),
+                    std::numeric_limits<double>::infinity());
+  }
+  /// Hull of two intervals.
+  static Interval Hull(const Interval& a, const Interval& b) {
+    return Interval(std::min(a.lo_, b.lo_), std::max(a.hi_, b.hi_));
+  }
+
+  /// Widens [lo, hi] by `ulps` units in the last place on each side.
+  static Interval Outward(double lo, double hi, int ulps) {
+    for (int k = 0; k < ulps; ++k) {
+      lo = std::nextafter(lo, -std::numeric_limits<double>::infinity());
+      hi = std::nextafter(hi, std::numeric_limits<double>::infinity());
+    }
+    return Interval(lo, hi);
+  }
+
+ private:
+  double lo_ = 0;
+  double hi_ = 0;
+};
+
+/// x^2 (tighter than x * x when x straddles zero).
+inline Interval Sqr(const Interval& x) {
+  const double a = x.lo() * x.lo(), b = x.hi() * x.hi();
+  if (x.lo() <= 0 && x.hi() >= 0) return Interval::Outward(0, std::max(a, b), 1).ClampLow0();
+  return Interval::Outward(std::min(a, b), std::max(a, b), 1);
+}
+
+/// sqrt of the non-negative part of x.
+inline Interval Sqrt(const Interval& x) {
+  const double lo = std::max(0.0, x.lo()), hi = std::max(0.0, x.hi());
+  Interval r = Interval::Outward(std::sqrt(lo), std::sqrt(hi), Interval::kLibmUlps);
+  return Interval(std::max(0.0, r.lo()), r.hi());
+}
+
+/// sin over an interval, using monotone pieces between the extrema.
+Interval Sin(const Interval& x);
+/// cos over an interval.
+Interval Cos(const Interval& x);
+
+}  // namespace sweptccd

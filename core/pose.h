@@ -1,0 +1,65 @@
+#pragma once
+// Tracker poses and the pairing rule of SPEC section 2.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sweptccd {
+
+/// World pose X_WL of one link frame: origin position p_WL and unit
+/// orientation q_WL.
+struct LinkPose {
+  Eigen::Vector3d p{0, 0, 0};
+  Eigen::Quaterniond q{1, 0, 0, 0};
+};
+
+/// One tracker sample: utime (microseconds) and one LinkPose per link.
+struct Pose {
+  int64_t utime = 0;
+  std::vector<LinkPose> links;
+};
+
+/// Quaternions below this norm make a pose invalid (SPEC section 2).
+inline constexpr double kMinQuaternionNorm = 1e-6;
+
+/// Checks finiteness and quaternion norms and normalises the quaternions.
+/// Returns an empty string when valid, else a message naming the link.
+std::string ValidateAndNormalizePose(Pose* pose, int num_links);
+
+/// Parses one pose line `{"utime": ..., "links": [[px,py,pz,qw,qx,qy,qz], ...]}`
+/// and validates it. On failure returns nullopt and sets `*error`.
+std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error);
+
+/// Serialises a pose as one SPEC pose line (no newline).
+std::string PoseToJsonLine(const Pose& pose);
+
+/// What one pose line yields under the pairing rule of SPEC section 2.
+struct PairOutcome {
+  int64_t pair = 0;          // k - 1 for the k-th counted line.
+  bool valid = false;        // True: (pose0, pose1) is a pair to query.
+  std::string error;         // Why the record is invalid.
+  std::optional<int64_t> utime0;  // Known utimes, for the record.
+  std::optional<int64_t> utime1;
+  Pose pose0, pose1;
+};
+
+/// Applies SPEC section 2's pairing rule to a sequence of poses, one per
+/// counted line. The first line yields no record; every later line yields one.
+/// A valid pose becomes the anchor when it forms a pair, or when no anchor
+/// exists yet. Not thread-safe; one instance per stream (or per client).
+class PosePairer {
+ public:
+  /// Feeds the next counted line: its pose, or nullopt with `error` set.
+  std::optional<PairOutcome> Feed(std::optional<Pose> pose, const std::string& error);
+  bool has_anchor() const { return anchor_.has_value(); }
+
+ private:
+  int64_t lines_seen_ = 0;
+  std::optional<Pose> anchor_;
+};
+
+}  // namespace sweptccd
