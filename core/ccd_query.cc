@@ -1,0 +1,502 @@
+#include "core/ccd_query.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+
+#include "core/distance.h"
+#include "core/errors.h"
+
+namespace sweptccd {
+
+std::string ValidateQueryOptions(const QueryOptions& options) {
+  if (!std::isfinite(options.eps_s) || !(options.eps_s > 0)) {
+    return "eps must be a finite number of seconds > 0, got " + std::to_string(options.eps_s);
+  }
+  if (!std::isfinite(options.delta_m) || !(options.delta_m > 0)) {
+    return "delta must be a finite number of metres > 0, got " + std::to_string(options.delta_m);
+  }
+  if (options.max_intervals < 1) return "the work limit must be at least 1 interval";
+  if (options.max_candidates < 1) return "max_candidates must be at least 1";
+  return {};
+}
+
+namespace {
+
+// A candidate triangle: object index and BVH slot.
+struct Candidate {
+  uint32_t object;
+  uint32_t slot;
+};
+
+// A time interval of one link still to be cleared.
+struct Task {
+  double s0, s1;
+  int link;
+  int depth;
+  uint32_t cand_begin;  // Parent's kept candidates in the pool...
+  uint32_t cand_count;
+  bool requery;      // ...or, when true, query the BVHs afresh.
+  bool prefiltered;  // The list was built for exactly this interval.
+};
+
+struct TaskLater {
+  bool operator()(const Task& x, const Task& y) const {
+    if (x.s0 != y.s0) return x.s0 > y.s0;
+    return x.link > y.link;
+  }
+};
+
+// Swept bound of one link over [s0, s1]: a capsule around the segment at the
+// midpoint. Every point of the link over the interval lies inside it.
+struct Capsule {
+  Eigen::Vector3d a, b;
+  double radius;
+};
+
+Eigen::Vector3d UnitNormal(const SegmentTriangleResult& r, const Eigen::Vector3d& seg_a,
+                           const Eigen::Vector3d& seg_b, const Eigen::Vector3d& ta,
+                           const Eigen::Vector3d& tb, const Eigen::Vector3d& tc) {
+  const Eigen::Vector3d d = r.p_segment - r.p_triangle;
+  const double len = d.norm();
+  if (len > 1e-12) return d / len;
+  // The segment meets the triangle: use the face normal, on the side of the
+  // segment's farther end (the link is mostly there).
+  Eigen::Vector3d n = (tb - ta).cross(tc - ta);
+  if (n.norm() > 0) {
+    n.normalize();
+    const double da = n.dot(seg_a - r.p_triangle), db = n.dot(seg_b - r.p_triangle);
+    return (std::fabs(da) >= std::fabs(db) ? da : db) < 0 ? -n : n;
+  }
+  // Degenerate triangle crossed by the segment: any direction across the segment.
+  Eigen::Vector3d axis = seg_b - seg_a;
+  if (axis.norm() == 0) return Eigen::Vector3d(0, 0, 1);
+  Eigen::Vector3d perp = axis.cross(Eigen::Vector3d::UnitX());
+  if (perp.norm() < 1e-6 * axis.norm()) perp = axis.cross(Eigen::Vector3d::UnitY());
+  return perp.normalized();
+}
+
+class QueryRun {
+ public:
+  QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
+           const QueryOptions& options)
+      : engine_(engine),
+        skel_(engine.skeleton()),
+        env_(engine.environment()),
+        filter_(engine.filter()),
+        options_(options),
+        motion_(skel_, pose0, pose1, options.motion),
+        utime0_(static_cast<double>(pose0.utime)),
+        dt_us_(static_cast<double>(pose1.utime - pose0.utime)),
+        eps_us_(options.eps_s * 1e6),
+        tol_(env_.coordinate_tolerance()) {}
+
+  QueryResult Run();
+
+ private:
+  Capsule SweptCapsule(int link, double s0, double s1) const {
+    Capsule c;
+    motion_.SegmentAt(link, 0.5 * (s0 + s1), &c.a, &c.b);
+    c.radius = skel_.link(link).radius + motion_.SweepRadius(link, s0, s1) + tol_;
+    return c;
+  }
+  bool WithinCapsule(const Capsule& cap, const Candidate& c) {
+    Eigen::Vector3d ta, tb, tc;
+    env_.object(c.object).bvh.Triangle(c.slot, &ta, &tb, &tc);
+    ++result_.stats.triangle_tests;
+    return SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
+  }
+  // Appends to the pool every unfiltered triangle within the capsule, found
+  // through the BVHs (from `start_node` of one object when object >= 0).
+  // Returns false (and appends nothing) past max_candidates.
+  bool CollectFromBvh(int link, const Capsule& cap, int object, uint32_t start_node);
+  void InitialCandidates();
+  void CollectDual(const std::vector<int>& links, int object, uint32_t env_node);
+  // Exact separation of `link` at s over the candidates in the pool range.
+  bool BestSample(int link, double s, uint32_t begin, uint32_t count, ContactRecord* best);
+  void FinishLeaf(const Task& task, const ContactRecord& witness);
+  void FinishUndecided(int link, double s_lo);
+  bool InitiallyTouching(int link);
+
+  const CcdEngine& engine_;
+  const Skeleton& skel_;
+  const Environment& env_;
+  const CollisionFilter& filter_;
+  const QueryOptions& options_;
+  PairMotion motion_;
+  double utime0_, dt_us_, eps_us_, tol_;
+
+  std::vector<Candidate> pool_;
+  std::vector<Capsule> top_capsule_;
+  std::vector<Aabb> top_box_;
+  std::vector<uint32_t> top_begin_, top_count_;
+  std::vector<bool> top_overflow_;
+  std::vector<bool> link_done_;
+  std::priority_queue<Task, std::vector<Task>, TaskLater> queue_;
+  QueryResult result_;
+};
+
+bool QueryRun::CollectFromBvh(int link, const Capsule& cap, int object, uint32_t start_node) {
+  const size_t start = pool_.size();
+  bool overflow = false;
+  for (int o = 0; o < env_.num_objects(); ++o) {
+    if ((object >= 0 && o != object) || filter_.Ignores(link, o)) continue;
+    const TriangleBvh& bvh = env_.object(o).bvh;
+    bvh.QueryCapsule(
+        cap.a, cap.b, cap.radius,
+        [&](uint32_t slot) {
+          if (overflow) return;
+          const Candidate c{static_cast<uint32_t>(o), slot};
+          if (!WithinCapsule(cap, c)) return;
+          pool_.push_back(c);
+          if (pool_.size() - start > static_cast<size_t>(options_.max_candidates)) overflow = true;
+        },
+        object >= 0 ? start_node : 0);
+    if (overflow) break;
+  }
+  if (overflow) pool_.resize(start);
+  return !overflow;
+}
+
+// The published method's culling step: a BVH over the links' swept bounds for
+// the whole pair, traversed together with each object's BVH. Links whose bound
+// meets no triangle are free for the whole pair.
+void QueryRun::CollectDual(const std::vector<int>& links, int object, uint32_t env_node) {
+  const TriangleBvh& bvh = env_.object(object).bvh;
+  const Aabb env_box = bvh.NodeBox(env_node);
+  Aabb box{Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()),
+           Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity())};
+  std::vector<int> live;
+  for (int l : links) {
+    if (top_box_[l].Overlaps(env_box)) {
+      live.push_back(l);
+      box.lo = box.lo.cwiseMin(top_box_[l].lo);
+      box.hi = box.hi.cwiseMax(top_box_[l].hi);
+    }
+  }
+  if (live.empty()) return;
+  if (live.size() == 1) {
+    const int l = live[0];
+    if (top_overflow_[l]) return;
+    // Gather this link's candidates below env_node into its own run of the
+    // pool. Runs of one link from different nodes are contiguous because the
+    // traversal finishes a link leaf before moving on (see below).
+    const size_t before = pool_.size();
+    if (!CollectFromBvh(l, top_capsule_[l], object, env_node)) {
+      top_overflow_[l] = true;
+      return;
+    }
+    const uint32_t added = static_cast<uint32_t>(pool_.size() - before);
+    if (added == 0) return;
+    // Move the new run next to the link's earlier run, if any.
+    if (top_count_[l] == 0) {
+      top_begin_[l] = static_cast<uint32_t>(before);
+    } else if (top_begin_[l] + top_count_[l] != before) {
+      std::vector<Candidate> merged(pool_.begin() + top_begin_[l],
+                                    pool_.begin() + top_begin_[l] + top_count_[l]);
+      merged.insert(merged.end(), pool_.begin() + before, pool_.end());
+      pool_.resize(before);
+      top_begin_[l] = static_cast<uint32_t>(pool_.size());
+      pool_.insert(pool_.end(), merged.begin(), merged.end());
+      top_count_[l] = static_cast<uint32_t>(merged.size());
+      if (top_count_[l] > static_cast<uint32_t>(options_.max_candidates)) top_overflow_[l] = true;
+      return;
+    }
+    top_count_[l] += added;
+    if (top_count_[l] > static_cast<uint32_t>(options_.max_candidates)) top_overflow_[l] = true;
+    return;
+  }
+  const TriangleBvh::Node& node = bvh.nodes()[env_node];
+  const Eigen::Vector3d link_ext = box.hi - box.lo;
+  const Eigen::Vector3d env_ext = env_box.hi - env_box.lo;
+  const bool split_links =
+      node.count > 0 || link_ext.maxCoeff() >= env_ext.maxCoeff();
+  if (!split_links) {
+    CollectDual(live, object, node.first);
+    CollectDual(live, object, node.first + 1);
+    return;
+  }
+  // Split the links at the median of their box centres along the widest axis.
+  int axis = 0;
+  link_ext.maxCoeff(&axis);
+  std::sort(live.begin(), live.end(), [&](int x, int y) {
+    const double cx = top_box_[x].lo[axis] + top_box_[x].hi[axis];
+    const double cy = top_box_[y].lo[axis] + top_box_[y].hi[axis];
+    return cx != cy ? cx < cy : x < y;
+  });
+  const size_t half = live.size() / 2;
+  CollectDual(std::vector<int>(live.begin(), live.begin() + half), object, env_node);
+  CollectDual(std::vector<int>(live.begin() + half, live.end()), object, env_node);
+}
+
+void QueryRun::InitialCandidates() {
+  const int n = skel_.num_links();
+  top_capsule_.resize(n);
+  top_box_.resize(n);
+  top_begin_.assign(n, 0);
+  top_count_.assign(n, 0);
+  top_overflow_.assign(n, false);
+  for (int l = 0; l < n; ++l) {
+    top_capsule_[l] = SweptCapsule(l, 0, 1);
+    const Capsule& c = top_capsule_[l];
+    top_box_[l].lo = c.a.cwiseMin(c.b).array() - c.radius;
+    top_box_[l].hi = c.a.cwiseMax(c.b).array() + c.radius;
+  }
+  for (int o = 0; o < env_.num_objects(); ++o) {
+    std::vector<int> links;
+    for (int l = 0; l < n; ++l) {
+      if (!filter_.Ignores(l, o)) links.push_back(l);
+    }
+    if (!links.empty()) CollectDual(links, o, 0);
+  }
+  // An overflowing link's partial runs are useless; it queries the BVHs per
+  // interval instead.
+  for (int l = 0; l < n; ++l) {
+    if (top_overflow_[l]) top_count_[l] = 0;
+  }
+}
+
+bool QueryRun::BestSample(int link, double s, uint32_t begin, uint32_t count,
+                          ContactRecord* best) {
+  Eigen::Vector3d a, b, ta, tb, tc;
+  motion_.SegmentAt(link, s, &a, &b);
+  const double radius = skel_.link(link).radius;
+  bool found = false;
+  for (uint32_t k = begin; k < begin + count; ++k) {
+    const Candidate& c = pool_[k];
+    env_.object(c.object).bvh.Triangle(c.slot, &ta, &tb, &tc);
+    ++result_.stats.triangle_tests;
+    const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);
+    const double sep = r.distance - radius;
+    if (!found || sep < best->separation) {
+      found = true;
+      best->link = link;
+      best->object = static_cast<int>(c.object);
+      best->triangle = env_.object(c.object).bvh.TriangleId(c.slot);
+      best->s = s;
+      best->point_link = r.p_segment;
+      best->point_env = r.p_triangle;
+      best->normal = UnitNormal(r, a, b, ta, tb, tc);
+      best->separation = sep;
+    }
+  }
+  return found;
+}
+
+bool QueryRun::InitiallyTouching(int link) {
+  ContactRecord r;
+  return engine_.Separation(motion_, link, 0.0, tol_, &r) && r.separation <= 0;
+}
+
+void QueryRun::FinishLeaf(const Task& task, const ContactRecord& witness) {
+  LinkBracket bracket;
+  bracket.link = task.link;
+  bracket.s_lo = task.s0;
+  bracket.s_hi = task.s1;
+  bracket.has_witness = true;
+  bracket.witness = witness;
+  // The candidates hold every triangle that can touch; one outside them can
+  // still be the nearest when nothing touches. Make the witness exact.
+  ContactRecord exact;
+  if (engine_.Separation(motion_, task.link, witness.s, witness.separation, &exact) &&
+      exact.separation < witness.separation) {
+    bracket.witness = exact;
+  }
+  bracket.initially_colliding = task.s0 == 0 && InitiallyTouching(task.link);
+  result_.links.push_back(bracket);
+  link_done_[task.link] = true;
+}
+
+void QueryRun::FinishUndecided(int link, double s_lo) {
+  LinkBracket bracket;
+  bracket.link = link;
+  bracket.s_lo = s_lo;
+  bracket.s_hi = 1;
+  bracket.undecided = true;
+  ContactRecord r;
+  // Best effort: the nearest triangle at s_lo, if one is near.
+  if (engine_.Separation(motion_, link, s_lo, top_capsule_[link].radius, &r)) {
+    bracket.has_witness = true;
+    bracket.witness = r;
+  }
+  bracket.initially_colliding = s_lo == 0 && InitiallyTouching(link);
+  result_.links.push_back(bracket);
+  link_done_[link] = true;
+}
+
+QueryResult QueryRun::Run() {
+  const int n = skel_.num_links();
+  link_done_.assign(n, false);
+  pool_.reserve(1024);
+  InitialCandidates();
+  for (int l = 0; l < n; ++l) {
+    if (filter_.IgnoresAll(l)) continue;
+    if (top_count_[l] == 0 && !top_overflow_[l]) {
+      ++result_.stats.links_culled;
+      continue;
+    }
+    ++result_.stats.links_tested;
+    queue_.push(Task{0, 1, l, 0, top_begin_[l], top_count_[l], static_cast<bool>(top_overflow_[l]),
+                     true});
+  }
+  bool out_of_work = false;
+  while (!queue_.empty()) {
+    const Task task = queue_.top();
+    queue_.pop();
+    if (link_done_[task.link]) continue;
+    if (++result_.stats.intervals > options_.max_intervals) {
+      out_of_work = true;
+      queue_.push(task);
+      break;
+    }
+    // Triangles that can touch the link during the task's interval.
+    uint32_t begin = static_cast<uint32_t>(pool_.size());
+    uint32_t count = 0;
+    bool requery = false;
+    if (task.prefiltered) {
+      // The root interval: InitialCandidates already tested this capsule.
+      begin = task.cand_begin;
+      count = task.requery ? 1 : task.cand_count;
+      requery = task.requery;
+    } else {
+      const Capsule cap = SweptCapsule(task.link, task.s0, task.s1);
+      if (task.requery) {
+        if (CollectFromBvh(task.link, cap, -1, 0)) {
+          count = static_cast<uint32_t>(pool_.size() - begin);
+        } else {
+          requery = true;  // Too many to list: non-empty, keep going.
+          count = 1;
+        }
+      } else {
+        for (uint32_t k = task.cand_begin; k < task.cand_begin + task.cand_count; ++k) {
+          const Candidate c = pool_[k];
+          if (WithinCapsule(cap, c)) pool_.push_back(c);
+        }
+        count = static_cast<uint32_t>(pool_.size() - begin);
+      }
+    }
+    if (count == 0) continue;  // Certified free over [s0, s1].
+
+    const double t_lo = utime0_ + task.s0 * dt_us_;
+    const double t_hi = utime0_ + task.s1 * dt_us_;
+    if (t_hi - t_lo <= eps_us_) {
+      // Narrow enough: look for a time with separation <= delta (G3).
+      ContactRecord best, sample;
+      bool have = false;
+      const double mid = 0.5 * (task.s0 + task.s1);
+      for (double s : {task.s0, mid, task.s1}) {
+        // With no list (a dense region), ask the BVHs for the nearest
+        // triangle within delta of the capsule instead.
+        const bool got = requery
+                             ? engine_.Separation(motion_, task.link, s, options_.delta_m, &sample)
+                             : BestSample(task.link, s, begin, count, &sample);
+        if (got && (!have || sample.separation < best.separation)) {
+          best = sample;
+          have = true;
+        }
+      }
+      if (have && best.separation <= options_.delta_m) {
+        FinishLeaf(task, best);
+        if (!options_.per_link) break;
+        continue;
+      }
+    }
+    const double mid = 0.5 * (task.s0 + task.s1);
+    if (!(mid > task.s0 && mid < task.s1) || task.depth >= 400) {
+      FinishUndecided(task.link, task.s0);  // Cannot split further.
+      if (!options_.per_link) break;
+      continue;
+    }
+    queue_.push(Task{task.s0, mid, task.link, task.depth + 1, begin, count, requery, false});
+    queue_.push(Task{mid, task.s1, task.link, task.depth + 1, begin, count, requery, false});
+  }
+  if (out_of_work) {
+    // Every link with work left is undecided from its earliest open interval.
+    std::vector<double> earliest(n, 2.0);
+    while (!queue_.empty()) {
+      const Task& t = queue_.top();
+      if (!link_done_[t.link]) earliest[t.link] = std::min(earliest[t.link], t.s0);
+      queue_.pop();
+      if (!options_.per_link) break;  // The top one is the earliest of all.
+    }
+    for (int l = 0; l < n; ++l) {
+      if (earliest[l] <= 1.0) FinishUndecided(l, earliest[l]);
+    }
+  }
+
+  // Assemble the answer: the earliest bracket over all links.
+  std::sort(result_.links.begin(), result_.links.end(),
+            [](const LinkBracket& x, const LinkBracket& y) { return x.link < y.link; });
+  const LinkBracket* first = nullptr;
+  for (const LinkBracket& b : result_.links) {
+    if (first == nullptr || b.s_lo < first->s_lo) first = &b;
+  }
+  if (first != nullptr) {
+    result_.contact = true;
+    result_.s_lo = first->s_lo;
+    result_.s_hi = first->s_hi;
+    result_.undecided = first->undecided;
+    if (first->has_witness) result_.contacts.push_back(first->witness);
+    // Other links' witnesses that fall inside the same bracket.
+    for (const LinkBracket& b : result_.links) {
+      if (&b != first && b.has_witness && b.witness.s >= result_.s_lo &&
+          b.witness.s <= result_.s_hi && b.witness.separation <= options_.delta_m) {
+        result_.contacts.push_back(b.witness);
+      }
+    }
+    if (result_.s_lo == 0) {
+      for (int l = 0; l < n && !result_.initially_colliding; ++l) {
+        if (!filter_.IgnoresAll(l) && InitiallyTouching(l)) result_.initially_colliding = true;
+      }
+    }
+  }
+  if (!options_.per_link) result_.links.clear();
+  return std::move(result_);
+}
+
+}  // namespace
+
+CcdEngine::CcdEngine(const Skeleton& skeleton, const Environment& environment,
+                     CollisionFilter filter)
+    : skeleton_(skeleton), env_(environment), filter_(std::move(filter)) {}
+
+QueryResult CcdEngine::Query(const Pose& pose0, const Pose& pose1,
+                             const QueryOptions& options) const {
+  SWEPTCCD_CHECK(pose1.utime > pose0.utime);
+  QueryRun run(*this, pose0, pose1, options);
+  return run.Run();
+}
+
+bool CcdEngine::Separation(const PairMotion& motion, int link, double s, double search_radius,
+                           ContactRecord* record) const {
+  Eigen::Vector3d a, b, ta, tb, tc;
+  motion.SegmentAt(link, s, &a, &b);
+  const double radius = skeleton_.link(link).radius;
+  const double reach = radius + std::max(0.0, search_radius);
+  bool found = false;
+  for (int o = 0; o < env_.num_objects(); ++o) {
+    if (filter_.Ignores(link, o)) continue;
+    const TriangleBvh& bvh = env_.object(o).bvh;
+    bvh.QueryCapsule(a, b, reach, [&](uint32_t slot) {
+      bvh.Triangle(slot, &ta, &tb, &tc);
+      const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);
+      if (r.distance > reach) return;
+      const double sep = r.distance - radius;
+      if (!found || sep < record->separation) {
+        found = true;
+        record->link = link;
+        record->object = o;
+        record->triangle = bvh.TriangleId(slot);
+        record->s = s;
+        record->point_link = r.p_segment;
+        record->point_env = r.p_triangle;
+        record->normal = UnitNormal(r, a, b, ta, tb, tc);
+        record->separation = sep;
+      }
+    });
+  }
+  return found;
+}
+
+}  // namespace sweptccd

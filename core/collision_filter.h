@@ -1,0 +1,42 @@
+#pragma once
+// Which (link, object) pairs never count as contact (SPEC section 5).
+
+#include <string>
+#include <vector>
+
+namespace sweptccd {
+
+class Environment;
+class Skeleton;
+
+/// A set of ignored (link, object) pairs. Immutable during queries.
+class CollisionFilter {
+ public:
+  CollisionFilter() = default;
+  CollisionFilter(int num_links, int num_objects);
+
+  /// Ignores contacts between `link` and `object`; -1 for either means all.
+  void Ignore(int link, int object);
+  bool Ignores(int link, int object) const {
+    return !ignored_.empty() && ignored_[static_cast<size_t>(link) * num_objects_ + object];
+  }
+  bool IgnoresAll(int link) const;
+  int num_ignored_pairs() const;
+
+  /// Parses `{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"}]}`.
+  /// Links by name or index ("*" = all), objects by index, name (path) or "*".
+  /// Throws InputError naming `source` and the entry.
+  static CollisionFilter FromJson(const std::string& text, const std::string& source,
+                                  const Skeleton& skeleton, const Environment& env);
+  static CollisionFilter FromFile(const std::string& path, const Skeleton& skeleton,
+                                  const Environment& env);
+  /// Adds one `LINK:OBJECT` rule (as on the command line). Throws InputError.
+  void AddRule(const std::string& rule, const Skeleton& skeleton, const Environment& env);
+
+ private:
+  int num_links_ = 0;
+  int num_objects_ = 0;
+  std::vector<bool> ignored_;
+};
+
+}  // namespace sweptccd

@@ -1,0 +1,42 @@
+#pragma once
+// Exact closest-point queries between points, segments and triangles, in
+// double precision. Degenerate inputs (zero-length segments, zero-area
+// triangles) are handled: a degenerate triangle is the union of its edges.
+
+#include <Eigen/Core>
+
+namespace sweptccd {
+
+/// Closest point to q on segment [p0, p1]; returns the parameter t in [0, 1]
+/// with closest = p0 + t (p1 - p0).
+double ClosestPointOnSegment(const Eigen::Vector3d& q, const Eigen::Vector3d& p0,
+                             const Eigen::Vector3d& p1, Eigen::Vector3d* closest);
+
+/// Squared distance between segments [p1, q1] and [p2, q2] with the closest
+/// points c1 (on the first) and c2 (on the second).
+double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1,
+                                     const Eigen::Vector3d& p2, const Eigen::Vector3d& q2,
+                                     Eigen::Vector3d* c1, Eigen::Vector3d* c2);
+
+/// Closest point to p on triangle (a, b, c), which may be degenerate.
+Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+struct SegmentTriangleResult {
+  double distance = 0;
+  Eigen::Vector3d p_segment{0, 0, 0};   // Closest point on the segment.
+  Eigen::Vector3d p_triangle{0, 0, 0};  // Closest point on the triangle.
+};
+
+/// Distance between segment [s0, s1] and triangle (a, b, c) with a pair of
+/// closest points. Either may be degenerate. Zero when they intersect.
+SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                                              const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                              const Eigen::Vector3d& c);
+
+/// True when the triangle's area is zero up to rounding (it is then treated as
+/// the union of its three edges).
+bool IsDegenerateTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                          const Eigen::Vector3d& c);
+
+}  // namespace sweptccd

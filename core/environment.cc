@@ -1,0 +1,45 @@
+#include "core/environment.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace sweptccd {
+
+Environment Environment::LoadFiles(const std::vector<std::string>& paths) {
+  Environment env;
+  for (const std::string& path : paths) env.AddMesh(LoadMeshFile(path), path);
+  return env;
+}
+
+void Environment::AddMesh(const TriangleMesh& mesh, const std::string& name) {
+  EnvironmentObject obj;
+  obj.name = name;
+  obj.bvh = TriangleBvh(mesh);
+  // A float keeps 24 bits: rounding a coordinate x moves it by at most
+  // 2^-24 |x|. Twice that, plus a floor, covers it and the rounding of the
+  // double-precision distance computations.
+  coordinate_tolerance_ =
+      std::max(coordinate_tolerance_, std::ldexp(obj.bvh.max_abs_coordinate(), -23) + 1e-9);
+  objects_.push_back(std::move(obj));
+}
+
+size_t Environment::num_triangles() const {
+  size_t n = 0;
+  for (const auto& o : objects_) n += o.bvh.num_triangles();
+  return n;
+}
+
+size_t Environment::memory_bytes() const {
+  size_t n = 0;
+  for (const auto& o : objects_) n += o.bvh.memory_bytes() + sizeof(o) + o.name.capacity();
+  return n;
+}
+
+int Environment::FindObject(const std::string& name) const {
+  for (int i = 0; i < num_objects(); ++i) {
+    if (objects_[i].name == name) return i;
+  }
+  return -1;
+}
+
+}  // namespace sweptccd

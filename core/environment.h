@@ -1,0 +1,47 @@
+#pragma once
+// The static environment: objects (one per mesh file), each with its BVH.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/bvh.h"
+#include "core/mesh.h"
+
+namespace sweptccd {
+
+struct EnvironmentObject {
+  std::string name;  // Usually the file path.
+  TriangleBvh bvh;
+};
+
+/// Immutable once built; const methods are thread-safe.
+class Environment {
+ public:
+  Environment() = default;
+
+  /// Loads each file as one object, in order. Throws InputError naming the file.
+  static Environment LoadFiles(const std::vector<std::string>& paths);
+
+  /// Adds a mesh as the next object (builds its BVH).
+  void AddMesh(const TriangleMesh& mesh, const std::string& name);
+
+  int num_objects() const { return static_cast<int>(objects_.size()); }
+  const EnvironmentObject& object(int i) const { return objects_[i]; }
+  size_t num_triangles() const;
+  size_t memory_bytes() const;
+  /// Index of the object whose name is `name`, or -1.
+  int FindObject(const std::string& name) const;
+
+  /// Distance slack (metres) covering the single-precision storage of the
+  /// vertices: contact tests treat a triangle as touching when it is within
+  /// this much of the capsule, so no contact is missed even if the file held
+  /// more digits than a float keeps.
+  double coordinate_tolerance() const { return coordinate_tolerance_; }
+
+ private:
+  std::vector<EnvironmentObject> objects_;
+  double coordinate_tolerance_ = 1e-9;
+};
+
+}  // namespace sweptccd

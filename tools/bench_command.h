@@ -1,0 +1,27 @@
+#pragma once
+// `sweptccd bench`: per-pair query times on real mocap through real scenes.
+
+#include <string>
+#include <vector>
+
+namespace CLI {
+class App;
+}
+
+namespace sweptccd {
+
+struct BenchCommandOptions {
+  std::string data_dir;  // Folder with env/ and mocap/ (default: ../shared/data beside the source).
+  std::vector<std::string> clips = {"cmu_02_01_walk.bvh", "boxing_toes.bvh"};
+  int max_pairs = 600;  // Per scene and clip.
+  double rate_hz = 30;
+  double eps_s = 1e-4;
+  double delta_m = 1e-3;
+  bool peers = true;  // Also time FCL in the same run.
+  std::string markdown_path;  // Also write the table as Markdown here.
+};
+
+void AddBenchOptions(CLI::App* app, BenchCommandOptions* options);
+int RunBenchCommand(const BenchCommandOptions& options);
+
+}  // namespace sweptccd

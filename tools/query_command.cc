@@ -1,0 +1,122 @@
+#include "tools/query_command.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+#include <memory>
+
+#include "core/collision_filter.h"
+#include "core/environment.h"
+#include "core/errors.h"
+#include "core/pose.h"
+#include "core/result_json.h"
+#include "core/skeleton.h"
+
+namespace sweptccd {
+
+namespace {
+
+bool IsBlank(const std::string& line) {
+  for (char c : line) {
+    if (c != ' ' && c != '\t' && c != '\r' && c != '\n' && c != '\f' && c != '\v') return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+int RunQueryCommand(const QueryCommandOptions& options) {
+  try {
+    const std::string problem = ValidateQueryOptions(options.query);
+    if (!problem.empty()) throw InputError("sweptccd query: " + problem);
+    if (options.backend == "gpu") {
+      throw InputError(
+          "sweptccd query: --backend gpu: this build has no GPU backend yet; use cpu or auto");
+    }
+    if (options.backend != "cpu" && options.backend != "auto") {
+      throw InputError("sweptccd query: --backend must be cpu, gpu or auto, got '" +
+                       options.backend + "'");
+    }
+    if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
+    const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path);
+    std::ifstream poses(options.poses_path, std::ios::binary);
+    if (!poses) throw InputError(options.poses_path + ": cannot open the pose stream file");
+
+    const auto load_start = std::chrono::steady_clock::now();
+    const Environment env = Environment::LoadFiles(options.env_paths);
+    spdlog::info("environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s",
+                 env.num_objects(), env.num_triangles(), env.memory_bytes() / 1048576.0,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
+                     .count());
+    if (options.backend == "auto") spdlog::info("backend auto: cpu (no GPU backend in this build)");
+
+    CollisionFilter filter(skeleton.num_links(), env.num_objects());
+    if (!options.filter_path.empty()) {
+      filter = CollisionFilter::FromFile(options.filter_path, skeleton, env);
+    }
+    for (const std::string& rule : options.ignore_rules) filter.AddRule(rule, skeleton, env);
+
+    std::ofstream file_out;
+    std::ostream* out = &std::cout;
+    if (!options.output_path.empty()) {
+      file_out.open(options.output_path, std::ios::binary | std::ios::trunc);
+      if (!file_out) throw InputError(options.output_path + ": cannot open the output file");
+      out = &file_out;
+    }
+
+    const CcdEngine engine(skeleton, env, std::move(filter));
+    PosePairer pairer;
+    std::string line;
+    int64_t line_number = 0;
+    int64_t pairs = 0, invalid = 0, contacts = 0;
+    while (std::getline(poses, line)) {
+      ++line_number;
+      if (IsBlank(line)) continue;
+      std::string error;
+      std::optional<Pose> pose = ParsePoseLine(line, skeleton.num_links(), &error);
+      if (!pose) error = "line " + std::to_string(line_number) + ": " + error;
+      std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
+      if (!outcome) {
+        if (!error.empty()) spdlog::warn("{}: {}", options.poses_path, error);
+        continue;
+      }
+      if (!outcome->valid) {
+        ++invalid;
+        *out << InvalidResultToJson(outcome->pair, outcome->utime0, outcome->utime1,
+                                    outcome->error)
+             << '\n';
+        continue;
+      }
+      const auto start = std::chrono::steady_clock::now();
+      const QueryResult result = engine.Query(outcome->pose0, outcome->pose1, options.query);
+      const double elapsed_us =
+          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+              .count();
+      ++pairs;
+      contacts += result.contact;
+      *out << ResultToJson(outcome->pair, outcome->pose0.utime, outcome->pose1.utime, result,
+                           options.query.per_link, elapsed_us)
+           << '\n';
+    }
+    if (poses.bad()) throw InputError(options.poses_path + ": error while reading");
+    out->flush();
+    if (!*out) {
+      throw InputError((options.output_path.empty() ? std::string("standard output")
+                                                    : options.output_path) +
+                       ": error while writing the results");
+    }
+    spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "error: out of memory\n");
+    return 3;
+  }
+}
+
+}  // namespace sweptccd

@@ -1,0 +1,26 @@
+#pragma once
+// `sweptccd query`: answers every pair of a pose stream file (SPEC section 7).
+
+#include <string>
+#include <vector>
+
+#include "core/ccd_query.h"
+
+namespace sweptccd {
+
+struct QueryCommandOptions {
+  std::string skeleton_path;
+  std::string poses_path;
+  std::vector<std::string> env_paths;
+  std::string output_path;  // Empty: standard output.
+  std::string backend = "auto";
+  std::string filter_path;
+  std::vector<std::string> ignore_rules;  // LINK:OBJECT
+  QueryOptions query;
+};
+
+/// Runs the command. Returns the exit status: 0 when the inputs could be
+/// read (even with invalid pairs), 2 with a one-line message on stderr when not.
+int RunQueryCommand(const QueryCommandOptions& options);
+
+}  // namespace sweptccd

@@ -1,0 +1,62 @@
+// sweptccd: the command-line front end. Parses flags and dispatches to the
+// subcommands; the work is in the *_command.cc files.
+
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+
+#include "tools/bench_command.h"
+#include "tools/query_command.h"
+
+int main(int argc, char** argv) {
+  // Diagnostics go to standard error, never into the results.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("sweptccd"));
+  spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+
+  CLI::App app{"SweptCCD: certified continuous collision detection for tracked avatars"};
+  app.require_subcommand(1);
+  std::string log_level = "warn";
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+
+  sweptccd::QueryCommandOptions q;
+  std::string motion = "articulated";
+  CLI::App* query = app.add_subcommand("query", "Answer every pair of a pose stream (SPEC 7)");
+  query->add_option("--skeleton", q.skeleton_path, "Skeleton JSON file")->required();
+  query->add_option("--poses", q.poses_path, "Pose stream, JSON Lines")->required();
+  query->add_option("--env", q.env_paths, "Mesh file (OBJ, PLY, STL, optionally .gz); repeat")
+      ->required();
+  query->add_option("--motion", motion, "articulated (default) or independent")
+      ->check(CLI::IsMember({"articulated", "independent"}));
+  query->add_option("--eps", q.query.eps_s, "Time tolerance, seconds (default 1e-4)");
+  query->add_option("--delta", q.query.delta_m, "Distance tolerance, metres (default 1e-3)");
+  query->add_option("--backend", q.backend, "cpu, gpu or auto (default auto)");
+  query->add_flag("--per-link", q.query.per_link, "A bracket for every touching link");
+  query->add_option("--output", q.output_path, "Results file (default: standard output)");
+  query->add_option("--filter", q.filter_path,
+                    "Collision filter JSON: {\"ignore\": [{\"link\": L, \"object\": O}]}");
+  query->add_option("--ignore", q.ignore_rules,
+                    "Ignore contacts of LINK (name, index or *) with OBJECT (index, file or *); "
+                    "repeat");
+  query->add_option("--max-intervals", q.query.max_intervals,
+                    "Work limit per pair (interval tests) before answering undecided");
+
+  sweptccd::BenchCommandOptions b;
+  CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");
+  sweptccd::AddBenchOptions(bench, &b);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  if (query->parsed()) {
+    q.query.motion = *sweptccd::ParseMotionModel(motion);
+    return sweptccd::RunQueryCommand(q);
+  }
+  if (bench->parsed()) return sweptccd::RunBenchCommand(b);
+  return 1;
+}
