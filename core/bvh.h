@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -62,6 +63,13 @@ class TriangleBvh {
   void QueryCapsule(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius,
                     Visit&& visit, uint32_t start_node = 0) const;
 
+  /// As QueryCapsule, but `visit(slot)` returns false to stop the traversal
+  /// and may lower *radius (branch and bound for nearest-triangle searches);
+  /// nodes are tested against the current radius.
+  template <class Visit>
+  void QueryCapsuleShrinking(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double* radius,
+                             Visit&& visit, uint32_t start_node = 0) const;
+
   /// Segment p0-p1 against box [lo - r, hi + r] by slabs; conservative.
   static bool SegmentMeetsGrownBox(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
                                    const Eigen::Vector3d& inv_d, const float* lo, const float* hi,
@@ -94,29 +102,56 @@ inline bool TriangleBvh::SegmentMeetsGrownBox(const Eigen::Vector3d& p0, const E
   return true;
 }
 
+namespace internal {
+inline double Sqr(double x) { return x * x; }
+}  // namespace internal
+
+/// Squared distance from q to the segment p0 + t d, t in [0, 1]; dd = |d|^2.
+inline double PointSegmentDistanceSquared(const Eigen::Vector3d& q, const Eigen::Vector3d& p0,
+                                          const Eigen::Vector3d& d, double dd) {
+  double t = dd > 0 ? (q - p0).dot(d) / dd : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return (p0 + t * d - q).squaredNorm();
+}
+
 template <class Visit>
-void TriangleBvh::QueryCapsule(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius,
-                               Visit&& visit, uint32_t start_node) const {
+void TriangleBvh::QueryCapsuleShrinking(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
+                                        double* radius, Visit&& visit,
+                                        uint32_t start_node) const {
   if (nodes_.empty()) return;
-  // The slab test rounds; growing the radius by a relative 1e-9 and 1e-9 m
-  // keeps it conservative (it only admits more nodes).
-  const double r = radius * (1 + 1e-9) + 1e-9;
   const Eigen::Vector3d d = p1 - p0;
+  const double dd = d.squaredNorm();
   const Eigen::Vector3d inv_d(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());
-  const Eigen::Vector3d seg_lo = p0.cwiseMin(p1).array() - r;
-  const Eigen::Vector3d seg_hi = p0.cwiseMax(p1).array() + r;
   // Depth is at most 48 + log2(n) (see the build), so 128 entries suffice.
   uint32_t stack[128];
   int top = 0;
   stack[top++] = start_node;
   while (top > 0) {
+    // The slab test rounds; growing the radius by a relative 1e-9 and 1e-9 m
+    // keeps it conservative (it only admits more nodes).
+    const double r = *radius * (1 + 1e-9) + 1e-9;
     const Node& node = nodes_[stack[--top]];
     if (!SegmentMeetsGrownBox(p0, p1, inv_d, node.lo, node.hi, r)) continue;
+    // The slab test admits the corners of the grown box; the bounding sphere
+    // of the node rejects many of those (dist(segment, centre) - half diagonal
+    // is a lower bound on the distance to anything in the box).
+    {
+      const Eigen::Vector3d lo(node.lo[0], node.lo[1], node.lo[2]);
+      const Eigen::Vector3d hi(node.hi[0], node.hi[1], node.hi[2]);
+      const Eigen::Vector3d centre = 0.5 * (lo + hi);
+      const double half_diag = 0.5 * (hi - lo).norm();
+      if (PointSegmentDistanceSquared(centre, p0, d, dd) >
+          internal::Sqr(r + half_diag * (1 + 1e-9))) {
+        continue;
+      }
+    }
     if (node.count == 0) {
       stack[top++] = node.first;
       stack[top++] = node.first + 1;
       continue;
     }
+    const Eigen::Vector3d seg_lo = p0.cwiseMin(p1).array() - r;
+    const Eigen::Vector3d seg_hi = p0.cwiseMax(p1).array() + r;
     for (uint32_t slot = node.first; slot < node.first + node.count; ++slot) {
       const float* t = &tri_[9 * static_cast<size_t>(slot)];
       bool outside = false;
@@ -125,9 +160,31 @@ void TriangleBvh::QueryCapsule(const Eigen::Vector3d& p0, const Eigen::Vector3d&
         const float thi = std::max({t[k], t[3 + k], t[6 + k]});
         outside = thi < seg_lo[k] || tlo > seg_hi[k];
       }
-      if (!outside) visit(slot);
+      if (outside) continue;
+      // Bounding sphere of the triangle around its first vertex.
+      const Eigen::Vector3d v0(t[0], t[1], t[2]);
+      const double reach = std::sqrt(
+          std::max((Eigen::Vector3d(t[3], t[4], t[5]) - v0).squaredNorm(),
+                   (Eigen::Vector3d(t[6], t[7], t[8]) - v0).squaredNorm()));
+      if (PointSegmentDistanceSquared(v0, p0, d, dd) > internal::Sqr(r + reach * (1 + 1e-9))) {
+        continue;
+      }
+      if (!visit(slot)) return;
     }
   }
+}
+
+template <class Visit>
+void TriangleBvh::QueryCapsule(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius,
+                               Visit&& visit, uint32_t start_node) const {
+  double r = radius;
+  QueryCapsuleShrinking(
+      p0, p1, &r,
+      [&](uint32_t slot) {
+        visit(slot);
+        return true;
+      },
+      start_node);
 }
 
 }  // namespace sweptccd

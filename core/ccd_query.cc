@@ -97,8 +97,9 @@ class QueryRun {
  private:
   Capsule SweptCapsule(int link, double s0, double s1) const {
     Capsule c;
-    motion_.SegmentAt(link, 0.5 * (s0 + s1), &c.a, &c.b);
-    c.radius = skel_.link(link).radius + motion_.SweepRadius(link, s0, s1) + tol_;
+    double growth;
+    motion_.SweptCapsule(link, s0, s1, &c.a, &c.b, &growth);
+    c.radius = skel_.link(link).radius + growth + tol_;
     return c;
   }
   bool WithinCapsule(const Capsule& cap, const Candidate& c) {
@@ -143,14 +144,16 @@ bool QueryRun::CollectFromBvh(int link, const Capsule& cap, int object, uint32_t
   for (int o = 0; o < env_.num_objects(); ++o) {
     if ((object >= 0 && o != object) || filter_.Ignores(link, o)) continue;
     const TriangleBvh& bvh = env_.object(o).bvh;
-    bvh.QueryCapsule(
-        cap.a, cap.b, cap.radius,
+    double radius = cap.radius;
+    bvh.QueryCapsuleShrinking(
+        cap.a, cap.b, &radius,
         [&](uint32_t slot) {
-          if (overflow) return;
           const Candidate c{static_cast<uint32_t>(o), slot};
-          if (!WithinCapsule(cap, c)) return;
+          if (!WithinCapsule(cap, c)) return true;
           pool_.push_back(c);
-          if (pool_.size() - start > static_cast<size_t>(options_.max_candidates)) overflow = true;
+          // Past the cap the list is not worth keeping: stop early.
+          overflow = pool_.size() - start > static_cast<size_t>(options_.max_candidates);
+          return !overflow;
         },
         object >= 0 ? start_node : 0);
     if (overflow) break;
@@ -478,10 +481,13 @@ bool CcdEngine::Separation(const PairMotion& motion, int link, double s, double 
   for (int o = 0; o < env_.num_objects(); ++o) {
     if (filter_.Ignores(link, o)) continue;
     const TriangleBvh& bvh = env_.object(o).bvh;
-    bvh.QueryCapsule(a, b, reach, [&](uint32_t slot) {
+    // Branch and bound: the search radius shrinks to the best distance so far.
+    double search = found ? record->separation + radius : reach;
+    bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
       bvh.Triangle(slot, &ta, &tb, &tc);
       const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);
-      if (r.distance > reach) return;
+      if (r.distance > reach) return true;
+      search = std::min(search, r.distance);
       const double sep = r.distance - radius;
       if (!found || sep < record->separation) {
         found = true;
@@ -494,6 +500,7 @@ bool CcdEngine::Separation(const PairMotion& motion, int link, double s, double 
         record->normal = UnitNormal(r, a, b, ta, tb, tc);
         record->separation = sep;
       }
+      return r.distance > 0;  // Nothing is nearer than a crossing triangle.
     });
   }
   return found;

@@ -25,7 +25,7 @@ struct QueryOptions {
   int64_t max_intervals = 2'000'000;
   /// Candidate triangles a time interval keeps as a list for its halves; past
   /// it the halves query the BVH again.
-  int max_candidates = 2048;
+  int max_candidates = 256;
 };
 
 /// Empty when the options are usable, else the problem (names the option).

@@ -27,7 +27,8 @@ void CollisionFilter::Ignore(int link, int object) {
 }
 
 bool CollisionFilter::IgnoresAll(int link) const {
-  if (ignored_.empty()) return num_objects_ == 0;
+  // An empty filter (default constructed) ignores nothing.
+  if (ignored_.empty()) return false;
   for (int o = 0; o < num_objects_; ++o) {
     if (!Ignores(link, o)) return false;
   }

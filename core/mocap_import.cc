@@ -428,7 +428,7 @@ struct LinkSpec {
   int side;  // 0: trunk; 1: left; 2: right (aliases starting with '%' get a side).
   std::vector<const char*> joint_aliases;  // Normalised names, best first.
   std::vector<const char*> end_aliases;    // Preferred children for b, best first.
-  int chain_next;  // Link whose joint is the preferred child for b, or -1.
+  int chain_next;                          // Link whose joint is the preferred child for b, or -1.
   // When the chosen child sits at zero offset (same origin), the link follows
   // that child instead and looks again (CMU: Hips -> LowerBack, Spine1 -> Neck).
   bool collapse_zero_offset;
@@ -436,9 +436,22 @@ struct LinkSpec {
 };
 
 enum LinkIndex {
-  kPelvis, kSpine, kChest, kHead,
-  kUpperArmL, kForearmL, kHandL, kUpperArmR, kForearmR, kHandR,
-  kThighL, kShinL, kFootL, kThighR, kShinR, kFootR,
+  kPelvis,
+  kSpine,
+  kChest,
+  kHead,
+  kUpperArmL,
+  kForearmL,
+  kHandL,
+  kUpperArmR,
+  kForearmR,
+  kHandR,
+  kThighL,
+  kShinL,
+  kFootL,
+  kThighR,
+  kShinR,
+  kFootR,
 };
 
 const std::vector<LinkSpec>& LinkSpecs() {
@@ -448,21 +461,49 @@ const std::vector<LinkSpec>& LinkSpecs() {
                                                      "%shoulder"};
   static const std::vector<const char*> kForearm = {"%forearm", "%lowerarm", "%elbow"};
   static const std::vector<const char*> kHand = {"%hand", "%wrist"};
-  static const std::vector<const char*> kHandEnd = {"%mid1", "%middle1", "%handmiddle1",
+  static const std::vector<const char*> kHandEnd = {"%mid1",          "%middle1", "%handmiddle1",
                                                     "%middlefinger1", "%handend", "%handtip"};
   static const std::vector<const char*> kThigh = {"%upleg", "%thigh", "%upperleg", "%hip"};
   static const std::vector<const char*> kShin = {"%leg", "%shin", "%lowerleg", "%knee", "%calf"};
   static const std::vector<const char*> kFoot = {"%foot", "%ankle"};
   static const std::vector<const char*> kFootEnd = {"%toebase", "%toes", "%toe", "%ball"};
   static const std::vector<LinkSpec> kSpecs = {
-      {"pelvis", -1, 0.12, 0, {"hips", "hip", "pelvis", "root"},
-       {"ab", "abdomen", "lowerback", "spine", "spine0"}, kSpine, true, 0.10},
-      {"spine", kPelvis, 0.11, 0, {"ab", "abdomen", "abdomenlower", "spine", "spine0", "torso"},
-       {"chest", "spine1", "spine2", "abdomenupper", "chestlower"}, kChest, true, 0.10},
-      {"chest", kSpine, 0.13, 0, {"chest", "upperchest", "chestupper", "spine2", "spine1", "thorax"},
-       {"neck", "neck1", "lowerneck", "necklower"}, kHead, true, 0.10},
-      {"head", kChest, 0.10, 0, {"head", "skull"},
-       {"headend", "headtop", "headtopend", "headnub", "headsite"}, -1, false, 0.15},
+      {"pelvis",
+       -1,
+       0.12,
+       0,
+       {"hips", "hip", "pelvis", "root"},
+       {"ab", "abdomen", "lowerback", "spine", "spine0"},
+       kSpine,
+       true,
+       0.10},
+      {"spine",
+       kPelvis,
+       0.11,
+       0,
+       {"ab", "abdomen", "abdomenlower", "spine", "spine0", "torso"},
+       {"chest", "spine1", "spine2", "abdomenupper", "chestlower"},
+       kChest,
+       true,
+       0.10},
+      {"chest",
+       kSpine,
+       0.13,
+       0,
+       {"chest", "upperchest", "chestupper", "spine2", "spine1", "thorax"},
+       {"neck", "neck1", "lowerneck", "necklower"},
+       kHead,
+       true,
+       0.10},
+      {"head",
+       kChest,
+       0.10,
+       0,
+       {"head", "skull"},
+       {"headend", "headtop", "headtopend", "headnub", "headsite"},
+       -1,
+       false,
+       0.15},
       {"upper_arm_l", kChest, 0.05, 1, kUpperArm, {}, kForearmL, false, 0.10},
       {"forearm_l", kUpperArmL, 0.04, 1, kForearm, {}, kHandL, false, 0.10},
       {"hand_l", kForearmL, 0.04, 1, kHand, kHandEnd, -1, false, 0.08},
@@ -557,9 +598,9 @@ std::vector<LinkBinding> BindLinks(const BvhData& bvh, double unit_scale_m,
   for (size_t i = 0; i < specs.size(); ++i) {
     found[i] = FindJoint(bvh, specs[i].joint_aliases, specs[i].side, nullptr);
     if (found[i] < 0) {
-      throw InputError(source + ": no BVH joint found for link '" + specs[i].name +
-                       "' (looked for a joint named, ignoring case and '_': " +
-                       AliasList(specs[i]) + ")");
+      throw InputError(
+          source + ": no BVH joint found for link '" + specs[i].name +
+          "' (looked for a joint named, ignoring case and '_': " + AliasList(specs[i]) + ")");
     }
   }
   // Offsets below 0.1 mm count as zero (End Sites written as 0 0 0).
@@ -610,8 +651,8 @@ std::vector<LinkBinding> BindLinks(const BvhData& bvh, double unit_scale_m,
     for (size_t k = 0; k < i; ++k) {
       if (bindings[i].joint == bindings[k].joint) {
         throw InputError(source + ": BVH joint " + Quote(bvh.joints[bindings[i].joint].name) +
-                         " matches both link '" + specs[k].name + "' and link '" +
-                         specs[i].name + "'");
+                         " matches both link '" + specs[k].name + "' and link '" + specs[i].name +
+                         "'");
       }
     }
   }
@@ -679,8 +720,8 @@ double MaxRotation(const BvhData& bvh, int64_t f, bool root) {
 bool FrameZeroIsReferencePose(const BvhData& bvh) {
   if (bvh.num_frames < 2) return false;
   // CMU cgspeed conversions: frame 0 has exactly zero root rotation.
-  const bool root_has_rotation = std::any_of(
-      bvh.joints[0].channels.begin(), bvh.joints[0].channels.end(), IsRotation);
+  const bool root_has_rotation =
+      std::any_of(bvh.joints[0].channels.begin(), bvh.joints[0].channels.end(), IsRotation);
   if (root_has_rotation && MaxRotation(bvh, 0, true) == 0 && MaxRotation(bvh, 1, true) > 0) {
     return true;
   }
@@ -730,10 +771,18 @@ void ForwardKinematics(const BvhData& bvh, int64_t frame, std::vector<Eigen::Mat
     for (size_t k = 0; k < joint.channels.size(); ++k) {
       const double v = bvh.value(frame, joint.first_channel + static_cast<int>(k));
       switch (joint.channels[k]) {
-        case Channel::kXposition: t.x() += v; break;
-        case Channel::kYposition: t.y() += v; break;
-        case Channel::kZposition: t.z() += v; break;
-        default: R = R * AxisRotation(joint.channels[k], v); break;
+        case Channel::kXposition:
+          t.x() += v;
+          break;
+        case Channel::kYposition:
+          t.y() += v;
+          break;
+        case Channel::kZposition:
+          t.z() += v;
+          break;
+        default:
+          R = R * AxisRotation(joint.channels[k], v);
+          break;
       }
     }
     if (joint.parent < 0) {
@@ -785,7 +834,10 @@ MocapClip ImportBvhText(const std::string& text, const std::string& source,
   for (const auto& [name, radius] : options.radius_override_m) {
     if (std::find(link_names.begin(), link_names.end(), name) == link_names.end()) {
       std::string known;
-      for (const std::string& n : link_names) known += (known.empty() ? "" : ", ") + n;
+      for (const std::string& n : link_names) {
+        if (!known.empty()) known += ", ";
+        known += n;
+      }
       throw InputError(source + ": radius_override_m names unknown link '" + name +
                        "' (links: " + known + ")");
     }
@@ -835,14 +887,14 @@ MocapClip ImportBvhText(const std::string& text, const std::string& source,
 
   std::vector<Eigen::Matrix3d> R_FJ;
   std::vector<Eigen::Vector3d> p_FJ;
-  clip.poses.reserve(static_cast<size_t>((end - start + options.frame_step - 1) /
-                                         options.frame_step));
+  clip.poses.reserve(
+      static_cast<size_t>((end - start + options.frame_step - 1) / options.frame_step));
   int64_t kept = 0;
   for (int64_t frame = start; frame < end; frame += options.frame_step, ++kept) {
     ForwardKinematics(bvh, frame, &R_FJ, &p_FJ);
     Pose pose;
-    pose.utime = std::llround(static_cast<double>(kept * options.frame_step) *
-                              bvh.frame_time_s * 1e6);
+    pose.utime =
+        std::llround(static_cast<double>(kept * options.frame_step) * bvh.frame_time_s * 1e6);
     pose.links.resize(specs.size());
     for (size_t i = 0; i < specs.size(); ++i) {
       const int j = bindings[i].joint;
@@ -854,8 +906,8 @@ MocapClip ImportBvhText(const std::string& text, const std::string& source,
         lp.q.coeffs() *= -1.0;
       }
       if (!lp.p.allFinite() || !lp.q.coeffs().allFinite()) {
-        throw InputError(source + ": frame " + std::to_string(frame) + ": link '" +
-                         specs[i].name + "' gets a non-finite pose (values too large?)");
+        throw InputError(source + ": frame " + std::to_string(frame) + ": link '" + specs[i].name +
+                         "' gets a non-finite pose (values too large?)");
       }
     }
     clip.poses.push_back(std::move(pose));

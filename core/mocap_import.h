@@ -60,8 +60,8 @@ struct MocapImportOptions {
   /// rotation is ~0 in frame 0 but not in frame 1, or when the change from
   /// frame 0 to 1 is over 30 degrees and over 5 times the change from 1 to 2.
   int start_frame = -1;
-  /// Number of frames to read from start_frame (before subsampling); -1 = to
-  /// the end of the clip.
+  /// Number of file frames to cover from start_frame, before subsampling
+  /// (>= 1; fewer when the clip ends first); -1 = to the end of the clip.
   int frame_count = -1;
   /// Subsampling: keep every n-th frame (n >= 1) starting at start_frame.
   int frame_step = 1;

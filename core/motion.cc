@@ -114,15 +114,26 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
                                  Interval(1.0, 1.0 + 1e-12);
     const Interval own_speed = Norm(m.p1 - m.p0);
     if (m.parent < 0) {
+      // Linear position, and slerp turns about a fixed world axis: no
+      // acceleration at all.
       m.angular_bound = own_angular.hi();
       m.speed_bound = own_speed.hi();
+      m.accel_bound = 0;
+      m.angular_accel_bound = 0;
     } else {
       const LinkMotion& k = links_[m.parent];
-      const Interval lever = Interval::Hull(Norm(m.p0), Norm(m.p1));
-      m.angular_bound = (Interval(k.angular_bound) + own_angular).hi();
-      m.speed_bound =
-          (Interval(k.speed_bound) + Interval(k.angular_bound) * Interval(lever.hi()) + own_speed)
-              .hi();
+      const Interval lever(Interval::Hull(Norm(m.p0), Norm(m.p1)).hi());
+      const Interval wk(k.angular_bound);
+      m.angular_bound = (wk + own_angular).hi();
+      m.speed_bound = (Interval(k.speed_bound) + wk * lever + own_speed).hi();
+      // The relative slerp turns at a constant rate about an axis fixed in the
+      // parent frame, so w_i = w_k + R_k u with |u| = own angle and
+      // w_i' = w_k' + w_k x (R_k u). For p_i = p_k + R_k c(s), c linear:
+      // p_i'' = p_k'' + w_k' x R_k c + w_k x (w_k x R_k c) + 2 w_k x R_k c'.
+      m.angular_accel_bound = (Interval(k.angular_accel_bound) + wk * own_angular).hi();
+      m.accel_bound = (Interval(k.accel_bound) + Interval(k.angular_accel_bound) * lever +
+                       wk * wk * lever + Interval(2.0) * wk * own_speed)
+                          .hi();
     }
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
@@ -184,6 +195,28 @@ double PairMotion::SweepRadius(int link, double s0, double s1) const {
   const Interval speed =
       Interval(m.speed_bound) + Interval(m.angular_bound) * Interval(m.extent);
   return (speed * half_width + Interval(rounding_slack_)).hi();
+}
+
+void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
+                              Eigen::Vector3d* p_WB, double* growth) const {
+  const LinkMotion& m = links_[link];
+  const double mid = 0.5 * (s0 + s1);
+  SegmentAt(link, mid, p_WA, p_WB);
+  const double first_order = SweepRadius(link, s0, s1);
+  Eigen::Vector3d a0, b0, a1, b1;
+  SegmentAt(link, s0, &a0, &b0);
+  SegmentAt(link, s1, &a1, &b1);
+  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
+  const Interval w(m.angular_bound);
+  const Interval acc =
+      Interval(m.accel_bound) + (Interval(m.angular_accel_bound) + w * w) * Interval(m.extent);
+  const Interval width = Interval(s1) - Interval(s0);
+  const Interval chord = Interval::Hull(Norm(a1 - a0), Norm(b1 - b0));
+  // Each of the three evaluated segments is off by at most rounding_slack_.
+  const Interval second_order = Interval(chord.hi()) * Interval(0.5) +
+                                Interval(0.25) * Sqr(width) * acc +
+                                Interval(4.0) * Interval(rounding_slack_);
+  *growth = std::min(first_order, second_order.hi());
 }
 
 }  // namespace sweptccd

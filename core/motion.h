@@ -58,6 +58,20 @@ class PairMotion {
   /// the capsule around SegmentAt(midpoint) with radius radius + SweepRadius.
   double SweepRadius(int link, double s0, double s1) const;
 
+  /// The swept bound used by queries: the segment at the midpoint of [s0, s1]
+  /// and a radius growth such that the link's swept volume over [s0, s1] lies
+  /// within the capsule (p_WA, p_WB, link radius + growth). The growth is the
+  /// smaller of SweepRadius and a second-order bound: for every link point,
+  /// |P(s) - P(mid)| <= |P(s1) - P(s0)| / 2 + (s1 - s0)^2 / 4 * max |P''|,
+  /// from the chord error bound (s - s0)(s1 - s) / 2 * max |P''|.
+  void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                    double* growth) const;
+
+  /// Upper bound on |d^2 P / ds^2| for the link frame origin (m per unit s^2).
+  double origin_acceleration_bound(int link) const { return links_[link].accel_bound; }
+  /// Upper bound on |d omega / ds| of the link frame (rad per unit s^2).
+  double angular_acceleration_bound(int link) const { return links_[link].angular_accel_bound; }
+
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
 
@@ -73,6 +87,8 @@ class PairMotion {
     Eigen::Vector3d a_L, b_L;
     double speed_bound = 0;
     double angular_bound = 0;
+    double accel_bound = 0;
+    double angular_accel_bound = 0;
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "tools/bench_command.h"
+#include "tools/import_bvh_command.h"
 #include "tools/query_command.h"
 
 int main(int argc, char** argv) {
@@ -47,6 +48,11 @@ int main(int argc, char** argv) {
   CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");
   sweptccd::AddBenchOptions(bench, &b);
 
+  sweptccd::ImportBvhCommandOptions ib;
+  CLI::App* import_bvh =
+      app.add_subcommand("import-bvh", "BVH motion capture to a skeleton and a pose stream");
+  sweptccd::AddImportBvhOptions(import_bvh, &ib);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -58,5 +64,6 @@ int main(int argc, char** argv) {
     return sweptccd::RunQueryCommand(q);
   }
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
+  if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
   return 1;
 }

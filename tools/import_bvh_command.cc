@@ -1,0 +1,67 @@
+#include "tools/import_bvh_command.h"
+
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include "core/errors.h"
+#include "core/mocap_import.h"
+
+namespace sweptccd {
+
+void AddImportBvhOptions(CLI::App* app, ImportBvhCommandOptions* o) {
+  app->add_option("--bvh", o->bvh_path, "BVH motion-capture file")->required();
+  app->add_option("--skeleton-out", o->skeleton_out, "Skeleton JSON to write")->required();
+  app->add_option("--poses-out", o->poses_out, "Pose stream (JSON Lines) to write")->required();
+  app->add_option("--up", o->up_axis, "Up axis of the output: y (as BVH) or z")
+      ->check(CLI::IsMember({'y', 'z'}));
+  app->add_option("--unit", o->unit_scale_m, "Metres per file unit (default: detect)");
+  app->add_option("--rate", o->rate_hz, "Output rate in Hz by frame skipping (default: clip rate)");
+  app->add_option("--start", o->start_frame, "First frame (default: skip a reference T-pose)");
+  app->add_option("--frames", o->frame_count, "Frames to read (default: all)");
+  app->add_option("--offset", o->offset, "x y z metres added to every position")->expected(3);
+  app->add_option("--utime-start", o->utime_start, "Microseconds added to every utime");
+}
+
+int RunImportBvhCommand(const ImportBvhCommandOptions& o) {
+  try {
+    MocapImportOptions mo;
+    mo.up_axis = o.up_axis;
+    mo.unit_scale_m = o.unit_scale_m;
+    mo.start_frame = o.start_frame;
+    mo.frame_count = o.frame_count;
+    if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) {
+      throw InputError("import-bvh: --rate must be a positive number of Hz");
+    }
+    MocapClip probe = ImportBvhFile(o.bvh_path, mo);
+    if (o.rate_hz > 0) {
+      mo.frame_step = std::max(1, static_cast<int>(std::lround(1.0 / (probe.frame_time_s * o.rate_hz))));
+      probe = ImportBvhFile(o.bvh_path, mo);
+    }
+    if (o.offset.size() == 3) {
+      TranslateClip(&probe, Eigen::Vector3d(o.offset[0], o.offset[1], o.offset[2]));
+    }
+    std::ofstream skel(o.skeleton_out);
+    if (!skel) throw InputError(o.skeleton_out + ": cannot write the skeleton");
+    skel << SkeletonToJson(probe.skeleton) << '\n';
+    std::ofstream poses(o.poses_out);
+    if (!poses) throw InputError(o.poses_out + ": cannot write the poses");
+    for (Pose pose : probe.poses) {
+      pose.utime += static_cast<int64_t>(o.utime_start);
+      poses << PoseToJsonLine(pose) << '\n';
+    }
+    if (!skel || !poses) throw InputError("import-bvh: error while writing the output files");
+    spdlog::info("{}: {} links, {} poses at {:.1f} Hz, {:.4f} m per unit", o.bvh_path,
+                 probe.skeleton.num_links(), probe.poses.size(), 1.0 / probe.frame_time_s,
+                 probe.unit_scale_m);
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}
+
+}  // namespace sweptccd
