@@ -90,7 +90,11 @@ class QueryRun {
         utime0_(static_cast<double>(pose0.utime)),
         dt_us_(static_cast<double>(pose1.utime - pose0.utime)),
         eps_us_(options.eps_s * 1e6),
-        tol_(env_.coordinate_tolerance()) {}
+        // The environment's float storage, and the rounding of the distance
+        // routines: at most ~2e-8 of the coordinates' magnitude (see
+        // tests/core/distance_test.cc); 2^-22 of the avatar's is ten times that.
+        tol_(std::max(env_.coordinate_tolerance(),
+                      std::ldexp(motion_.coordinate_scale(), -22) + 1e-9)) {}
 
   QueryResult Run();
 

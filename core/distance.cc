@@ -59,6 +59,17 @@ double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vec
   }
   *c1 = p1 + d1 * s;
   *c2 = p2 + d2 * t;
+  // Near-parallel segments make the closed form ill-conditioned. Alternating
+  // projections (closest point on one segment to a point of the other) are
+  // each well-conditioned and never increase the distance; two rounds recover
+  // the lost digits.
+  for (int round = 0; round < 2; ++round) {
+    if (e > 0) t = std::clamp((*c1 - p2).dot(d2) / e, 0.0, 1.0);
+    *c2 = p2 + d2 * t;
+    if (a > 0) s = std::clamp((*c2 - p1).dot(d1) / a, 0.0, 1.0);
+    const Eigen::Vector3d next = p1 + d1 * s;
+    if ((next - *c2).squaredNorm() <= (*c1 - *c2).squaredNorm()) *c1 = next;
+  }
   double best = (*c1 - *c2).squaredNorm();
   // Robustness: the clamped solution above is exact in exact arithmetic; with
   // rounding (nearly parallel segments) the endpoint-to-segment distances are
@@ -113,35 +124,53 @@ Eigen::Vector3d ClosestPointOnEdges(const Eigen::Vector3d& p, const Eigen::Vecto
 
 }  // namespace
 
-// Ericson 5.1.5 (Voronoi regions) for proper triangles.
+namespace {
+
+// The unit normal of a proper triangle from the two edges at the vertex
+// opposite the longest edge: the cross product of the two shortest edges has
+// relative error ~ eps * L / h for a sliver of length L and height h, where
+// barycentric formulas lose ~ eps * (L / h)^2. The orientation is that of
+// (b - a) x (c - a).
+Eigen::Vector3d StableUnitNormal(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                 const Eigen::Vector3d& c) {
+  const double ab = (b - a).squaredNorm(), bc = (c - b).squaredNorm(), ca = (a - c).squaredNorm();
+  Eigen::Vector3d n;
+  if (bc >= ab && bc >= ca) {
+    n = (b - a).cross(c - a);  // Longest edge bc: vertex a.
+  } else if (ca >= ab) {
+    n = (c - b).cross(a - b);  // Longest edge ca: vertex b.
+  } else {
+    n = (a - c).cross(b - c);  // Longest edge ab: vertex c.
+  }
+  return n.normalized();
+}
+
+// Whether q (on the triangle's plane, up to rounding) is inside the triangle.
+bool InsideTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& n, const Eigen::Vector3d& a,
+                    const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  return n.dot((b - a).cross(q - a)) >= 0 && n.dot((c - b).cross(q - b)) >= 0 &&
+         n.dot((a - c).cross(q - c)) >= 0;
+}
+
+}  // namespace
+
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                        const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
   if (IsDegenerateTriangle(a, b, c)) return ClosestPointOnEdges(p, a, b, c);
-  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const Eigen::Vector3d bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + (d1 / (d1 - d3)) * ab;
-  const Eigen::Vector3d cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + (d2 / (d2 - d6)) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
-    return b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b);
-  }
-  const double denom = va + vb + vc;
-  if (!(denom > 0)) return ClosestPointOnEdges(p, a, b, c);
-  const double v = vb / denom, w = vc / denom;
-  const Eigen::Vector3d inside = a + ab * v + ac * w;
-  // Guard against rounding on slivers: never return a point farther than the
-  // best edge point.
+  // Project onto the plane; inside: that is the closest point. Outside: the
+  // closest point is on the boundary (edges are well-conditioned).
+  const Eigen::Vector3d n = StableUnitNormal(a, b, c);
+  // Measure from the nearest vertex: smaller differences, smaller rounding.
+  const Eigen::Vector3d& base =
+      (p - a).squaredNorm() <= (p - b).squaredNorm()
+          ? ((p - a).squaredNorm() <= (p - c).squaredNorm() ? a : c)
+          : ((p - b).squaredNorm() <= (p - c).squaredNorm() ? b : c);
+  const Eigen::Vector3d q = p - n * n.dot(p - base);
   const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
-  return (inside - p).squaredNorm() <= (edge - p).squaredNorm() ? inside : edge;
+  if (InsideTriangle(q, n, a, b, c) && (q - p).squaredNorm() <= (edge - p).squaredNorm()) {
+    return q;
+  }
+  return edge;
 }
 
 SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
@@ -160,19 +189,19 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
   const bool degenerate = IsDegenerateTriangle(a, b, c);
   if (!degenerate) {
     // Crossing the plane inside the triangle: distance 0.
-    const Eigen::Vector3d n = (b - a).cross(c - a);
+    const Eigen::Vector3d n = StableUnitNormal(a, b, c);
     const double d0 = n.dot(s0 - a), d1 = n.dot(s1 - a);
     if ((d0 <= 0 && d1 >= 0) || (d0 >= 0 && d1 <= 0)) {
       if (d0 != d1) {
         const double t = d0 / (d0 - d1);
         const Eigen::Vector3d x = s0 + t * (s1 - s0);
-        // Barycentric inside test with edge normals (no division).
-        const bool inside = n.dot((b - a).cross(x - a)) >= 0 && n.dot((c - b).cross(x - b)) >= 0 &&
-                            n.dot((a - c).cross(x - c)) >= 0;
-        if (inside) {
+        if (InsideTriangle(x, n, a, b, c)) {
+          // Put the triangle's point exactly on its plane (x may be off it by
+          // rounding); the segment's point stays on the segment.
           best.distance = 0;
           best.p_segment = x;
-          best.p_triangle = x;
+          best.p_triangle = x - n * n.dot(x - a);
+          best.distance = (best.p_segment - best.p_triangle).norm();
           return best;
         }
       }

@@ -30,6 +30,8 @@ Interval Sin(const Interval& x) {
   return Interval(std::max(-1.0, lo), std::min(1.0, hi));
 }
 
-Interval Cos(const Interval& x) { return Sin(x + Interval(kPi / 2 - 1e-16, kPi / 2 + 1e-16)); }
+// cos(x) = sin(x + pi/2). The double kPi / 2 is 6.1e-17 below pi/2, so the
+// shift interval must reach the next double up to contain the true pi/2.
+Interval Cos(const Interval& x) { return Sin(x + Interval(kPi / 2, std::nextafter(kPi / 2, 4.0))); }
 
 }  // namespace sweptccd

@@ -145,6 +145,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     depth = std::max(depth, d);
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
+  coordinate_scale_ = scale;
 }
 
 Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) const {

@@ -74,6 +74,9 @@ class PairMotion {
 
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
+  /// Largest absolute coordinate of the poses (world and relative) and link
+  /// extent: the magnitude rounding errors of geometry on this motion scale with.
+  double coordinate_scale() const { return coordinate_scale_; }
 
  private:
   struct LinkMotion {
@@ -97,6 +100,7 @@ class PairMotion {
   std::vector<LinkMotion> links_;
   std::vector<int> order_;
   double rounding_slack_ = 0;
+  double coordinate_scale_ = 0;
 };
 
 }  // namespace sweptccd

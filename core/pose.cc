@@ -16,7 +16,8 @@ std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
     if (!lp.p.allFinite() || !lp.q.coeffs().allFinite()) {
       return "link " + std::to_string(i) + ": non-finite number";
     }
-    const double norm = lp.q.norm();
+    // stableNorm: the plain norm overflows for components near 1e200.
+    const double norm = lp.q.coeffs().stableNorm();
     if (!(norm >= kMinQuaternionNorm)) {
       return "link " + std::to_string(i) + ": quaternion norm " + std::to_string(norm) +
              " is below 1e-6";

@@ -56,8 +56,17 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
     }
   }
   if (root == -1) {
-    throw InputError(source + ": no root link (exactly one link needs \"parent\": null); "
-                              "the parents form a loop");
+    // Every link has a parent, so following parents from link 0 must cycle:
+    // name a link on that loop.
+    std::vector<bool> seen(n, false);
+    int k = 0;
+    while (!seen[k]) {
+      seen[k] = true;
+      k = links[k].parent;
+    }
+    throw InputError(source + ": " + LinkLabel(links, k) +
+                     ": its chain of parents forms a loop, and no link is the root "
+                     "(exactly one link needs \"parent\": null)");
   }
   // Every link must reach the root by following parents; otherwise it is on a loop.
   for (int i = 0; i < n; ++i) {
@@ -96,6 +105,27 @@ int Skeleton::FindLink(const std::string& name) const {
 
 namespace {
 
+// For an overflow message "... parsing '1e999'": "link 'NAME': " of the link
+// object around the first occurrence of that number, or "" if not found.
+std::string LinkAround(const std::string& text, const std::string& message) {
+  const size_t q1 = message.rfind('\'');
+  const size_t q0 = q1 == std::string::npos ? q1 : message.rfind('\'', q1 - 1);
+  if (q0 == std::string::npos || q1 <= q0 + 1) return {};
+  const size_t at = text.find(message.substr(q0 + 1, q1 - q0 - 1));
+  if (at == std::string::npos) return {};
+  const size_t open = text.rfind('{', at);
+  if (open == std::string::npos) return {};
+  const size_t close = text.find('}', at);
+  const std::string object = text.substr(open, close == std::string::npos ? std::string::npos
+                                                                          : close - open);
+  const size_t key = object.find("\"name\"");
+  if (key == std::string::npos) return {};
+  const size_t v0 = object.find('"', object.find(':', key) + 1);
+  const size_t v1 = v0 == std::string::npos ? v0 : object.find('"', v0 + 1);
+  if (v1 == std::string::npos) return {};
+  return "link '" + object.substr(v0 + 1, v1 - v0 - 1) + "': ";
+}
+
 Eigen::Vector3d ParseVec3(const nlohmann::json& j, const std::string& who, const char* field) {
   if (!j.is_array() || j.size() != 3) {
     throw InputError(who + ": '" + field + "' must be an array of 3 numbers");
@@ -115,6 +145,11 @@ Skeleton ParseSkeletonJson(const std::string& text, const std::string& source) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::out_of_range& e) {
+    // A number too large for a double (1e999) is the only way JSON can hold a
+    // non-finite value; the parser refuses it before we see the link.
+    throw InputError(source + ": " + LinkAround(text, e.what()) +
+                     "non-finite number (it overflows a double): " + e.what());
   } catch (const nlohmann::json::exception& e) {
     throw InputError(source + ": not valid JSON (" + e.what() + ")");
   }
