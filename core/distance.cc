@@ -71,6 +71,47 @@ double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vec
     if ((next - *c2).squaredNorm() <= (*c1 - *c2).squaredNorm()) *c1 = next;
   }
   double best = (*c1 - *c2).squaredNorm();
+  if (a > 0 && e > 0) {
+    const double b = d1.dot(d2);
+    if (a * e - b * b <= 1e-4 * a * e) {
+      // Nearly parallel (under ~0.01 rad): the closed form loses up to
+      // eps / angle^2 and alternating projections converge too slowly. The
+      // squared distance from P1(s) to the other segment is convex in s:
+      // golden-section search over s, each step a well-conditioned
+      // projection.
+      auto f = [&](double u, Eigen::Vector3d* x1, Eigen::Vector3d* x2) {
+        *x1 = p1 + d1 * u;
+        ClosestPointOnSegment(*x1, p2, q2, x2);
+        return (*x1 - *x2).squaredNorm();
+      };
+      constexpr double kGolden = 0.6180339887498949;
+      double lo = 0, hi = 1;
+      Eigen::Vector3d x1, x2;
+      double m1 = hi - kGolden * (hi - lo), m2 = lo + kGolden * (hi - lo);
+      double f1 = f(m1, &x1, &x2), f2 = f(m2, &x1, &x2);
+      for (int it = 0; it < 80 && hi - lo > 1e-15; ++it) {
+        if (f1 <= f2) {
+          hi = m2;
+          m2 = m1;
+          f2 = f1;
+          m1 = hi - kGolden * (hi - lo);
+          f1 = f(m1, &x1, &x2);
+        } else {
+          lo = m1;
+          m1 = m2;
+          f1 = f2;
+          m2 = lo + kGolden * (hi - lo);
+          f2 = f(m2, &x1, &x2);
+        }
+      }
+      const double d = f(0.5 * (lo + hi), &x1, &x2);
+      if (d < best) {
+        best = d;
+        *c1 = x1;
+        *c2 = x2;
+      }
+    }
+  }
   // Robustness: the clamped solution above is exact in exact arithmetic; with
   // rounding (nearly parallel segments) the endpoint-to-segment distances are
   // a cheap safety net that can only lower the answer towards the true one.
@@ -99,10 +140,11 @@ bool IsDegenerateTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
   const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
   const double n2 = ab.cross(ac).squaredNorm();
   const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
-  // |n| = 2 * area. Relative to the longest edge squared, a ratio below 1e-12
-  // means the height is below 1e-12 of the longest edge: a sliver we treat as
-  // its edges (the distance error is then at most that height).
-  return n2 <= 1e-24 * longest2 * longest2;
+  // |n| = 2 * area = longest edge * height. A height below 1e-8 of the
+  // longest edge makes a sliver we treat as its edges: the distance is then
+  // off by at most that height, while the plane of a thinner sliver is only
+  // known to ~1e-16 * L / h radians, which misplaces the projection by more.
+  return n2 <= 1e-16 * longest2 * longest2;
 }
 
 namespace {
@@ -198,10 +240,11 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
         if (InsideTriangle(x, n, a, b, c)) {
           // Put the triangle's point exactly on its plane (x may be off it by
           // rounding); the segment's point stays on the segment.
+          // They intersect: distance 0. The triangle's point is put exactly
+          // on its plane (x may be off it by rounding, ~1e-16 of the scale).
           best.distance = 0;
           best.p_segment = x;
           best.p_triangle = x - n * n.dot(x - a);
-          best.distance = (best.p_segment - best.p_triangle).norm();
           return best;
         }
       }
