@@ -22,6 +22,35 @@ std::string ValidateQueryOptions(const QueryOptions& options) {
   return {};
 }
 
+double PairDurationUs(int64_t utime0, int64_t utime1) {
+  // long double holds any int64 exactly, so the difference is exact there.
+  return static_cast<double>(static_cast<long double>(utime1) - static_cast<long double>(utime0));
+}
+
+namespace {
+
+long double ExactTime(int64_t utime0, int64_t utime1, double s) {
+  return static_cast<long double>(utime0) +
+         static_cast<long double>(s) *
+             (static_cast<long double>(utime1) - static_cast<long double>(utime0));
+}
+
+}  // namespace
+
+double BracketTimeLo(int64_t utime0, int64_t utime1, double s) {
+  const long double exact = ExactTime(utime0, utime1, s);
+  double t = static_cast<double>(exact);
+  if (static_cast<long double>(t) > exact) t = std::nextafter(t, -HUGE_VAL);
+  return t;
+}
+
+double BracketTimeHi(int64_t utime0, int64_t utime1, double s) {
+  const long double exact = ExactTime(utime0, utime1, s);
+  double t = static_cast<double>(exact);
+  if (static_cast<long double>(t) < exact) t = std::nextafter(t, HUGE_VAL);
+  return t;
+}
+
 namespace {
 
 // A candidate triangle: object index and BVH slot.
@@ -39,6 +68,8 @@ struct Task {
   uint32_t cand_count;
   bool requery;      // ...or, when true, query the BVHs afresh.
   bool prefiltered;  // The list was built for exactly this interval.
+  // The link's segment at s0 and at s1, shared with the parent interval.
+  Eigen::Vector3d a0, b0, a1, b1;
 };
 
 struct TaskLater {
@@ -87,8 +118,9 @@ class QueryRun {
         filter_(engine.filter()),
         options_(options),
         motion_(skel_, pose0, pose1, options.motion),
-        utime0_(static_cast<double>(pose0.utime)),
-        dt_us_(static_cast<double>(pose1.utime - pose0.utime)),
+        utime0_(pose0.utime),
+        utime1_(pose1.utime),
+        dt_us_(PairDurationUs(pose0.utime, pose1.utime)),
         eps_us_(options.eps_s * 1e6),
         // The environment's float storage, and the rounding of the distance
         // routines: at most ~2e-8 of the coordinates' magnitude (see
@@ -130,7 +162,8 @@ class QueryRun {
   const CollisionFilter& filter_;
   const QueryOptions& options_;
   PairMotion motion_;
-  double utime0_, dt_us_, eps_us_, tol_;
+  int64_t utime0_, utime1_;
+  double dt_us_, eps_us_, tol_;
 
   std::vector<Candidate> pool_;
   std::vector<Capsule> top_capsule_;
@@ -344,8 +377,11 @@ QueryResult QueryRun::Run() {
       continue;
     }
     ++result_.stats.links_tested;
-    queue_.push(Task{0, 1, l, 0, top_begin_[l], top_count_[l], static_cast<bool>(top_overflow_[l]),
-                     true});
+    Task root{0, 1, l, 0, top_begin_[l], top_count_[l], static_cast<bool>(top_overflow_[l]), true,
+              {}, {}, {}, {}};
+    motion_.SegmentAt(l, 0, &root.a0, &root.b0);
+    motion_.SegmentAt(l, 1, &root.a1, &root.b1);
+    queue_.push(root);
   }
   bool out_of_work = false;
   while (!queue_.empty()) {
@@ -361,13 +397,17 @@ QueryResult QueryRun::Run() {
     uint32_t begin = static_cast<uint32_t>(pool_.size());
     uint32_t count = 0;
     bool requery = false;
+    Capsule cap;
+    double growth;
+    motion_.SweptCapsuleFromEnds(task.link, task.s0, task.s1, task.a0, task.b0, task.a1, task.b1,
+                                 &cap.a, &cap.b, &growth);
+    cap.radius = skel_.link(task.link).radius + growth + tol_;
     if (task.prefiltered) {
       // The root interval: InitialCandidates already tested this capsule.
       begin = task.cand_begin;
       count = task.requery ? 1 : task.cand_count;
       requery = task.requery;
     } else {
-      const Capsule cap = SweptCapsule(task.link, task.s0, task.s1);
       if (task.requery) {
         if (CollectFromBvh(task.link, cap, -1, 0)) {
           count = static_cast<uint32_t>(pool_.size() - begin);
@@ -385,9 +425,11 @@ QueryResult QueryRun::Run() {
     }
     if (count == 0) continue;  // Certified free over [s0, s1].
 
-    const double t_lo = utime0_ + task.s0 * dt_us_;
-    const double t_hi = utime0_ + task.s1 * dt_us_;
-    if (t_hi - t_lo <= eps_us_) {
+    const double t_lo = BracketTimeLo(utime0_, utime1_, task.s0);
+    const double t_hi = BracketTimeHi(utime0_, utime1_, task.s1);
+    // G2 in both readings: the width in s times the pair's duration, and the
+    // difference of the printed times (which rounds at epoch-size utimes).
+    if ((task.s1 - task.s0) * dt_us_ <= eps_us_ && t_hi - t_lo <= eps_us_) {
       // Narrow enough: look for a time with separation <= delta (G3).
       ContactRecord best, sample;
       bool have = false;
@@ -415,8 +457,11 @@ QueryResult QueryRun::Run() {
       if (!options_.per_link) break;
       continue;
     }
-    queue_.push(Task{task.s0, mid, task.link, task.depth + 1, begin, count, requery, false});
-    queue_.push(Task{mid, task.s1, task.link, task.depth + 1, begin, count, requery, false});
+    // cap.a, cap.b is the segment at mid.
+    queue_.push(Task{task.s0, mid, task.link, task.depth + 1, begin, count, requery, false, task.a0,
+                     task.b0, cap.a, cap.b});
+    queue_.push(Task{mid, task.s1, task.link, task.depth + 1, begin, count, requery, false, cap.a,
+                     cap.b, task.a1, task.b1});
   }
   if (out_of_work) {
     // Every link with work left is undecided from its earliest open interval.
@@ -471,6 +516,7 @@ CcdEngine::CcdEngine(const Skeleton& skeleton, const Environment& environment,
 QueryResult CcdEngine::Query(const Pose& pose0, const Pose& pose1,
                              const QueryOptions& options) const {
   SWEPTCCD_CHECK(pose1.utime > pose0.utime);
+  SWEPTCCD_CHECK(ValidateQueryOptions(options).empty());
   QueryRun run(*this, pose0, pose1, options);
   return run.Run();
 }

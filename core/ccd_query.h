@@ -70,6 +70,14 @@ struct QueryResult {
   QueryStats stats;
 };
 
+/// Duration of a pair in microseconds, without int64 overflow.
+double PairDurationUs(int64_t utime0, int64_t utime1);
+/// The time (microseconds) of s in the pair, rounded down: printed as t_lo it
+/// is never later than the certified s_lo.
+double BracketTimeLo(int64_t utime0, int64_t utime1, double s);
+/// The time of s rounded up (for t_hi).
+double BracketTimeHi(int64_t utime0, int64_t utime1, double s);
+
 /// Answers queries for one skeleton against one environment. Holds references:
 /// the skeleton and environment must outlive it. Query is const and
 /// thread-safe (each call uses its own scratch memory).

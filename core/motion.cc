@@ -200,13 +200,20 @@ double PairMotion::SweepRadius(int link, double s0, double s1) const {
 
 void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
                               Eigen::Vector3d* p_WB, double* growth) const {
+  Eigen::Vector3d a0, b0, a1, b1;
+  SegmentAt(link, s0, &a0, &b0);
+  SegmentAt(link, s1, &a1, &b1);
+  SweptCapsuleFromEnds(link, s0, s1, a0, b0, a1, b1, p_WA, p_WB, growth);
+}
+
+void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                                      const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                                      const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
+                                      Eigen::Vector3d* p_WB, double* growth) const {
   const LinkMotion& m = links_[link];
   const double mid = 0.5 * (s0 + s1);
   SegmentAt(link, mid, p_WA, p_WB);
   const double first_order = SweepRadius(link, s0, s1);
-  Eigen::Vector3d a0, b0, a1, b1;
-  SegmentAt(link, s0, &a0, &b0);
-  SegmentAt(link, s1, &a1, &b1);
   // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
   const Interval w(m.angular_bound);
   const Interval acc =

@@ -66,6 +66,12 @@ class PairMotion {
   /// from the chord error bound (s - s0)(s1 - s) / 2 * max |P''|.
   void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
                     double* growth) const;
+  /// As SweptCapsule, given the segments at s0 (a0, b0) and s1 (a1, b1) as
+  /// SegmentAt computes them (time slicing reuses them from the parent).
+  void SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                            const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                            const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
+                            Eigen::Vector3d* p_WB, double* growth) const;
 
   /// Upper bound on |d^2 P / ds^2| for the link frame origin (m per unit s^2).
   double origin_acceleration_bound(int link) const { return links_[link].accel_bound; }

@@ -17,6 +17,9 @@ std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
       return "link " + std::to_string(i) + ": non-finite number";
     }
     // stableNorm: the plain norm overflows for components near 1e200.
+    if (lp.p.cwiseAbs().maxCoeff() > kMaxCoordinate) {
+      return "link " + std::to_string(i) + ": position beyond 1e9 m";
+    }
     const double norm = lp.q.coeffs().stableNorm();
     if (!(norm >= kMinQuaternionNorm)) {
       return "link " + std::to_string(i) + ": quaternion norm " + std::to_string(norm) +

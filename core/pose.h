@@ -25,6 +25,10 @@ struct Pose {
 
 /// Quaternions below this norm make a pose invalid (SPEC section 2).
 inline constexpr double kMinQuaternionNorm = 1e-6;
+/// Positions beyond this many metres from the origin make a pose invalid: the
+/// geometry would overflow (1e308 squared) long before such numbers mean
+/// anything for a tracked body.
+inline constexpr double kMaxCoordinate = 1e9;
 
 /// Checks finiteness and quaternion norms and normalises the quaternions.
 /// Returns an empty string when valid, else a message naming the link.

@@ -20,11 +20,7 @@ nlohmann::json ContactJson(const ContactRecord& c) {
 }
 
 // nlohmann's dump() writes doubles in the shortest form that reads back
-// exactly, so the brackets keep every bit.
-double TimeAt(int64_t utime0, int64_t utime1, double s) {
-  return static_cast<double>(utime0) + s * static_cast<double>(utime1 - utime0);
-}
-
+// exactly, so the brackets keep every bit. t_lo rounds down and t_hi up.
 }  // namespace
 
 std::string ResultToJson(int64_t pair, int64_t utime0, int64_t utime1, const QueryResult& result,
@@ -39,8 +35,8 @@ std::string ResultToJson(int64_t pair, int64_t utime0, int64_t utime1, const Que
     j["undecided"] = result.undecided;
     j["s_lo"] = result.s_lo;
     j["s_hi"] = result.s_hi;
-    j["t_lo"] = TimeAt(utime0, utime1, result.s_lo);
-    j["t_hi"] = TimeAt(utime0, utime1, result.s_hi);
+    j["t_lo"] = BracketTimeLo(utime0, utime1, result.s_lo);
+    j["t_hi"] = BracketTimeHi(utime0, utime1, result.s_hi);
     nlohmann::json contacts = nlohmann::json::array();
     for (const ContactRecord& c : result.contacts) contacts.push_back(ContactJson(c));
     j["contacts"] = contacts;
@@ -54,8 +50,8 @@ std::string ResultToJson(int64_t pair, int64_t utime0, int64_t utime1, const Que
       nlohmann::json e = {{"link", b.link},
                           {"s_lo", b.s_lo},
                           {"s_hi", b.s_hi},
-                          {"t_lo", TimeAt(utime0, utime1, b.s_lo)},
-                          {"t_hi", TimeAt(utime0, utime1, b.s_hi)},
+                          {"t_lo", BracketTimeLo(utime0, utime1, b.s_lo)},
+                          {"t_hi", BracketTimeHi(utime0, utime1, b.s_hi)},
                           {"initially_colliding", b.initially_colliding},
                           {"undecided", b.undecided}};
       if (b.has_witness) e["contact"] = ContactJson(b.witness);

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/errors.h"
+#include "core/pose.h"
 
 namespace sweptccd {
 namespace {
@@ -40,6 +41,10 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
       throw InputError(who + ": 'a' or 'b' holds a non-finite number");
     }
     if (!std::isfinite(l.radius)) throw InputError(who + ": radius is not a finite number");
+    if (l.a_L.cwiseAbs().maxCoeff() > kMaxCoordinate || l.b_L.cwiseAbs().maxCoeff() > kMaxCoordinate ||
+        l.radius > kMaxCoordinate) {
+      throw InputError(who + ": 'a', 'b' or radius is beyond 1e9 m");
+    }
     if (!(l.radius > 0)) {
       throw InputError(who + ": radius must be > 0, got " + std::to_string(l.radius));
     }

@@ -55,8 +55,14 @@ int main(int argc, char** argv) {
 
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // One line, exit status 2, like every other refusal.
+    std::fprintf(stderr, "error: sweptccd: %s\n", e.what());
+    return 2;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
   if (query->parsed()) {
