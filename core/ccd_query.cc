@@ -142,6 +142,20 @@ class QueryRun {
     Eigen::Vector3d ta, tb, tc;
     env_.object(c.object).bvh.Triangle(c.slot, &ta, &tb, &tc);
     ++result_.stats.triangle_tests;
+    // Cheap answers first: the triangle's bounding sphere around ta misses
+    // the capsule (reject), or a vertex is inside it (accept). Both compare
+    // squared distances with a relative margin of 1e-9 towards "inside".
+    const Eigen::Vector3d d = cap.b - cap.a;
+    const double dd = d.squaredNorm();
+    const double reach = std::sqrt(std::max((tb - ta).squaredNorm(), (tc - ta).squaredNorm()));
+    const double da = PointSegmentDistanceSquared(ta, cap.a, d, dd);
+    const double far = cap.radius + reach;
+    if (da > far * far * (1 + 1e-9)) return false;
+    if (da <= cap.radius * cap.radius * (1 - 1e-9) ||
+        PointSegmentDistanceSquared(tb, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9) ||
+        PointSegmentDistanceSquared(tc, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9)) {
+      return true;
+    }
     return SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
   }
   // Appends to the pool every unfiltered triangle within the capsule, found
@@ -369,9 +383,29 @@ QueryResult QueryRun::Run() {
   const int n = skel_.num_links();
   link_done_.assign(n, false);
   pool_.reserve(1024);
-  InitialCandidates();
-  for (int l = 0; l < n; ++l) {
-    if (filter_.IgnoresAll(l)) continue;
+  // A link touching at s = 0 answers at once: [0, w] with w the first
+  // dyadic width that meets G2 (the interval the chronological descent would
+  // reach), the witness at s = 0 (separation <= 0 <= delta); G1 is empty.
+  {
+    double w = 1;
+    while (w > 1e-300 && ((w * dt_us_ > eps_us_) ||
+                          BracketTimeHi(utime0_, utime1_, w) - BracketTimeLo(utime0_, utime1_, 0) >
+                              eps_us_)) {
+      w *= 0.5;
+    }
+    for (int l = 0; l < n; ++l) {
+      if (filter_.IgnoresAll(l)) continue;
+      ContactRecord at_zero;
+      if (!engine_.Separation(motion_, l, 0.0, tol_, &at_zero) || at_zero.separation > 0) continue;
+      Task leaf{0, w, l, 0, 0, 0, false, false, {}, {}, {}, {}};
+      ++result_.stats.links_tested;
+      FinishLeaf(leaf, at_zero);
+      if (!options_.per_link) break;
+    }
+  }
+  if (options_.per_link || result_.links.empty()) InitialCandidates();
+  for (int l = 0; l < n && (options_.per_link || result_.links.empty()); ++l) {
+    if (filter_.IgnoresAll(l) || link_done_[l]) continue;
     if (top_count_[l] == 0 && !top_overflow_[l]) {
       ++result_.stats.links_culled;
       continue;
@@ -384,7 +418,7 @@ QueryResult QueryRun::Run() {
     queue_.push(root);
   }
   bool out_of_work = false;
-  while (!queue_.empty()) {
+  while (!queue_.empty() && (options_.per_link || result_.links.empty())) {
     const Task task = queue_.top();
     queue_.pop();
     if (link_done_[task.link]) continue;

@@ -1,0 +1,75 @@
+// Micro-benchmarks of the hot routines (Google Benchmark). Not a test: run
+// build/bin/sweptccd_micro_bench [--benchmark_repetitions=10] by hand.
+
+#include <benchmark/benchmark.h>
+
+#include <random>
+
+#include "core/bvh.h"
+#include "core/ccd_query.h"
+#include "core/distance.h"
+#include "core/environment.h"
+#include "core/mesh.h"
+#include "core/mocap_import.h"
+#include "core/motion.h"
+
+namespace sweptccd {
+namespace {
+
+const std::string kData = SWEPTCCD_SHARED_DATA;
+
+void BM_SegmentTriangleDistance(benchmark::State& state) {
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<Eigen::Vector3d> p(5 * 1024);
+  for (auto& v : p) v = Eigen::Vector3d(u(rng), u(rng), u(rng));
+  size_t i = 0;
+  for (auto _ : state) {
+    const size_t k = 5 * (i++ % 1024);
+    benchmark::DoNotOptimize(SegmentTriangleDistance(p[k], p[k + 1], p[k + 2], p[k + 3], p[k + 4]));
+  }
+}
+BENCHMARK(BM_SegmentTriangleDistance);
+
+void BM_BvhBuildBunny(benchmark::State& state) {
+  const TriangleMesh mesh = LoadMeshFile(kData + "/env/stanford_bunny.obj");
+  for (auto _ : state) benchmark::DoNotOptimize(TriangleBvh(mesh));
+  state.counters["triangles"] = static_cast<double>(mesh.num_triangles());
+}
+BENCHMARK(BM_BvhBuildBunny)->Unit(benchmark::kMillisecond);
+
+void BM_SweptCapsule(benchmark::State& state) {
+  const MocapClip clip = ImportBvhFile(kData + "/mocap/boxing_toes.bvh");
+  const PairMotion motion(clip.skeleton, clip.poses[100], clip.poses[103],
+                          MotionModel::kArticulated);
+  Eigen::Vector3d a, b;
+  double g;
+  int link = 0;
+  for (auto _ : state) {
+    motion.SweptCapsule(link, 0.25, 0.5, &a, &b, &g);
+    benchmark::DoNotOptimize(g);
+    link = (link + 1) % 16;
+  }
+}
+BENCHMARK(BM_SweptCapsule);
+
+// One pair of a 30 Hz walk through the grey & white room (143k triangles).
+void BM_QueryWalkGreyRoom(benchmark::State& state) {
+  static const Environment env = Environment::LoadFiles({kData + "/env/bitterli_grey_white_room.ply"});
+  MocapImportOptions mo;
+  mo.frame_step = 4;
+  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh", mo);
+  TranslateClip(&clip, Eigen::Vector3d(2.3 - 0.57, 0.0, -1.5));
+  const CcdEngine engine(clip.skeleton, env);
+  size_t k = 0;
+  for (auto _ : state) {
+    const size_t i = k++ % (clip.poses.size() - 1);
+    benchmark::DoNotOptimize(engine.Query(clip.poses[i], clip.poses[i + 1], QueryOptions()));
+  }
+}
+BENCHMARK(BM_QueryWalkGreyRoom)->Unit(benchmark::kMicrosecond);
+
+}  // namespace
+}  // namespace sweptccd
+
+BENCHMARK_MAIN();
