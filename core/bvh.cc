@@ -90,7 +90,8 @@ TriangleBvh::TriangleBvh(const TriangleMesh& mesh) {
     int best_axis = -1, best_split = 0;
     for (int axis = 0; axis < 3; ++axis) {
       const float extent = cbox.hi[axis] - cbox.lo[axis];
-      if (!(extent > 0)) continue;
+      // Below ~1e-30 kBins / extent overflows to inf (and 0 * inf is NaN).
+      if (!(extent > 1e-30f)) continue;
       const float scale = kBins / extent;
       for (int b = 0; b < kBins; ++b) {
         bin_box[b] = Box{};

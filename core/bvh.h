@@ -146,8 +146,18 @@ void TriangleBvh::QueryCapsuleShrinking(const Eigen::Vector3d& p0, const Eigen::
       }
     }
     if (node.count == 0) {
-      stack[top++] = node.first;
-      stack[top++] = node.first + 1;
+      // Nearer child first (popped first): a nearest search then shrinks its
+      // radius sooner. Either order visits the same set for a fixed radius.
+      const Node& l = nodes_[node.first];
+      const Node& rr = nodes_[node.first + 1];
+      const Eigen::Vector3d cl(0.5f * (l.lo[0] + l.hi[0]), 0.5f * (l.lo[1] + l.hi[1]),
+                               0.5f * (l.lo[2] + l.hi[2]));
+      const Eigen::Vector3d cr(0.5f * (rr.lo[0] + rr.hi[0]), 0.5f * (rr.lo[1] + rr.hi[1]),
+                               0.5f * (rr.lo[2] + rr.hi[2]));
+      const bool left_nearer =
+          PointSegmentDistanceSquared(cl, p0, d, dd) <= PointSegmentDistanceSquared(cr, p0, d, dd);
+      stack[top++] = left_nearer ? node.first + 1 : node.first;
+      stack[top++] = left_nearer ? node.first : node.first + 1;
       continue;
     }
     const Eigen::Vector3d seg_lo = p0.cwiseMin(p1).array() - r;

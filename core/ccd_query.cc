@@ -166,7 +166,7 @@ class QueryRun {
   void CollectDual(const std::vector<int>& links, int object, uint32_t env_node);
   // Exact separation of `link` at s over the candidates in the pool range.
   bool BestSample(int link, double s, uint32_t begin, uint32_t count, ContactRecord* best);
-  void FinishLeaf(const Task& task, const ContactRecord& witness);
+  void FinishLeaf(const Task& task, const ContactRecord& witness, bool exact_witness = false);
   void FinishUndecided(int link, double s_lo);
   bool InitiallyTouching(int link);
 
@@ -338,12 +338,9 @@ bool QueryRun::BestSample(int link, double s, uint32_t begin, uint32_t count,
   return found;
 }
 
-bool QueryRun::InitiallyTouching(int link) {
-  ContactRecord r;
-  return engine_.Separation(motion_, link, 0.0, tol_, &r) && r.separation <= 0;
-}
+bool QueryRun::InitiallyTouching(int link) { return engine_.TouchesAt(motion_, link, 0.0, 0.0); }
 
-void QueryRun::FinishLeaf(const Task& task, const ContactRecord& witness) {
+void QueryRun::FinishLeaf(const Task& task, const ContactRecord& witness, bool exact_witness) {
   LinkBracket bracket;
   bracket.link = task.link;
   bracket.s_lo = task.s0;
@@ -353,11 +350,14 @@ void QueryRun::FinishLeaf(const Task& task, const ContactRecord& witness) {
   // The candidates hold every triangle that can touch; one outside them can
   // still be the nearest when nothing touches. Make the witness exact.
   ContactRecord exact;
-  if (engine_.Separation(motion_, task.link, witness.s, witness.separation, &exact) &&
+  if (!exact_witness &&
+      engine_.Separation(motion_, task.link, witness.s, witness.separation, &exact) &&
       exact.separation < witness.separation) {
     bracket.witness = exact;
   }
-  bracket.initially_colliding = task.s0 == 0 && InitiallyTouching(task.link);
+  bracket.initially_colliding =
+      task.s0 == 0 && ((bracket.witness.s == 0 && bracket.witness.separation <= 0) ||
+                       InitiallyTouching(task.link));
   result_.links.push_back(bracket);
   link_done_[task.link] = true;
 }
@@ -369,8 +369,8 @@ void QueryRun::FinishUndecided(int link, double s_lo) {
   bracket.s_hi = 1;
   bracket.undecided = true;
   ContactRecord r;
-  // Best effort: the nearest triangle at s_lo, if one is near.
-  if (engine_.Separation(motion_, link, s_lo, top_capsule_[link].radius, &r)) {
+  // Best effort: the nearest triangle at s_lo (any distance).
+  if (engine_.Separation(motion_, link, s_lo, 1e12, &r)) {
     bracket.has_witness = true;
     bracket.witness = r;
   }
@@ -394,12 +394,12 @@ QueryResult QueryRun::Run() {
       w *= 0.5;
     }
     for (int l = 0; l < n; ++l) {
-      if (filter_.IgnoresAll(l)) continue;
+      if (filter_.IgnoresAll(l) || !engine_.TouchesAt(motion_, l, 0.0, 0.0)) continue;
       ContactRecord at_zero;
-      if (!engine_.Separation(motion_, l, 0.0, tol_, &at_zero) || at_zero.separation > 0) continue;
+      if (!engine_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
       Task leaf{0, w, l, 0, 0, 0, false, false, {}, {}, {}, {}};
       ++result_.stats.links_tested;
-      FinishLeaf(leaf, at_zero);
+      FinishLeaf(leaf, at_zero, /*exact_witness=*/true);
       if (!options_.per_link) break;
     }
   }
@@ -422,7 +422,9 @@ QueryResult QueryRun::Run() {
     const Task task = queue_.top();
     queue_.pop();
     if (link_done_[task.link]) continue;
-    if (++result_.stats.intervals > options_.max_intervals) {
+    // Work limit, and a memory limit on the candidate pool (64 M entries,
+    // 512 MiB) so a raised work limit cannot exhaust memory.
+    if (++result_.stats.intervals > options_.max_intervals || pool_.size() > (64u << 20)) {
       out_of_work = true;
       queue_.push(task);
       break;
@@ -479,7 +481,12 @@ QueryResult QueryRun::Run() {
           have = true;
         }
       }
-      if (have && best.separation <= options_.delta_m) {
+      // Accept with the tolerance as margin, so that a checker reading the
+      // files' decimal vertices (we hold floats) still sees <= delta; when
+      // delta is within a few tolerances, plain <= delta (termination).
+      const double accept =
+          options_.delta_m > 4 * tol_ ? options_.delta_m - tol_ : options_.delta_m;
+      if (have && best.separation <= accept) {
         FinishLeaf(task, best);
         if (!options_.per_link) break;
         continue;
@@ -531,6 +538,9 @@ QueryResult QueryRun::Run() {
         result_.contacts.push_back(b.witness);
       }
     }
+    for (const LinkBracket& b : result_.links) {
+      result_.initially_colliding = result_.initially_colliding || b.initially_colliding;
+    }
     if (result_.s_lo == 0) {
       for (int l = 0; l < n && !result_.initially_colliding; ++l) {
         if (!filter_.IgnoresAll(l) && InitiallyTouching(l)) result_.initially_colliding = true;
@@ -553,6 +563,24 @@ QueryResult CcdEngine::Query(const Pose& pose0, const Pose& pose1,
   SWEPTCCD_CHECK(ValidateQueryOptions(options).empty());
   QueryRun run(*this, pose0, pose1, options);
   return run.Run();
+}
+
+bool CcdEngine::TouchesAt(const PairMotion& motion, int link, double s, double slack) const {
+  Eigen::Vector3d a, b, ta, tb, tc;
+  motion.SegmentAt(link, s, &a, &b);
+  const double reach = skeleton_.link(link).radius + std::max(0.0, slack);
+  bool touches = false;
+  for (int o = 0; o < env_.num_objects() && !touches; ++o) {
+    if (filter_.Ignores(link, o)) continue;
+    const TriangleBvh& bvh = env_.object(o).bvh;
+    double search = reach;
+    bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
+      bvh.Triangle(slot, &ta, &tb, &tc);
+      touches = SegmentTriangleDistance(a, b, ta, tb, tc).distance <= reach;
+      return !touches;
+    });
+  }
+  return touches;
 }
 
 bool CcdEngine::Separation(const PairMotion& motion, int link, double s, double search_radius,

@@ -16,10 +16,11 @@ void Environment::AddMesh(const TriangleMesh& mesh, const std::string& name) {
   obj.name = name;
   obj.bvh = TriangleBvh(mesh);
   // A float keeps 24 bits: rounding a coordinate x moves it by at most
-  // 2^-24 |x|. Twice that, plus a floor, covers it and the rounding of the
-  // double-precision distance computations.
+  // 2^-24 |x|, but assimp's text parser (fast_atoreal_move<float>) can be off
+  // by about one float ulp more. 2^-22 |x| covers two ulps, with room for the rounding of
+  // the double-precision distance computations (below 1e-8 of |x|).
   coordinate_tolerance_ =
-      std::max(coordinate_tolerance_, std::ldexp(obj.bvh.max_abs_coordinate(), -23) + 1e-9);
+      std::max(coordinate_tolerance_, std::ldexp(obj.bvh.max_abs_coordinate(), -22) + 1e-9);
   objects_.push_back(std::move(obj));
 }
 

@@ -15,10 +15,12 @@ Interval Sin(const Interval& x) {
   // sin has maxima at pi/2 + 2k pi and minima at -pi/2 + 2k pi. Check whether
   // one lies in x; the guard band of 1e-12 rad absorbs the rounding of the
   // k computations (it only widens the answer).
+  // The guard must grow with |x|: 2 pi k is off by ~1e-16 |x|.
+  const double guard = 1e-12 * std::max(1.0, x.mag());
   auto contains_point = [&](double phase) {
-    const double k = std::ceil((x.lo() - phase) / (2 * kPi) - 1e-12);
+    const double k = std::ceil((x.lo() - phase - guard) / (2 * kPi));
     const double p = phase + 2 * kPi * k;
-    return p <= x.hi() + 1e-12;
+    return p <= x.hi() + guard;
   };
   const double s0 = std::sin(x.lo()), s1 = std::sin(x.hi());
   double lo = std::min(s0, s1), hi = std::max(s0, s1);

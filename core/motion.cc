@@ -138,11 +138,12 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
+  // Chain depth, parents first (linear time).
+  std::vector<int> link_depth(n, 1);
   int depth = 1;
-  for (int i = 0; i < n; ++i) {
-    int d = 1;
-    for (int k = links_[i].parent; k >= 0; k = links_[k].parent) ++d;
-    depth = std::max(depth, d);
+  for (int i : order_) {
+    if (links_[i].parent >= 0) link_depth[i] = link_depth[links_[i].parent] + 1;
+    depth = std::max(depth, link_depth[i]);
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
   coordinate_scale_ = scale;
@@ -171,14 +172,28 @@ void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
 }
 
 LinkPose PairMotion::PoseAt(int link, double s) const {
-  const LinkMotion& m = links_[link];
+  // Compose from the root down along the ancestors, iteratively (chains may
+  // be deep). The same operations in the same order as PosesAt.
+  int chain[64];
+  int count = 0;
+  for (int k = link; k >= 0 && count < 64; k = links_[k].parent) chain[count++] = k;
   LinkPose out;
-  out.p = (1 - s) * m.p0 + s * m.p1;
-  out.q = LocalRotation(m, s);
-  if (m.parent >= 0) {
-    const LinkPose k = PoseAt(m.parent, s);
-    out.q = (k.q * out.q).normalized();
-    out.p = k.p + k.q * out.p;
+  int start = count - 1;
+  if (links_[chain[start]].parent >= 0) {
+    out = PoseAt(links_[chain[start]].parent, s);  // Deeper than 64: the rest first.
+  }
+  for (int j = start; j >= 0; --j) {
+    const LinkMotion& m = links_[chain[j]];
+    const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
+    const Eigen::Quaterniond r = LocalRotation(m, s);
+    if (m.parent < 0) {
+      out.p = c;
+      out.q = r;
+    } else {
+      const LinkPose k = out;  // The parent's pose.
+      out.q = (k.q * r).normalized();
+      out.p = k.p + k.q * c;
+    }
   }
   return out;
 }

@@ -73,16 +73,24 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
                      ": its chain of parents forms a loop, and no link is the root "
                      "(exactly one link needs \"parent\": null)");
   }
-  // Every link must reach the root by following parents; otherwise it is on a loop.
+  // Every link must reach the root by following parents; otherwise it is on a
+  // loop. Linear time: each link is walked once (0 = new, 1 = on the current
+  // walk, 2 = reaches the root).
+  std::vector<char> state(n, 0);
+  std::vector<int> walk;
   for (int i = 0; i < n; ++i) {
+    walk.clear();
     int k = i;
-    for (int steps = 0; k != -1; ++steps) {
-      if (steps > n) {
-        throw InputError(source + ": " + LinkLabel(links, i) +
-                         ": its chain of parents forms a loop and never reaches the root");
-      }
+    while (k != -1 && state[k] == 0) {
+      state[k] = 1;
+      walk.push_back(k);
       k = links[k].parent;
     }
+    if (k != -1 && state[k] == 1) {
+      throw InputError(source + ": " + LinkLabel(links, k) +
+                       ": its chain of parents forms a loop and never reaches the root");
+    }
+    for (int w : walk) state[w] = 2;
   }
   std::vector<std::vector<int>> children(n);
   for (int i = 0; i < n; ++i) {
