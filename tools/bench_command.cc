@@ -257,6 +257,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       const long rss1 = ResidentKiB();
       std::unique_ptr<FclPeer> fcl;
       if (options.peers) fcl = std::make_unique<FclPeer>(meshes);
+      Row all_row;
+      std::vector<double> all_ours, all_theirs;
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
@@ -298,13 +300,28 @@ int RunBenchCommand(const BenchCommandOptions& options) {
             if (r.contact && !hit) ++row.fcl_misses;
           }
         }
+        all_ours.insert(all_ours.end(), ours.begin(), ours.end());
+        all_theirs.insert(all_theirs.end(), theirs.begin(), theirs.end());
+        all_row.pairs += row.pairs;
+        all_row.contacts += row.contacts;
+        all_row.undecided += row.undecided;
+        all_row.fcl_misses += row.fcl_misses;
         row.ours_us = Summarise(ours);
         row.fcl_us = Summarise(theirs);
         row.fcl_build_s = fcl ? fcl->build_s() : 0;
         rows.push_back(row);
         std::fprintf(stderr, "%s / %s: %d pairs, median %.1f us\n", scene.name.c_str(),
                      clip_name.c_str(), row.pairs, row.ours_us.median);
+        all_row.scene = row.scene;
+        all_row.triangles = row.triangles;
+        all_row.build_s = row.build_s;
+        all_row.bytes_per_tri = row.bytes_per_tri;
+        all_row.fcl_build_s = row.fcl_build_s;
       }
+      all_row.clip = "ALL CLIPS";
+      all_row.ours_us = Summarise(all_ours);
+      all_row.fcl_us = Summarise(all_theirs);
+      rows.push_back(all_row);
     }
     std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, single thread, CPU backend\n",
                 options.rate_hz, options.eps_s, options.delta_m);

@@ -12,8 +12,13 @@ namespace sweptccd {
 
 struct BenchCommandOptions {
   std::string data_dir;  // Folder with env/ and mocap/ (default: ../shared/data beside the source).
-  std::vector<std::string> clips = {"cmu_02_01_walk.bvh", "boxing_toes.bvh"};
-  int max_pairs = 600;  // Per scene and clip.
+  std::vector<std::string> clips = {"cmu_02_01_walk.bvh",
+                                    "cmu_02_03_run_jog.bvh",
+                                    "cmu_13_41_jump.bvh",
+                                    "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
+                                    "cmu_01_03_playground_climb_hang_swing.bvh",
+                                    "boxing_toes.bvh"};
+  int max_pairs = 1000;  // Per scene and clip.
   double rate_hz = 30;
   double eps_s = 1e-4;
   double delta_m = 1e-3;
