@@ -1972,6 +1972,23 @@ TEST(CcdRandomTest, Humanoid16LinksArticulated) {
 // and the engine re-queries its BVHs; the reference still checks every
 // triangle.
 
+// A (rows + 1) x (cols + 1) vertex grid, each cell split into two triangles;
+// vertex(i, j) places grid point (i, j) (stored as floats, like the loaders).
+template <class VertexAt>
+TriangleMesh GridMesh(int rows, int cols, VertexAt vertex) {
+  TriangleMesh mesh;
+  for (int i = 0; i <= rows; ++i) {
+    for (int j = 0; j <= cols; ++j) mesh.vertices.push_back(F(vertex(i, j)));
+  }
+  for (int i = 0; i < rows; ++i) {
+    for (int j = 0; j < cols; ++j) {
+      const uint32_t v00 = i * (cols + 1) + j, v10 = v00 + cols + 1;
+      mesh.indices.insert(mesh.indices.end(), {v00, v10, v10 + 1, v00, v10 + 1, v00 + 1});
+    }
+  }
+  return mesh;
+}
+
 TEST(CcdRandomTest, DenseMeshes) {
   Suite suite("dense meshes");
   for (int scene_i = 0; scene_i < 10; ++scene_i) {
@@ -1981,41 +1998,21 @@ TEST(CcdRandomTest, DenseMeshes) {
     Scene scene;
     scene.skeleton = rig.skeleton;
     // A bumpy height field, 30 x 30 cells (1800 triangles) over 3 x 3 m.
-    TriangleMesh terrain;
     const int cells = 30;
     const double fx = rng.U(1, 4), fy = rng.U(1, 4), amp = rng.U(0.02, 0.15);
-    auto height = [&](double x, double y) { return amp * std::sin(fx * x) * std::cos(fy * y); };
-    for (int i = 0; i <= cells; ++i) {
-      for (int j = 0; j <= cells; ++j) {
-        const double x = -1.5 + 3.0 * i / cells, y = -1.5 + 3.0 * j / cells;
-        terrain.vertices.push_back(F(Vec3(x, y, height(x, y))));
-      }
-    }
-    for (int i = 0; i < cells; ++i) {
-      for (int j = 0; j < cells; ++j) {
-        const uint32_t v00 = i * (cells + 1) + j, v10 = v00 + cells + 1;
-        terrain.indices.insert(terrain.indices.end(), {v00, v10, v10 + 1, v00, v10 + 1, v00 + 1});
-      }
-    }
+    const TriangleMesh terrain = GridMesh(cells, cells, [&](int i, int j) {
+      const double x = -1.5 + 3.0 * i / cells, y = -1.5 + 3.0 * j / cells;
+      return Vec3(x, y, amp * std::sin(fx * x) * std::cos(fy * y));
+    });
     // A UV sphere (16 x 32: 1024 triangles, degenerate ones at the poles kept).
-    TriangleMesh ball;
     const Vec3 centre(rng.U(-0.8, 0.8), rng.U(-0.8, 0.8), rng.U(0.4, 0.8));
     const double radius = rng.U(0.2, 0.45);
     const int rings = 16, segs = 32;
-    for (int i = 0; i <= rings; ++i) {
-      for (int j = 0; j <= segs; ++j) {
-        const double th = kPi * i / rings, ph = 2 * kPi * j / segs;
-        ball.vertices.push_back(
-            F(centre + radius * Vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
-                                     std::cos(th))));
-      }
-    }
-    for (int i = 0; i < rings; ++i) {
-      for (int j = 0; j < segs; ++j) {
-        const uint32_t v00 = i * (segs + 1) + j, v10 = v00 + segs + 1;
-        ball.indices.insert(ball.indices.end(), {v00, v10, v10 + 1, v00, v10 + 1, v00 + 1});
-      }
-    }
+    const TriangleMesh ball = GridMesh(rings, segs, [&](int i, int j) {
+      const double th = kPi * i / rings, ph = 2 * kPi * j / segs;
+      return Vec3(centre + radius * Vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph),
+                                         std::cos(th)));
+    });
     scene.meshes = {terrain, ball};
     SceneUnderTest sut(std::move(scene));
     for (int i = 0; i < 20; ++i) {
