@@ -1,0 +1,145 @@
+#include "service/client_session.h"
+
+#include <cmath>
+#include <utility>
+
+#include "core/errors.h"
+
+namespace sweptccd {
+
+namespace {
+
+std::string Num(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+}  // namespace
+
+std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_links, Pose* pose) {
+  if (msg.num_links != num_links || static_cast<int64_t>(msg.position.size()) != num_links ||
+      static_cast<int64_t>(msg.orientation.size()) != num_links) {
+    return Rejection{rejection_code::kWrongLinkCount,
+                     "num_links is " + std::to_string(msg.num_links) + " (arrays " +
+                         std::to_string(msg.position.size()) + "/" +
+                         std::to_string(msg.orientation.size()) + ") but the skeleton of client '" +
+                         msg.client_id + "' has " + std::to_string(num_links) +
+                         " links; send one pose per skeleton link, in link index order"};
+  }
+  for (int i = 0; i < num_links; ++i) {
+    if (msg.position[i].size() != 3 || msg.orientation[i].size() != 4) {
+      return Rejection{rejection_code::kWrongLinkCount,
+                       "link " + std::to_string(i) + ": position has " +
+                           std::to_string(msg.position[i].size()) + " values and orientation " +
+                           std::to_string(msg.orientation[i].size()) + "; send 3 and 4 per link"};
+    }
+  }
+  pose->utime = msg.utime;
+  pose->links.assign(num_links, LinkPose{});
+  for (int i = 0; i < num_links; ++i) {
+    const auto& p = msg.position[i];
+    const auto& q = msg.orientation[i];
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite(p[k])) {
+        return Rejection{rejection_code::kNonFinite, "link " + std::to_string(i) + ": position[" +
+                                                         std::to_string(k) + "] is " + Num(p[k]) +
+                                                         "; send finite numbers"};
+      }
+    }
+    for (int k = 0; k < 4; ++k) {
+      if (!std::isfinite(q[k])) {
+        return Rejection{rejection_code::kNonFinite,
+                         "link " + std::to_string(i) + ": orientation[" + std::to_string(k) +
+                             "] is " + Num(q[k]) + "; send finite numbers"};
+      }
+    }
+    for (int k = 0; k < 3; ++k) {
+      if (std::fabs(p[k]) > kMaxCoordinate) {
+        return Rejection{rejection_code::kPositionOutOfRange,
+                         "link " + std::to_string(i) + ": position[" + std::to_string(k) + "] is " +
+                             Num(p[k]) + " m, beyond 1e9 m; send metres in the world frame"};
+      }
+    }
+    LinkPose& lp = pose->links[i];
+    lp.p = Eigen::Vector3d(p[0], p[1], p[2]);
+    lp.q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // w, x, y, z
+    const double norm = lp.q.coeffs().stableNorm();
+    if (!(norm >= kMinQuaternionNorm)) {
+      return Rejection{rejection_code::kZeroQuaternion,
+                       "link " + std::to_string(i) + ": quaternion norm " + Num(norm) +
+                           " is below 1e-6; send a rotation as [w x y z]"};
+    }
+  }
+  // Normalises; the checks above are the same as core's, so this cannot fail.
+  const std::string problem = ValidateAndNormalizePose(pose, num_links);
+  SWEPTCCD_CHECK(problem.empty());
+  return std::nullopt;
+}
+
+ClientSession::ClientSession(std::string client_id, int num_links)
+    : client_id_(std::move(client_id)), num_links_(num_links) {
+  SWEPTCCD_CHECK(num_links_ > 0);
+}
+
+std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_t receive_utime,
+                                               SteadyClock::time_point receive_time) {
+  ++poses_received_;
+  Pose pose;
+  std::optional<Rejection> rejection = ValidateTrackerPose(msg, num_links_, &pose);
+  if (!rejection && last_) {
+    if (msg.seq <= last_->seq) {
+      rejection = Rejection{rejection_code::kNonIncreasingSeq,
+                            "seq " + std::to_string(msg.seq) + " is not greater than " +
+                                std::to_string(last_->seq) +
+                                " of the last accepted pose; number poses strictly increasing"};
+    } else if (msg.utime <= last_->pose.utime) {
+      rejection = Rejection{rejection_code::kNonIncreasingUtime,
+                            "utime " + std::to_string(msg.utime) + " is not greater than " +
+                                std::to_string(last_->pose.utime) +
+                                " of the last accepted pose; stamp samples strictly increasing"};
+    }
+  }
+  if (rejection) {
+    ++rejected_;
+    return rejection;
+  }
+  ++poses_accepted_;
+  if (last_) {
+    if (pending_) {
+      // Latest wins: (A, B) pending and C arrives -> (A, C); (A, B) and
+      // (B, C) are answered as one, so one pair is skipped.
+      pending_->seq1 = msg.seq;
+      pending_->pose1 = pose;
+      ++pairs_skipped_;
+    } else {
+      pending_.emplace();
+      pending_->seq0 = last_->seq;
+      pending_->pose0 = last_->pose;
+      pending_->seq1 = msg.seq;
+      pending_->pose1 = pose;
+    }
+    pending_->receive_utime = receive_utime;
+    pending_->receive_time = receive_time;
+  }
+  last_ = Accepted{msg.seq, std::move(pose)};
+  return std::nullopt;
+}
+
+PosePair ClientSession::TakePair() {
+  SWEPTCCD_CHECK(ready());
+  PosePair pair = std::move(*pending_);
+  pending_.reset();
+  pair.pair = pairs_taken_++;
+  pair.skipped_pairs_total = pairs_skipped_;
+  in_flight_ = true;
+  return pair;
+}
+
+void ClientSession::FinishPair() {
+  SWEPTCCD_CHECK(in_flight_);
+  in_flight_ = false;
+  ++pairs_finished_;
+}
+
+}  // namespace sweptccd

@@ -1,0 +1,111 @@
+#pragma once
+// Per-client logic of the collision service: validation of tracker poses,
+// pairing of consecutive accepted poses, and the latest-wins hand-out of pairs.
+// Transport-free (no LCM runtime, only the generated message type) and
+// single-threaded: CollisionService serialises all calls under its mutex.
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "core/pose.h"
+#include "sweptccd/tracker_pose_t.hpp"
+
+namespace sweptccd {
+
+/// Stable rejection codes (rejection_t.reason).
+namespace rejection_code {
+inline constexpr char kWrongLinkCount[] = "wrong_link_count";
+inline constexpr char kNonFinite[] = "non_finite";
+inline constexpr char kPositionOutOfRange[] = "position_out_of_range";
+inline constexpr char kZeroQuaternion[] = "zero_quaternion";
+inline constexpr char kUnknownClient[] = "unknown_client";
+inline constexpr char kNonIncreasingSeq[] = "non_increasing_seq";
+inline constexpr char kNonIncreasingUtime[] = "non_increasing_utime";
+inline constexpr char kDecodeError[] = "decode_error";
+}  // namespace rejection_code
+
+/// Why a tracker pose was refused: a code from rejection_code and a message
+/// that names the value, the place and the fix.
+struct Rejection {
+  std::string reason;
+  std::string message;
+};
+
+/// Checks one tracker message against a skeleton of `num_links` links (SPEC
+/// section 2 plus the message's own consistency): link count, finite numbers,
+/// positions within kMaxCoordinate, quaternion norms >= kMinQuaternionNorm.
+/// On success fills `*pose` (quaternions normalised) and returns nullopt.
+/// Does not look at seq/utime ordering (that needs the client's history).
+std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_links, Pose* pose);
+
+/// Steady clock used for queueing and latency measurements.
+using SteadyClock = std::chrono::steady_clock;
+
+/// A pair of accepted poses handed to a worker.
+struct PosePair {
+  int64_t pair = 0;  // Index among this client's handed-out pairs (0, 1, ...).
+  int64_t seq0 = 0, seq1 = 0;
+  Pose pose0, pose1;
+  int64_t receive_utime = 0;             // Wall clock (us) when pose1 was received.
+  SteadyClock::time_point receive_time;  // Steady clock when pose1 was received.
+  int64_t skipped_pairs_total = 0;       // The client's skipped count when handed out.
+};
+
+/// One client's stream. Pairs consecutive accepted poses; at most one pair is
+/// pending (formed, not yet taken) and at most one in flight (taken, not yet
+/// finished). When a pose is accepted while a pair is pending, the pending
+/// pair (A, B) becomes (A, newest): latest wins, and one skipped pair is
+/// counted. So at every moment
+///   poses_accepted - 1 == pairs_taken + pairs_skipped + (pending ? 1 : 0)
+/// once a first pose was accepted: no pair is lost silently. Pairs are taken
+/// strictly in pose order, one at a time.
+class ClientSession {
+ public:
+  ClientSession(std::string client_id, int num_links);
+
+  /// Offers a message (its client_id is not checked here). Returns the
+  /// rejection, or nullopt when the pose was accepted (and possibly paired).
+  std::optional<Rejection> OnPose(const tracker_pose_t& msg, int64_t receive_utime,
+                                  SteadyClock::time_point receive_time);
+
+  /// A pair is pending and none is in flight.
+  bool ready() const { return pending_.has_value() && !in_flight_; }
+  bool has_pending() const { return pending_.has_value(); }
+  bool in_flight() const { return in_flight_; }
+
+  /// Hands out the pending pair and marks it in flight. Precondition: ready().
+  PosePair TakePair();
+  /// The in-flight pair was answered. Precondition: in_flight().
+  void FinishPair();
+
+  const std::string& client_id() const { return client_id_; }
+  int num_links() const { return num_links_; }
+  int64_t poses_received() const { return poses_received_; }
+  int64_t poses_accepted() const { return poses_accepted_; }
+  int64_t rejected() const { return rejected_; }
+  int64_t pairs_taken() const { return pairs_taken_; }
+  int64_t pairs_finished() const { return pairs_finished_; }
+  int64_t pairs_skipped() const { return pairs_skipped_; }
+
+ private:
+  struct Accepted {
+    int64_t seq = 0;
+    Pose pose;
+  };
+
+  std::string client_id_;
+  int num_links_ = 0;
+  std::optional<Accepted> last_;  // Newest accepted pose.
+  std::optional<PosePair> pending_;
+  bool in_flight_ = false;
+  int64_t poses_received_ = 0;
+  int64_t poses_accepted_ = 0;
+  int64_t rejected_ = 0;
+  int64_t pairs_taken_ = 0;
+  int64_t pairs_finished_ = 0;
+  int64_t pairs_skipped_ = 0;
+};
+
+}  // namespace sweptccd

@@ -1,0 +1,367 @@
+#include "service/collision_service.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <set>
+#include <utility>
+
+#include "core/errors.h"
+
+namespace sweptccd {
+
+namespace {
+
+int64_t SystemUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+double MicrosBetween(SteadyClock::time_point a, SteadyClock::time_point b) {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+void CopyVec(const Eigen::Vector3d& v, double out[3]) {
+  out[0] = v.x();
+  out[1] = v.y();
+  out[2] = v.z();
+}
+
+contact_record_t ToMsg(const ContactRecord& c) {
+  contact_record_t m;
+  m.link = c.link;
+  m.object = c.object;
+  m.triangle = c.triangle;
+  m.s = c.s;
+  CopyVec(c.point_link, m.point_link);
+  CopyVec(c.point_env, m.point_env);
+  CopyVec(c.normal, m.normal);
+  m.separation = c.separation;
+  return m;
+}
+
+// Quantile of a sample by nearest rank (q in [0, 1]); 0 when empty.
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  const size_t k = std::min(
+      v.size() - 1, static_cast<size_t>(std::llround(q * static_cast<double>(v.size() - 1))));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+}  // namespace
+
+CollisionService::Client::Client(ClientConfig c, const Environment& env)
+    : config(std::move(c)),
+      engine(std::make_unique<CcdEngine>(*config.skeleton, env, config.filter)),
+      session(config.client_id, config.skeleton->num_links()) {}
+
+CollisionService::CollisionService(std::shared_ptr<const Environment> environment,
+                                   std::vector<ClientConfig> clients, ServiceOptions options,
+                                   Publisher* publisher)
+    : environment_(std::move(environment)), options_(std::move(options)), publisher_(publisher) {
+  if (!environment_) throw InputError("collision service: no environment");
+  if (!publisher_) throw InputError("collision service: no publisher");
+  if (clients.empty())
+    throw InputError("collision service: no clients registered; add at least one");
+  if (options_.num_workers < 1) {
+    throw InputError("collision service: num_workers is " + std::to_string(options_.num_workers) +
+                     "; use 1 or more");
+  }
+  if (options_.latency_window < 1) {
+    throw InputError("collision service: latency_window is " +
+                     std::to_string(options_.latency_window) + "; use 1 or more");
+  }
+  const std::string problem = ValidateQueryOptions(options_.query);
+  if (!problem.empty()) throw InputError("collision service: " + problem);
+  if (!options_.clock_utime) options_.clock_utime = SystemUtime;
+  for (ClientConfig& c : clients) {
+    if (c.client_id.empty()) throw InputError("collision service: a client has an empty client_id");
+    if (!c.skeleton || c.skeleton->num_links() < 1) {
+      throw InputError("collision service: client '" + c.client_id + "' has no skeleton");
+    }
+    if (client_index_.count(c.client_id)) {
+      throw InputError("collision service: client '" + c.client_id +
+                       "' is registered twice; give every client its own id");
+    }
+    client_index_[c.client_id] = static_cast<int>(clients_.size());
+    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_));
+  }
+  workers_.reserve(options_.num_workers);
+  for (int i = 0; i < options_.num_workers; ++i) {
+    workers_.emplace_back([this] { WorkerLoop(); });
+  }
+}
+
+CollisionService::~CollisionService() { Stop(); }
+
+int64_t CollisionService::NowUtime() const { return options_.clock_utime(); }
+
+void CollisionService::OnPose(const tracker_pose_t& pose) {
+  const int64_t receive_utime = NowUtime();
+  const SteadyClock::time_point receive_time = SteadyClock::now();
+  std::optional<Rejection> rejection;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) {
+      ++ignored_after_stop_;
+      return;
+    }
+    auto it = client_index_.find(pose.client_id);
+    if (it == client_index_.end()) {
+      ++rejected_unattributed_;
+      rejection = Rejection{rejection_code::kUnknownClient,
+                            "client_id '" + pose.client_id +
+                                "' is not registered; register it in the service configuration"};
+    } else {
+      Client& client = *clients_[it->second];
+      const bool was_ready = client.session.ready();
+      rejection = client.session.OnPose(pose, receive_utime, receive_time);
+      if (!rejection && !was_ready && client.session.ready()) {
+        ready_.push_back(it->second);
+        work_cv_.notify_one();
+      }
+    }
+  }
+  if (rejection) Reject(pose.client_id, pose.seq, *rejection);
+}
+
+void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) {
+      ++ignored_after_stop_;
+      return;
+    }
+    ++rejected_unattributed_;
+  }
+  Reject("", -1,
+         Rejection{rejection_code::kDecodeError,
+                   "message on channel " + channel + " could not be decoded as " +
+                       "sweptccd.tracker_pose_t (" + problem +
+                       "); publish tracker_pose_t built from this service's msgs/"});
+}
+
+void CollisionService::Reject(const std::string& client_id, int64_t seq,
+                              const Rejection& rejection) {
+  rejection_t msg;
+  msg.utime = NowUtime();
+  msg.client_id = client_id;
+  msg.seq = seq;
+  msg.reason = rejection.reason;
+  msg.message = rejection.message;
+  // Logged at a limited rate: at most 10 lines a second, then a count.
+  bool log = false;
+  int64_t suppressed = 0;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (msg.utime - rejection_log_window_start_us_ >= 1'000'000) {
+      rejection_log_window_start_us_ = msg.utime;
+      rejection_logs_in_window_ = 0;
+      suppressed = rejection_logs_suppressed_;
+      rejection_logs_suppressed_ = 0;
+    }
+    if (rejection_logs_in_window_ < 10) {
+      ++rejection_logs_in_window_;
+      log = true;
+    } else {
+      ++rejection_logs_suppressed_;
+    }
+  }
+  if (suppressed > 0) spdlog::warn("{} rejection log lines suppressed", suppressed);
+  if (log) {
+    spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", client_id, seq, rejection.reason,
+                 rejection.message);
+  }
+  SafePublish([&] { publisher_->PublishRejection(msg); }, "rejection");
+}
+
+void CollisionService::SafePublish(const std::function<void()>& publish, const char* what) {
+  try {
+    publish();
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++publish_errors_;
+    spdlog::error("publishing a {} failed: {}", what, e.what());
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++publish_errors_;
+    spdlog::error("publishing a {} failed with an unknown exception", what);
+  }
+}
+
+contact_event_t CollisionService::Answer(const Client& client, const PosePair& pair,
+                                         double queue_us) const {
+  contact_event_t ev;
+  ev.client_id = client.config.client_id;
+  ev.seq0 = pair.seq0;
+  ev.seq1 = pair.seq1;
+  ev.pair = pair.pair;
+  ev.utime0 = pair.pose0.utime;
+  ev.utime1 = pair.pose1.utime;
+  ev.result = contact_event_t::RESULT_FREE;
+  ev.initially_colliding = false;
+  ev.undecided = false;
+  ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
+  ev.num_contacts = 0;
+  ev.num_links = 0;
+  ev.receive_utime = pair.receive_utime;
+  ev.queue_us = queue_us;
+  ev.skipped_pairs_total = pair.skipped_pairs_total;
+
+  QueryOptions options = options_.query;
+  options.motion = client.config.motion;
+  const SteadyClock::time_point start = SteadyClock::now();
+  try {
+    const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options);
+    if (r.contact) {
+      ev.result = contact_event_t::RESULT_CONTACT;
+      ev.initially_colliding = r.initially_colliding;
+      ev.undecided = r.undecided;
+      ev.s_lo = r.s_lo;
+      ev.s_hi = r.s_hi;
+      ev.t_lo = BracketTimeLo(ev.utime0, ev.utime1, r.s_lo);
+      ev.t_hi = BracketTimeHi(ev.utime0, ev.utime1, r.s_hi);
+      for (const ContactRecord& c : r.contacts) ev.contacts.push_back(ToMsg(c));
+    }
+    for (const LinkBracket& b : r.links) {
+      link_bracket_t m;
+      m.link = b.link;
+      m.s_lo = b.s_lo;
+      m.s_hi = b.s_hi;
+      m.t_lo = BracketTimeLo(ev.utime0, ev.utime1, b.s_lo);
+      m.t_hi = BracketTimeHi(ev.utime0, ev.utime1, b.s_hi);
+      m.initially_colliding = b.initially_colliding;
+      m.undecided = b.undecided;
+      m.has_witness = b.has_witness;
+      m.witness = b.has_witness ? ToMsg(b.witness) : contact_record_t{};
+      ev.links.push_back(m);
+    }
+  } catch (const std::exception& e) {
+    // Not expected (the poses were validated); answered, never lost.
+    ev.result = contact_event_t::RESULT_INVALID;
+    ev.error = std::string("query failed: ") + e.what();
+  } catch (...) {
+    ev.result = contact_event_t::RESULT_INVALID;
+    ev.error = "query failed with an unknown exception";
+  }
+  if (ev.result == contact_event_t::RESULT_INVALID) {
+    ev.initially_colliding = ev.undecided = false;
+    ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
+    ev.contacts.clear();
+    ev.links.clear();
+    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, ev.error);
+  }
+  ev.num_contacts = static_cast<int32_t>(ev.contacts.size());
+  ev.num_links = static_cast<int32_t>(ev.links.size());
+  ev.compute_us = MicrosBetween(start, SteadyClock::now());
+  return ev;
+}
+
+void CollisionService::WorkerLoop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  for (;;) {
+    work_cv_.wait(lock, [this] { return !ready_.empty() || (stopping_ && in_flight_ == 0); });
+    if (ready_.empty()) break;  // Stopping, nothing left anywhere.
+    const int index = ready_.front();
+    ready_.pop_front();
+    Client& client = *clients_[index];
+    PosePair pair = client.session.TakePair();
+    ++in_flight_;
+    lock.unlock();
+
+    const double queue_us = MicrosBetween(pair.receive_time, SteadyClock::now());
+    contact_event_t event = Answer(client, pair, queue_us);
+    event.utime = NowUtime();
+    SafePublish([&] { publisher_->PublishContact(event); }, "contact event");
+    const double latency_us = MicrosBetween(pair.receive_time, SteadyClock::now());
+
+    lock.lock();
+    client.latencies_us.push_back(latency_us);
+    while (static_cast<int>(client.latencies_us.size()) > options_.latency_window) {
+      client.latencies_us.pop_front();
+    }
+    client.session.FinishPair();
+    --in_flight_;
+    if (client.session.ready()) {
+      ready_.push_back(index);
+      work_cv_.notify_one();
+    }
+    if (ready_.empty() && in_flight_ == 0) {
+      idle_cv_.notify_all();
+      if (stopping_) work_cv_.notify_all();  // Let the other workers leave.
+    }
+  }
+}
+
+void CollisionService::WaitUntilIdle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  idle_cv_.wait(lock, [this] { return ready_.empty() && in_flight_ == 0; });
+}
+
+void CollisionService::Stop() {
+  std::lock_guard<std::mutex> stop_lock(stop_mutex_);
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  work_cv_.notify_all();
+  for (std::thread& t : workers_) {
+    if (t.joinable()) t.join();
+  }
+  workers_.clear();
+  idle_cv_.notify_all();
+}
+
+status_t CollisionService::Status() const {
+  status_t s;
+  s.utime = NowUtime();
+  s.backend = options_.backend;
+  s.renderer = options_.renderer;
+  std::lock_guard<std::mutex> lock(mutex_);
+  s.num_clients = static_cast<int32_t>(clients_.size());
+  int32_t pending = 0;
+  int64_t dropped = 0;
+  for (const auto& c : clients_) {
+    const ClientSession& cs = c->session;
+    s.client_id.push_back(cs.client_id());
+    s.poses_received.push_back(cs.poses_received());
+    s.pairs_answered.push_back(cs.pairs_finished());
+    s.pairs_skipped.push_back(cs.pairs_skipped());
+    s.rejected.push_back(cs.rejected());
+    std::vector<double> lat(c->latencies_us.begin(), c->latencies_us.end());
+    s.latency_median_us.push_back(Quantile(lat, 0.5));
+    s.latency_p99_us.push_back(Quantile(std::move(lat), 0.99));
+    if (cs.has_pending()) ++pending;
+    dropped += cs.pairs_skipped();
+  }
+  s.queue_depth = pending;
+  s.dropped_total = dropped;
+  s.rejected_unattributed = rejected_unattributed_;
+  return s;
+}
+
+void CollisionService::PublishStatus() {
+  const status_t s = Status();
+  SafePublish([&] { publisher_->PublishStatus(s); }, "status");
+}
+
+int64_t CollisionService::publish_errors() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return publish_errors_;
+}
+
+int64_t CollisionService::ignored_after_stop() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return ignored_after_stop_;
+}
+
+int64_t CollisionService::rejected_unattributed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return rejected_unattributed_;
+}
+
+}  // namespace sweptccd

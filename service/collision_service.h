@@ -1,0 +1,138 @@
+#pragma once
+// The collision service: many tracked clients, one static environment, a pool
+// of worker threads answering each client's consecutive pose pairs with the
+// SPEC query and publishing contact events. Transport-free: poses come in
+// through OnPose, everything goes out through an injected Publisher.
+
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/ccd_query.h"
+#include "core/collision_filter.h"
+#include "core/environment.h"
+#include "core/skeleton.h"
+#include "service/client_session.h"
+#include "service/publisher.h"
+#include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/status_t.hpp"
+#include "sweptccd/tracker_pose_t.hpp"
+
+namespace sweptccd {
+
+/// One registered client (avatar).
+struct ClientConfig {
+  std::string client_id;                     // Non-empty, unique.
+  std::shared_ptr<const Skeleton> skeleton;  // Non-null.
+  MotionModel motion = MotionModel::kArticulated;
+  CollisionFilter filter;  // Default: nothing ignored.
+};
+
+struct ServiceOptions {
+  int num_workers = 2;  // Worker threads, >= 1.
+  /// eps, delta, per-link and work limits for every query. `motion` is taken
+  /// from each client's ClientConfig instead.
+  QueryOptions query;
+  std::string backend = "cpu";  // Reported in status_t.
+  std::string renderer;         // Reported in status_t (GPU renderer string).
+  /// Latencies (receive -> publish) kept per client for median and p99.
+  int latency_window = 1024;
+  /// Wall clock in microseconds for utime fields; default: system clock.
+  std::function<int64_t()> clock_utime;
+};
+
+/// Owns the client sessions and the worker pool.
+///
+/// Threading: OnPose and OnUndecodable may be called from any one thread at a
+/// time or several (they take a mutex only for bookkeeping and never wait on
+/// geometry); rejections are published on the calling thread. Contact events
+/// are published from worker threads; per client strictly in pose order, one
+/// pair at a time. Status, WaitUntilIdle and Stop may be called from any
+/// thread.
+class CollisionService {
+ public:
+  /// Starts the workers. Throws InputError for bad configuration (no clients,
+  /// empty or duplicate client_id, null skeleton, num_workers < 1, invalid
+  /// query options, latency_window < 1). `environment` and `publisher` must
+  /// outlive the service.
+  CollisionService(std::shared_ptr<const Environment> environment,
+                   std::vector<ClientConfig> clients, ServiceOptions options, Publisher* publisher);
+  /// Stop()s.
+  ~CollisionService();
+
+  CollisionService(const CollisionService&) = delete;
+  CollisionService& operator=(const CollisionService&) = delete;
+
+  /// Accepts or rejects one tracker pose. Never blocks on geometry. After
+  /// Stop() poses are ignored (counted in ignored_after_stop).
+  void OnPose(const tracker_pose_t& pose);
+
+  /// A message on the pose channel that could not be decoded: publishes a
+  /// "decode_error" rejection and counts it.
+  void OnUndecodable(const std::string& channel, const std::string& problem);
+
+  /// Blocks until no pair is pending or in flight and every answer has been
+  /// published. For tests and orderly shutdown.
+  void WaitUntilIdle();
+
+  /// Stops accepting poses, answers and publishes every pending and in-flight
+  /// pair, then joins the workers. Idempotent.
+  void Stop();
+
+  /// A snapshot of the per-client counters and latencies.
+  status_t Status() const;
+  /// Publishes Status() through the publisher.
+  void PublishStatus();
+
+  int64_t publish_errors() const;
+  int64_t ignored_after_stop() const;
+  /// Rejections not attributable to a registered client (unknown client,
+  /// decode errors).
+  int64_t rejected_unattributed() const;
+
+ private:
+  struct Client {
+    ClientConfig config;
+    std::unique_ptr<CcdEngine> engine;
+    ClientSession session;
+    std::deque<double> latencies_us;  // Newest at the back.
+    Client(ClientConfig c, const Environment& env);
+  };
+
+  void WorkerLoop();
+  contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
+  void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection);
+  void SafePublish(const std::function<void()>& publish, const char* what);
+  int64_t NowUtime() const;
+
+  std::shared_ptr<const Environment> environment_;
+  ServiceOptions options_;
+  Publisher* publisher_;
+  std::vector<std::unique_ptr<Client>> clients_;
+  std::map<std::string, int> client_index_;  // Immutable after construction.
+
+  mutable std::mutex mutex_;
+  std::condition_variable work_cv_;  // Workers wait for ready clients.
+  std::condition_variable idle_cv_;  // WaitUntilIdle waits for quiescence.
+  std::deque<int> ready_;            // Clients with a pending pair and none in flight.
+  int in_flight_ = 0;
+  bool stopping_ = false;
+  int64_t publish_errors_ = 0;
+  int64_t ignored_after_stop_ = 0;
+  int64_t rejected_unattributed_ = 0;
+  int64_t rejection_log_window_start_us_ = 0;
+  int rejection_logs_in_window_ = 0;
+  int64_t rejection_logs_suppressed_ = 0;
+
+  std::mutex stop_mutex_;  // Serialises Stop().
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace sweptccd

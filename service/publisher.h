@@ -1,0 +1,25 @@
+#pragma once
+// Where the collision service sends its messages. The LCM adapter implements
+// it; tests capture.
+
+#include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
+
+namespace sweptccd {
+
+/// Output of the collision service. Implementations must be thread-safe:
+/// workers call PublishContact concurrently (for different clients), and the
+/// thread that calls CollisionService::OnPose calls PublishRejection. Per
+/// client, contact events arrive in pair order. An exception thrown here is
+/// caught by the service, logged and counted (publish_errors); it never stops
+/// a worker.
+class Publisher {
+ public:
+  virtual ~Publisher() = default;
+  virtual void PublishContact(const contact_event_t& event) = 0;
+  virtual void PublishRejection(const rejection_t& rejection) = 0;
+  virtual void PublishStatus(const status_t& status) = 0;
+};
+
+}  // namespace sweptccd

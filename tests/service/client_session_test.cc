@@ -1,0 +1,215 @@
+// ClientSession: validation codes, pairing, latest-wins, ordering. No threads.
+#include "service/client_session.h"
+
+#include <gtest/gtest.h>
+
+#include <limits>
+
+#include "service_test_util.h"
+
+namespace sweptccd {
+namespace {
+
+using test::MakePose;
+
+class ClientSessionTest : public ::testing::Test {
+ protected:
+  std::optional<Rejection> Offer(const tracker_pose_t& m) {
+    return session_.OnPose(m, 1000 + m.seq, SteadyClock::now());
+  }
+  // Offers pose `seq` of a well-formed stream (utime 1e6 + seq * 11111 us).
+  std::optional<Rejection> OfferSeq(int64_t seq) {
+    return Offer(MakePose("a", seq, 1'000'000 + seq * 11'111, test::Height(seq)));
+  }
+  // Invariant of ClientSession: no pair is lost silently.
+  void ExpectAccounted() {
+    if (session_.poses_accepted() == 0) return;
+    EXPECT_EQ(session_.poses_accepted() - 1,
+              session_.pairs_taken() + session_.pairs_skipped() + (session_.has_pending() ? 1 : 0));
+  }
+
+  ClientSession session_{"a", 2};
+};
+
+TEST_F(ClientSessionTest, FirstPoseMakesNoPairThenEveryPoseOne) {
+  ASSERT_FALSE(OfferSeq(0));
+  EXPECT_FALSE(session_.ready());
+  for (int64_t k = 1; k <= 5; ++k) {
+    ASSERT_FALSE(OfferSeq(k));
+    ASSERT_TRUE(session_.ready());
+    PosePair p = session_.TakePair();
+    EXPECT_EQ(p.pair, k - 1);
+    EXPECT_EQ(p.seq0, k - 1);
+    EXPECT_EQ(p.seq1, k);
+    EXPECT_EQ(p.pose0.utime, 1'000'000 + (k - 1) * 11'111);
+    EXPECT_EQ(p.pose1.utime, 1'000'000 + k * 11'111);
+    EXPECT_EQ(p.receive_utime, 1000 + k);
+    EXPECT_EQ(p.skipped_pairs_total, 0);
+    EXPECT_FALSE(session_.ready());
+    session_.FinishPair();
+    ExpectAccounted();
+  }
+  EXPECT_EQ(session_.pairs_finished(), 5);
+  EXPECT_EQ(session_.pairs_skipped(), 0);
+  EXPECT_EQ(session_.poses_received(), 6);
+}
+
+TEST_F(ClientSessionTest, OnePairInFlightAtATime) {
+  ASSERT_FALSE(OfferSeq(0));
+  ASSERT_FALSE(OfferSeq(1));
+  PosePair first = session_.TakePair();
+  EXPECT_TRUE(session_.in_flight());
+  ASSERT_FALSE(OfferSeq(2));
+  // (1, 2) is pending but waits for (0, 1) to finish.
+  EXPECT_TRUE(session_.has_pending());
+  EXPECT_FALSE(session_.ready());
+  session_.FinishPair();
+  ASSERT_TRUE(session_.ready());
+  PosePair second = session_.TakePair();
+  EXPECT_EQ(first.seq1, second.seq0);
+  EXPECT_EQ(second.pair, first.pair + 1);
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, LatestWinsReplacesThePendingPairAndCountsSkips) {
+  ASSERT_FALSE(OfferSeq(0));
+  ASSERT_FALSE(OfferSeq(1));
+  PosePair first = session_.TakePair();  // (0, 1) in flight.
+  ASSERT_FALSE(OfferSeq(2));             // pending (1, 2)
+  ASSERT_FALSE(OfferSeq(3));             // pending (1, 3), one skipped
+  ASSERT_FALSE(OfferSeq(4));             // pending (1, 4), two skipped
+  EXPECT_EQ(session_.pairs_skipped(), 2);
+  ExpectAccounted();
+  session_.FinishPair();
+  PosePair second = session_.TakePair();
+  EXPECT_EQ(second.pair, 1);
+  EXPECT_EQ(second.seq0, 1);  // The last answered pose...
+  EXPECT_EQ(second.seq1, 4);  // ...to the newest.
+  EXPECT_EQ(second.pose0.utime, first.pose1.utime);
+  EXPECT_EQ(second.pose1.utime, 1'000'000 + 4 * 11'111);
+  EXPECT_EQ(second.receive_utime, 1004);  // When the newest pose came in.
+  EXPECT_EQ(second.skipped_pairs_total, 2);
+  session_.FinishPair();
+  ExpectAccounted();
+  // The stream goes on from the newest pose.
+  ASSERT_FALSE(OfferSeq(5));
+  PosePair third = session_.TakePair();
+  EXPECT_EQ(third.seq0, 4);
+  EXPECT_EQ(third.seq1, 5);
+  session_.FinishPair();
+  EXPECT_EQ(session_.poses_accepted() - 1, session_.pairs_finished() + session_.pairs_skipped());
+}
+
+TEST_F(ClientSessionTest, LatestWinsBeforeAnyPairWasTaken) {
+  for (int64_t k = 0; k <= 6; ++k) ASSERT_FALSE(OfferSeq(k));
+  EXPECT_EQ(session_.pairs_skipped(), 5);
+  PosePair p = session_.TakePair();
+  EXPECT_EQ(p.seq0, 0);
+  EXPECT_EQ(p.seq1, 6);
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, QuaternionsAreNormalised) {
+  tracker_pose_t m = MakePose("a", 0, 1, 1.0);
+  m.orientation[0] = {2, 0, 0, 0};
+  m.orientation[1] = {0, 0, 0, 1e-3};
+  Pose pose;
+  ASSERT_FALSE(ValidateTrackerPose(m, 2, &pose));
+  EXPECT_DOUBLE_EQ(pose.links[0].q.w(), 1.0);
+  EXPECT_DOUBLE_EQ(pose.links[1].q.z(), 1.0);
+  EXPECT_EQ(pose.utime, 1);
+}
+
+struct BadCase {
+  const char* name;
+  const char* code;
+  void (*spoil)(tracker_pose_t*);
+};
+
+TEST_F(ClientSessionTest, EveryRejectionCodeAndRejectedPosesDoNotAdvance) {
+  const BadCase cases[] = {
+      {"fewer links", rejection_code::kWrongLinkCount,
+       [](tracker_pose_t* m) {
+         m->num_links = 1;
+         m->position.resize(1);
+         m->orientation.resize(1);
+       }},
+      {"more links", rejection_code::kWrongLinkCount,
+       [](tracker_pose_t* m) {
+         m->num_links = 3;
+         m->position.push_back({0, 0, 0});
+         m->orientation.push_back({1, 0, 0, 0});
+       }},
+      {"num_links disagrees with arrays", rejection_code::kWrongLinkCount,
+       [](tracker_pose_t* m) { m->num_links = 3; }},
+      {"short position row", rejection_code::kWrongLinkCount,
+       [](tracker_pose_t* m) { m->position[1].resize(2); }},
+      {"NaN position", rejection_code::kNonFinite,
+       [](tracker_pose_t* m) { m->position[1][2] = std::numeric_limits<double>::quiet_NaN(); }},
+      {"infinite quaternion", rejection_code::kNonFinite,
+       [](tracker_pose_t* m) { m->orientation[0][3] = std::numeric_limits<double>::infinity(); }},
+      {"NaN in a zero quaternion", rejection_code::kNonFinite,
+       [](tracker_pose_t* m) {
+         m->orientation[0] = {0, 0, 0, std::numeric_limits<double>::quiet_NaN()};
+       }},
+      {"far position", rejection_code::kPositionOutOfRange,
+       [](tracker_pose_t* m) { m->position[0][0] = 2e9; }},
+      {"zero quaternion", rejection_code::kZeroQuaternion,
+       [](tracker_pose_t* m) {
+         m->orientation[1] = {0, 0, 0, 0};
+       }},
+      {"tiny quaternion", rejection_code::kZeroQuaternion,
+       [](tracker_pose_t* m) {
+         m->orientation[1] = {1e-7, 0, 0, 0};
+       }},
+      {"same seq", rejection_code::kNonIncreasingSeq, [](tracker_pose_t* m) { m->seq = 1; }},
+      {"smaller seq", rejection_code::kNonIncreasingSeq, [](tracker_pose_t* m) { m->seq = -5; }},
+      {"same utime", rejection_code::kNonIncreasingUtime,
+       [](tracker_pose_t* m) { m->utime = 1'000'000 + 11'111; }},
+      {"smaller utime", rejection_code::kNonIncreasingUtime,
+       [](tracker_pose_t* m) { m->utime = 5; }},
+  };
+  ASSERT_FALSE(OfferSeq(0));
+  ASSERT_FALSE(OfferSeq(1));
+  session_.TakePair();
+  session_.FinishPair();
+  for (const BadCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    tracker_pose_t m = MakePose("a", 2, 1'000'000 + 2 * 11'111, test::Height(2));
+    c.spoil(&m);
+    const std::optional<Rejection> r = Offer(m);
+    ASSERT_TRUE(r.has_value());
+    EXPECT_EQ(r->reason, c.code);
+    EXPECT_FALSE(r->message.empty());
+    EXPECT_FALSE(session_.has_pending());
+  }
+  const int64_t num_cases = sizeof(cases) / sizeof(cases[0]);
+  EXPECT_EQ(session_.rejected(), num_cases);
+  EXPECT_EQ(session_.poses_received(), num_cases + 2);
+  EXPECT_EQ(session_.poses_accepted(), 2);
+  // The stream goes on from the last accepted pose.
+  ASSERT_FALSE(OfferSeq(2));
+  PosePair p = session_.TakePair();
+  EXPECT_EQ(p.seq0, 1);
+  EXPECT_EQ(p.seq1, 2);
+  EXPECT_EQ(p.pair, 1);
+  EXPECT_EQ(session_.pairs_skipped(), 0);
+}
+
+TEST_F(ClientSessionTest, RejectionMessagesNameTheValue) {
+  tracker_pose_t m = MakePose("a", 0, 1, 1.0);
+  m.num_links = 3;
+  Pose pose;
+  auto r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_NE(r->message.find("num_links is 3"), std::string::npos) << r->message;
+  EXPECT_NE(r->message.find("has 2 links"), std::string::npos) << r->message;
+  m = MakePose("a", 0, 1, 1.0);
+  m.orientation[1] = {0, 0, 0, 0};
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_NE(r->message.find("link 1"), std::string::npos) << r->message;
+}
+
+}  // namespace
+}  // namespace sweptccd

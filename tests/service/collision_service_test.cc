@@ -1,0 +1,333 @@
+// CollisionService with a capturing Publisher: ordering, latest-wins,
+// rejections, isolation between clients, equality with CcdEngine, Stop().
+#include "service/collision_service.h"
+
+#include <gtest/gtest.h>
+
+#include <thread>
+
+#include "core/errors.h"
+#include "service_test_util.h"
+
+namespace sweptccd {
+namespace {
+
+using test::CapturingPublisher;
+using test::Height;
+using test::MakePose;
+
+constexpr int64_t kDtUs = 11'111;  // 90 Hz.
+
+tracker_pose_t Sample(const std::string& client, int64_t k) {
+  return MakePose(client, k, 1'000'000 + k * kDtUs, Height(k), 0.2 * static_cast<double>(k));
+}
+
+class CollisionServiceTest : public ::testing::Test {
+ protected:
+  std::unique_ptr<CollisionService> Make(std::vector<std::string> ids, int workers = 2,
+                                         bool per_link = false) {
+    std::vector<ClientConfig> clients;
+    for (const std::string& id : ids) {
+      ClientConfig c;
+      c.client_id = id;
+      c.skeleton = skeleton_;
+      clients.push_back(c);
+    }
+    ServiceOptions options;
+    options.num_workers = workers;
+    options.query.per_link = per_link;
+    options.clock_utime = [this] { return ++fake_utime_; };
+    query_ = options.query;
+    return std::make_unique<CollisionService>(env_, std::move(clients), options, &publisher_);
+  }
+
+  std::shared_ptr<const Skeleton> skeleton_ = test::TwoLinkSkeleton();
+  std::shared_ptr<const Environment> env_ = test::FloorEnvironment();
+  CapturingPublisher publisher_;
+  QueryOptions query_;
+  std::atomic<int64_t> fake_utime_{0};
+};
+
+TEST_F(CollisionServiceTest, AnswersEveryPairInOrderAndEqualToTheEngine) {
+  auto service = Make({"a", "b"}, 3, /*per_link=*/true);
+  constexpr int kPoses = 16;  // Heights 1.0 .. -0.05: free pairs, then contact.
+  for (int64_t k = 0; k < kPoses; ++k) {
+    service->OnPose(Sample("a", k));
+    service->OnPose(Sample("b", k));
+    service->WaitUntilIdle();  // No skipping: each pair is answered before the next pose.
+  }
+  service->Stop();
+  int contacts = 0;
+  for (const std::string id : {"a", "b"}) {
+    const auto events = publisher_.contacts_of(id);
+    ASSERT_EQ(events.size(), static_cast<size_t>(kPoses - 1));
+    for (size_t i = 0; i < events.size(); ++i) {
+      SCOPED_TRACE(id + " pair " + std::to_string(i));
+      EXPECT_EQ(events[i].pair, static_cast<int64_t>(i));
+      EXPECT_EQ(events[i].skipped_pairs_total, 0);
+      EXPECT_GE(events[i].compute_us, 0);
+      EXPECT_GE(events[i].queue_us, 0);
+      EXPECT_GT(events[i].utime, events[i].receive_utime);
+      test::ExpectMatchesEngine(events[i], Sample(id, i), Sample(id, i + 1), *skeleton_, *env_,
+                                query_);
+      if (events[i].result == contact_event_t::RESULT_CONTACT) ++contacts;
+    }
+  }
+  EXPECT_GT(contacts, 0);  // The stream reaches the floor.
+  EXPECT_TRUE(publisher_.rejections().empty());
+  const status_t s = service->Status();
+  ASSERT_EQ(s.num_clients, 2);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(s.poses_received[i], kPoses);
+    EXPECT_EQ(s.pairs_answered[i], kPoses - 1);
+    EXPECT_EQ(s.pairs_skipped[i], 0);
+    EXPECT_EQ(s.rejected[i], 0);
+    EXPECT_GT(s.latency_p99_us[i], 0);
+    EXPECT_LE(s.latency_median_us[i], s.latency_p99_us[i]);
+  }
+  EXPECT_EQ(s.queue_depth, 0);
+  EXPECT_EQ(s.dropped_total, 0);
+  EXPECT_EQ(s.backend, "cpu");
+}
+
+TEST_F(CollisionServiceTest, PairsOfOneClientArePublishedInOrderWithManyWorkers) {
+  // Without WaitUntilIdle between poses: latest-wins may skip, but whatever is
+  // published is in pose order, chained, and every pair is accounted for.
+  auto service = Make({"a", "b", "c"}, 4);
+  constexpr int kPoses = 40;
+  for (int64_t k = 0; k < kPoses; ++k) {
+    for (const char* id : {"a", "b", "c"}) service->OnPose(Sample(id, k));
+  }
+  service->WaitUntilIdle();
+  const status_t s = service->Status();
+  for (int c = 0; c < 3; ++c) {
+    const std::string id = s.client_id[c];
+    const auto events = publisher_.contacts_of(id);
+    ASSERT_FALSE(events.empty());
+    EXPECT_EQ(events.front().seq0, 0);
+    EXPECT_EQ(events.back().seq1, kPoses - 1);
+    int64_t skipped = 0;
+    for (size_t i = 0; i < events.size(); ++i) {
+      EXPECT_EQ(events[i].pair, static_cast<int64_t>(i));
+      if (i > 0) {
+        EXPECT_EQ(events[i].seq0, events[i - 1].seq1);  // Chained: nothing lost.
+        EXPECT_GE(events[i].skipped_pairs_total, events[i - 1].skipped_pairs_total);
+      }
+      skipped += events[i].seq1 - events[i].seq0 - 1;
+      EXPECT_EQ(events[i].skipped_pairs_total, skipped);
+      test::ExpectMatchesEngine(events[i], Sample(id, events[i].seq0), Sample(id, events[i].seq1),
+                                *skeleton_, *env_, query_);
+    }
+    EXPECT_EQ(s.pairs_answered[c], static_cast<int64_t>(events.size()));
+    EXPECT_EQ(s.pairs_skipped[c], skipped);
+    EXPECT_EQ(s.pairs_answered[c] + s.pairs_skipped[c], kPoses - 1);
+  }
+}
+
+TEST_F(CollisionServiceTest, LatestWinsWhileAWorkerIsBusy) {
+  auto service = Make({"a"}, 1);
+  publisher_.CloseGate();
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  publisher_.WaitEntered(1);  // The worker holds (0, 1) inside PublishContact.
+  for (int64_t k = 2; k <= 5; ++k) service->OnPose(Sample("a", k));  // Never blocks.
+  status_t s = service->Status();
+  EXPECT_EQ(s.pairs_skipped[0], 3);  // (1,2) (2,3) (3,4) (4,5) -> (1,5)
+  EXPECT_EQ(s.dropped_total, 3);
+  EXPECT_EQ(s.queue_depth, 1);
+  EXPECT_EQ(s.pairs_answered[0], 0);
+  publisher_.OpenGate();
+  service->WaitUntilIdle();
+  const auto events = publisher_.contacts();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].seq0, 0);
+  EXPECT_EQ(events[0].seq1, 1);
+  EXPECT_EQ(events[0].skipped_pairs_total, 0);
+  EXPECT_EQ(events[1].seq0, 1);
+  EXPECT_EQ(events[1].seq1, 5);
+  EXPECT_EQ(events[1].pair, 1);
+  EXPECT_EQ(events[1].skipped_pairs_total, 3);
+  test::ExpectMatchesEngine(events[1], Sample("a", 1), Sample("a", 5), *skeleton_, *env_, query_);
+  s = service->Status();
+  EXPECT_EQ(s.pairs_answered[0], 2);
+  EXPECT_EQ(s.pairs_skipped[0], 3);
+  EXPECT_EQ(s.queue_depth, 0);
+}
+
+TEST_F(CollisionServiceTest, OneBusyClientDoesNotHoldBackAnother) {
+  // Two workers; client a's worker is held in PublishContact. Client b is
+  // still answered by the other worker.
+  auto service = Make({"a", "b"}, 2);
+  publisher_.CloseGate();
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  publisher_.WaitEntered(1);
+  service->OnPose(Sample("b", 0));
+  service->OnPose(Sample("b", 1));
+  publisher_.WaitEntered(2);  // The second worker took b's pair while a's is held.
+  publisher_.OpenGate();
+  service->WaitUntilIdle();
+  EXPECT_EQ(publisher_.contacts_of("a").size(), 1u);
+  EXPECT_EQ(publisher_.contacts_of("b").size(), 1u);
+}
+
+TEST_F(CollisionServiceTest, BadClientNeverDisturbsAnother) {
+  auto service = Make({"good", "bad"}, 2);
+  constexpr int kPoses = 12;
+  std::vector<std::string> expected_reasons;
+  for (int64_t k = 0; k < kPoses; ++k) {
+    service->OnPose(Sample("good", k));
+    // The bad client sends one good pose, then every kind of garbage.
+    tracker_pose_t bad = Sample("bad", k);
+    switch (k % 6) {
+      case 0:
+        break;
+      case 1:
+        bad.num_links = 5;
+        expected_reasons.push_back(rejection_code::kWrongLinkCount);
+        break;
+      case 2:
+        bad.position[0][1] = std::numeric_limits<double>::quiet_NaN();
+        expected_reasons.push_back(rejection_code::kNonFinite);
+        break;
+      case 3:
+        bad.orientation[0] = {0, 0, 0, 0};
+        expected_reasons.push_back(rejection_code::kZeroQuaternion);
+        break;
+      case 4:
+        bad.seq = -1;
+        expected_reasons.push_back(rejection_code::kNonIncreasingSeq);
+        break;
+      case 5:
+        bad.utime = 0;
+        expected_reasons.push_back(rejection_code::kNonIncreasingUtime);
+        break;
+    }
+    service->OnPose(bad);
+    tracker_pose_t stranger = Sample("stranger", k);
+    service->OnPose(stranger);
+    expected_reasons.push_back(rejection_code::kUnknownClient);
+    service->WaitUntilIdle();
+  }
+  service->OnUndecodable("SWEPTCCD_POSE", "test");
+  expected_reasons.push_back(rejection_code::kDecodeError);
+  service->WaitUntilIdle();
+
+  const auto good = publisher_.contacts_of("good");
+  ASSERT_EQ(good.size(), static_cast<size_t>(kPoses - 1));
+  for (size_t i = 0; i < good.size(); ++i) {
+    test::ExpectMatchesEngine(good[i], Sample("good", i), Sample("good", i + 1), *skeleton_, *env_,
+                              query_);
+  }
+  // The bad client's good poses (k = 0, 6) still pair with each other.
+  const auto bad = publisher_.contacts_of("bad");
+  ASSERT_EQ(bad.size(), 1u);
+  EXPECT_EQ(bad[0].seq0, 0);
+  EXPECT_EQ(bad[0].seq1, 6);
+
+  const auto rejections = publisher_.rejections();
+  ASSERT_EQ(rejections.size(), expected_reasons.size());
+  for (size_t i = 0; i < rejections.size(); ++i) {
+    EXPECT_EQ(rejections[i].reason, expected_reasons[i]) << i;
+    EXPECT_FALSE(rejections[i].message.empty());
+    EXPECT_GT(rejections[i].utime, 0);
+  }
+  EXPECT_EQ(rejections.back().client_id, "");
+  EXPECT_EQ(rejections.back().seq, -1);
+  EXPECT_EQ(rejections[0].client_id, "stranger");
+  EXPECT_EQ(rejections[1].client_id, "bad");
+
+  const status_t s = service->Status();
+  EXPECT_EQ(s.rejected[0], 0);
+  EXPECT_EQ(s.rejected[1], 10);  // 12 poses, 2 good.
+  EXPECT_EQ(s.poses_received[1], 12);
+  EXPECT_EQ(s.rejected_unattributed, kPoses + 1);
+  EXPECT_EQ(service->rejected_unattributed(), kPoses + 1);
+}
+
+TEST_F(CollisionServiceTest, StopFinishesAndPublishesInFlightAndPendingWork) {
+  auto service = Make({"a"}, 1);
+  publisher_.CloseGate();
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  publisher_.WaitEntered(1);        // (0, 1) in flight.
+  service->OnPose(Sample("a", 2));  // (1, 2) pending.
+  std::thread stopper([&] { service->Stop(); });
+  // Stop() has to wait for the held worker; release it. Poses sent while
+  // stopping may or may not be ignored, so none are sent here.
+  publisher_.OpenGate();
+  stopper.join();
+  const auto events = publisher_.contacts();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].seq1, 1);
+  EXPECT_EQ(events[1].seq0, 1);
+  EXPECT_EQ(events[1].seq1, 2);
+  // After Stop, poses are ignored and counted, nothing is published.
+  service->OnPose(Sample("a", 3));
+  EXPECT_EQ(service->ignored_after_stop(), 1);
+  EXPECT_EQ(publisher_.contacts().size(), 2u);
+  service->Stop();  // Idempotent.
+  service->WaitUntilIdle();
+}
+
+TEST_F(CollisionServiceTest, PublisherExceptionsAreCountedAndWorkGoesOn) {
+  auto service = Make({"a"}, 2);
+  publisher_.ThrowOnContact(true);
+  for (int64_t k = 0; k < 4; ++k) {
+    service->OnPose(Sample("a", k));
+    service->WaitUntilIdle();
+  }
+  EXPECT_EQ(service->publish_errors(), 3);
+  publisher_.ThrowOnContact(false);
+  service->OnPose(Sample("a", 4));
+  service->WaitUntilIdle();
+  EXPECT_EQ(publisher_.contacts().size(), 4u);
+  EXPECT_EQ(service->Status().pairs_answered[0], 4);
+}
+
+TEST_F(CollisionServiceTest, PublishStatusSendsTheSnapshot) {
+  auto service = Make({"a", "b"}, 1);
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  service->WaitUntilIdle();
+  service->PublishStatus();
+  const auto statuses = publisher_.statuses();
+  ASSERT_EQ(statuses.size(), 1u);
+  const status_t& s = statuses[0];
+  ASSERT_EQ(s.num_clients, 2);
+  ASSERT_EQ(s.client_id.size(), 2u);
+  ASSERT_EQ(s.latency_p99_us.size(), 2u);
+  EXPECT_EQ(s.client_id[0], "a");
+  EXPECT_EQ(s.pairs_answered[0], 1);
+  EXPECT_EQ(s.pairs_answered[1], 0);
+  EXPECT_EQ(s.latency_median_us[1], 0);
+}
+
+TEST_F(CollisionServiceTest, BadConfigurationIsRefused) {
+  ServiceOptions options;
+  ClientConfig c;
+  c.client_id = "a";
+  c.skeleton = skeleton_;
+  EXPECT_THROW(CollisionService(env_, {}, options, &publisher_), InputError);
+  EXPECT_THROW(CollisionService(env_, {c, c}, options, &publisher_), InputError);
+  ClientConfig unnamed = c;
+  unnamed.client_id = "";
+  EXPECT_THROW(CollisionService(env_, {unnamed}, options, &publisher_), InputError);
+  ClientConfig no_skeleton = c;
+  no_skeleton.skeleton = nullptr;
+  EXPECT_THROW(CollisionService(env_, {no_skeleton}, options, &publisher_), InputError);
+  ServiceOptions no_workers;
+  no_workers.num_workers = 0;
+  EXPECT_THROW(CollisionService(env_, {c}, no_workers, &publisher_), InputError);
+  ServiceOptions bad_eps;
+  bad_eps.query.eps_s = -1;
+  EXPECT_THROW(CollisionService(env_, {c}, bad_eps, &publisher_), InputError);
+  ServiceOptions no_window;
+  no_window.latency_window = 0;
+  EXPECT_THROW(CollisionService(env_, {c}, no_window, &publisher_), InputError);
+  EXPECT_THROW(CollisionService(nullptr, {c}, options, &publisher_), InputError);
+  EXPECT_THROW(CollisionService(env_, {c}, options, nullptr), InputError);
+}
+
+}  // namespace
+}  // namespace sweptccd

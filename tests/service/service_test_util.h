@@ -1,0 +1,198 @@
+#pragma once
+// Shared fixtures of the service tests: a two-link skeleton, a floor, tracker
+// messages that lower the avatar onto the floor, and a capturing Publisher
+// with an optional gate that holds workers inside PublishContact.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <condition_variable>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "core/ccd_query.h"
+#include "core/environment.h"
+#include "core/skeleton.h"
+#include "service/client_session.h"
+#include "service/collision_service.h"
+#include "service/publisher.h"
+
+namespace sweptccd {
+namespace test {
+
+// pelvis: vertical capsule 0.3 m long, radius 0.1; arm: along x, radius 0.05.
+inline std::shared_ptr<const Skeleton> TwoLinkSkeleton() {
+  std::vector<Link> links(2);
+  links[0].name = "pelvis";
+  links[0].parent = -1;
+  links[0].a_L = {0, 0, 0};
+  links[0].b_L = {0, 0, 0.3};
+  links[0].radius = 0.1;
+  links[1].name = "arm";
+  links[1].parent = 0;
+  links[1].a_L = {0, 0, 0};
+  links[1].b_L = {0.3, 0, 0};
+  links[1].radius = 0.05;
+  return std::make_shared<Skeleton>(Skeleton::FromLinks("two", links, "test"));
+}
+
+// A 20 m x 20 m floor at z = 0 (object 0).
+inline std::shared_ptr<const Environment> FloorEnvironment() {
+  TriangleMesh mesh;
+  mesh.vertices = {{-10, -10, 0}, {10, -10, 0}, {10, 10, 0}, {-10, 10, 0}};
+  mesh.indices = {0, 1, 2, 0, 2, 3};
+  auto env = std::make_shared<Environment>();
+  env->AddMesh(mesh, "floor");
+  return env;
+}
+
+// Pelvis origin at height z (metres), arm rotated by `angle` about z at the
+// top of the pelvis. Contact with the floor when z <= 0.1.
+inline tracker_pose_t MakePose(const std::string& client, int64_t seq, int64_t utime, double z,
+                               double angle = 0) {
+  tracker_pose_t m;
+  m.utime = utime;
+  m.client_id = client;
+  m.seq = seq;
+  m.num_links = 2;
+  m.position = {{0.1 * seq, 0, z}, {0.1 * seq, 0, z + 0.3}};
+  m.orientation = {{1, 0, 0, 0}, {std::cos(angle / 2), 0, 0, std::sin(angle / 2)}};
+  return m;
+}
+
+// Height of pose k of a descending stream: from 1 m, 0.07 m lower per pose.
+inline double Height(int64_t k) { return 1.0 - 0.07 * static_cast<double>(k); }
+
+inline Pose ToPose(const tracker_pose_t& m, int num_links) {
+  Pose p;
+  auto rejection = ValidateTrackerPose(m, num_links, &p);
+  EXPECT_FALSE(rejection.has_value()) << rejection->message;
+  return p;
+}
+
+class CapturingPublisher : public Publisher {
+ public:
+  void PublishContact(const contact_event_t& event) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    ++entered_;
+    cv_.notify_all();
+    cv_.wait(lock, [this] { return !gated_; });
+    contacts_.push_back(event);
+    if (throw_on_contact_) throw std::runtime_error("capturing publisher told to throw");
+  }
+  void PublishRejection(const rejection_t& r) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    rejections_.push_back(r);
+  }
+  void PublishStatus(const status_t& s) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    statuses_.push_back(s);
+  }
+
+  // While closed, workers block inside PublishContact.
+  void CloseGate() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    gated_ = true;
+  }
+  void OpenGate() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    gated_ = false;
+    cv_.notify_all();
+  }
+  // Waits until PublishContact has been entered `n` times in total.
+  void WaitEntered(int n) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait(lock, [&] { return entered_ >= n; });
+  }
+  void ThrowOnContact(bool on) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    throw_on_contact_ = on;
+  }
+
+  std::vector<contact_event_t> contacts() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return contacts_;
+  }
+  std::vector<contact_event_t> contacts_of(const std::string& client) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<contact_event_t> out;
+    for (const auto& e : contacts_) {
+      if (e.client_id == client) out.push_back(e);
+    }
+    return out;
+  }
+  std::vector<rejection_t> rejections() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return rejections_;
+  }
+  std::vector<status_t> statuses() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return statuses_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  bool gated_ = false;
+  bool throw_on_contact_ = false;
+  int entered_ = 0;
+  std::vector<contact_event_t> contacts_;
+  std::vector<rejection_t> rejections_;
+  std::vector<status_t> statuses_;
+};
+
+// Expects `event` to be exactly what CcdEngine::Query answers for (m0, m1).
+inline void ExpectMatchesEngine(const contact_event_t& event, const tracker_pose_t& m0,
+                                const tracker_pose_t& m1, const Skeleton& skeleton,
+                                const Environment& env, const QueryOptions& options) {
+  const CcdEngine engine(skeleton, env);
+  const Pose p0 = ToPose(m0, skeleton.num_links());
+  const Pose p1 = ToPose(m1, skeleton.num_links());
+  const QueryResult r = engine.Query(p0, p1, options);
+  EXPECT_EQ(event.seq0, m0.seq);
+  EXPECT_EQ(event.seq1, m1.seq);
+  EXPECT_EQ(event.utime0, m0.utime);
+  EXPECT_EQ(event.utime1, m1.utime);
+  EXPECT_EQ(event.error, "");
+  // Copies: lcm-gen declares the constants without out-of-line definitions,
+  // so binding them to EXPECT_EQ's references would not link.
+  const int8_t expected_result =
+      r.contact ? int8_t{contact_event_t::RESULT_CONTACT} : int8_t{contact_event_t::RESULT_FREE};
+  EXPECT_EQ(event.result, expected_result);
+  EXPECT_EQ(event.initially_colliding, r.initially_colliding);
+  EXPECT_EQ(event.undecided, r.undecided);
+  if (r.contact) {
+    EXPECT_EQ(event.s_lo, r.s_lo);
+    EXPECT_EQ(event.s_hi, r.s_hi);
+    EXPECT_EQ(event.t_lo, BracketTimeLo(m0.utime, m1.utime, r.s_lo));
+    EXPECT_EQ(event.t_hi, BracketTimeHi(m0.utime, m1.utime, r.s_hi));
+  }
+  ASSERT_EQ(event.num_contacts, static_cast<int>(r.contacts.size()));
+  ASSERT_EQ(event.contacts.size(), r.contacts.size());
+  for (size_t i = 0; i < r.contacts.size(); ++i) {
+    const contact_record_t& c = event.contacts[i];
+    EXPECT_EQ(c.link, r.contacts[i].link);
+    EXPECT_EQ(c.object, r.contacts[i].object);
+    EXPECT_EQ(c.triangle, r.contacts[i].triangle);
+    EXPECT_EQ(c.s, r.contacts[i].s);
+    EXPECT_EQ(c.separation, r.contacts[i].separation);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(c.point_link[k], r.contacts[i].point_link[k]);
+      EXPECT_EQ(c.point_env[k], r.contacts[i].point_env[k]);
+      EXPECT_EQ(c.normal[k], r.contacts[i].normal[k]);
+    }
+  }
+  ASSERT_EQ(event.num_links, static_cast<int>(r.links.size()));
+  for (size_t i = 0; i < r.links.size(); ++i) {
+    EXPECT_EQ(event.links[i].link, r.links[i].link);
+    EXPECT_EQ(event.links[i].s_lo, r.links[i].s_lo);
+    EXPECT_EQ(event.links[i].s_hi, r.links[i].s_hi);
+    EXPECT_EQ(event.links[i].has_witness, r.links[i].has_witness);
+  }
+}
+
+}  // namespace test
+}  // namespace sweptccd
