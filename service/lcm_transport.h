@@ -18,7 +18,7 @@ namespace sweptccd {
 
 class CollisionService;
 
-/// Channel names (documented in docs/ by the daemon issue).
+/// Channel names (docs/SERVICE.md).
 struct LcmChannels {
   std::string pose = "SWEPTCCD_POSE";        // tracker_pose_t, in.
   std::string contact = "SWEPTCCD_CONTACT";  // contact_event_t, out.

@@ -1,0 +1,153 @@
+#include "service/service_config.h"
+
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "core/errors.h"
+
+namespace sweptccd {
+
+namespace {
+
+std::string Resolve(const std::string& base_dir, const std::string& path) {
+  if (path.empty() || base_dir.empty() || std::filesystem::path(path).is_absolute()) return path;
+  return (std::filesystem::path(base_dir) / path).string();
+}
+
+template <class T>
+T Get(const YAML::Node& node, const std::string& where) {
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    throw InputError(where + ": expected " +
+                     (std::is_same_v<T, std::string> ? std::string("a string")
+                      : std::is_same_v<T, bool>      ? std::string("true or false")
+                                                     : std::string("a number")) +
+                     ", got '" + YAML::Dump(node) + "'");
+  }
+}
+
+void CheckKeys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
+  for (const auto& kv : map) {
+    const std::string key = kv.first.as<std::string>();
+    if (!known.count(key)) throw InputError(where + ": unknown key '" + key + "'");
+  }
+}
+
+std::vector<std::string> StringList(const YAML::Node& node, const std::string& where) {
+  if (!node.IsSequence()) throw InputError(where + ": expected a list");
+  std::vector<std::string> out;
+  for (size_t i = 0; i < node.size(); ++i) {
+    out.push_back(Get<std::string>(node[i], where + "[" + std::to_string(i) + "]"));
+  }
+  return out;
+}
+
+}  // namespace
+
+ServiceConfig ParseServiceConfig(const std::string& text, const std::string& source,
+                                 const std::string& base_dir) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError(source + ": not valid YAML (" + std::string(e.what()) + ")");
+  }
+  ServiceConfig c;
+  if (root.IsNull()) return c;
+  if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
+  CheckKeys(root,
+            {"lcm_url", "channels", "environment", "query", "backend", "workers",
+             "status_period_s", "log_level", "clients"},
+            source);
+  const std::string at = source + ": ";
+  if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
+  if (const YAML::Node ch = root["channels"]) {
+    if (!ch.IsMap()) throw InputError(at + "channels: expected a mapping");
+    CheckKeys(ch, {"pose", "contact", "reject", "status"}, at + "channels");
+    if (ch["pose"]) c.channels.pose = Get<std::string>(ch["pose"], at + "channels.pose");
+    if (ch["contact"]) c.channels.contact = Get<std::string>(ch["contact"], at + "channels.contact");
+    if (ch["reject"]) c.channels.reject = Get<std::string>(ch["reject"], at + "channels.reject");
+    if (ch["status"]) c.channels.status = Get<std::string>(ch["status"], at + "channels.status");
+  }
+  if (root["environment"]) {
+    for (const std::string& p : StringList(root["environment"], at + "environment")) {
+      c.environment.push_back(Resolve(base_dir, p));
+    }
+  }
+  if (const YAML::Node q = root["query"]) {
+    if (!q.IsMap()) throw InputError(at + "query: expected a mapping");
+    CheckKeys(q, {"eps", "delta", "per_link", "max_intervals"}, at + "query");
+    if (q["eps"]) c.query.eps_s = Get<double>(q["eps"], at + "query.eps");
+    if (q["delta"]) c.query.delta_m = Get<double>(q["delta"], at + "query.delta");
+    if (q["per_link"]) c.query.per_link = Get<bool>(q["per_link"], at + "query.per_link");
+    if (q["max_intervals"]) {
+      c.query.max_intervals = Get<int64_t>(q["max_intervals"], at + "query.max_intervals");
+    }
+  }
+  if (root["backend"]) c.backend = Get<std::string>(root["backend"], at + "backend");
+  if (root["workers"]) c.workers = Get<int>(root["workers"], at + "workers");
+  if (root["status_period_s"]) {
+    c.status_period_s = Get<double>(root["status_period_s"], at + "status_period_s");
+  }
+  if (root["log_level"]) c.log_level = Get<std::string>(root["log_level"], at + "log_level");
+  if (const YAML::Node clients = root["clients"]) {
+    if (!clients.IsSequence()) throw InputError(at + "clients: expected a list");
+    for (size_t i = 0; i < clients.size(); ++i) {
+      const std::string where = at + "clients[" + std::to_string(i) + "]";
+      const YAML::Node e = clients[i];
+      if (!e.IsMap()) throw InputError(where + ": expected a mapping");
+      CheckKeys(e, {"id", "skeleton", "motion", "filter", "ignore"}, where);
+      ClientSpec spec;
+      if (!e["id"]) throw InputError(where + ": missing 'id'");
+      if (!e["skeleton"]) throw InputError(where + ": missing 'skeleton'");
+      spec.id = Get<std::string>(e["id"], where + ".id");
+      spec.skeleton_path = Resolve(base_dir, Get<std::string>(e["skeleton"], where + ".skeleton"));
+      if (e["motion"]) {
+        const std::string m = Get<std::string>(e["motion"], where + ".motion");
+        const auto model = ParseMotionModel(m);
+        if (!model) throw InputError(where + ".motion: must be articulated or independent, got '" + m + "'");
+        spec.motion = *model;
+      }
+      if (e["filter"]) spec.filter_path = Resolve(base_dir, Get<std::string>(e["filter"], where + ".filter"));
+      if (e["ignore"]) spec.ignore_rules = StringList(e["ignore"], where + ".ignore");
+      c.clients.push_back(spec);
+    }
+  }
+  return c;
+}
+
+ServiceConfig LoadServiceConfig(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the configuration file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return ParseServiceConfig(buffer.str(), path,
+                            std::filesystem::path(path).parent_path().string());
+}
+
+void ValidateServiceConfig(const ServiceConfig& c) {
+  if (c.environment.empty()) {
+    throw InputError("configuration: no environment (give 'environment' or --env)");
+  }
+  if (c.clients.empty()) throw InputError("configuration: no clients (give 'clients' or --client)");
+  std::set<std::string> ids;
+  for (const ClientSpec& s : c.clients) {
+    if (s.id.empty()) throw InputError("configuration: a client has an empty id");
+    if (!ids.insert(s.id).second) throw InputError("configuration: duplicate client id '" + s.id + "'");
+  }
+  if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
+  if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
+  if (c.backend != "cpu" && c.backend != "auto") {
+    throw InputError("configuration: backend must be cpu or auto (this build has no GPU backend), got '" +
+                     c.backend + "'");
+  }
+  const std::string problem = ValidateQueryOptions(c.query);
+  if (!problem.empty()) throw InputError("configuration: query: " + problem);
+}
+
+}  // namespace sweptccd

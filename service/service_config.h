@@ -1,0 +1,47 @@
+#pragma once
+// The daemon's configuration: a YAML file (deploy/sweptccd.yaml documents
+// every key) with command-line overrides. Typed options, validated at load.
+
+#include <string>
+#include <vector>
+
+#include "core/ccd_query.h"
+#include "service/lcm_transport.h"
+
+namespace sweptccd {
+
+struct ClientSpec {
+  std::string id;
+  std::string skeleton_path;
+  MotionModel motion = MotionModel::kArticulated;
+  std::string filter_path;                // Optional collision filter JSON.
+  std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
+};
+
+struct ServiceConfig {
+  std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
+  LcmChannels channels;
+  std::vector<std::string> environment;  // Mesh files, in object order.
+  QueryOptions query;
+  std::string backend = "auto";
+  int workers = 2;
+  double status_period_s = 1.0;
+  std::string log_level = "info";
+  std::vector<ClientSpec> clients;
+};
+
+/// Reads a YAML configuration. Relative paths are taken relative to the
+/// file's folder. Throws InputError("PATH: key: problem").
+ServiceConfig LoadServiceConfig(const std::string& path);
+
+/// Parses YAML text (`source` names it in errors; `base_dir` resolves
+/// relative paths). Throws InputError.
+ServiceConfig ParseServiceConfig(const std::string& text, const std::string& source,
+                                 const std::string& base_dir);
+
+/// Checks a configuration after overrides: environment and clients present,
+/// unique client ids, workers >= 1, status period > 0, query options valid,
+/// backend cpu or auto. Throws InputError naming the problem.
+void ValidateServiceConfig(const ServiceConfig& config);
+
+}  // namespace sweptccd

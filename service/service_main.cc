@@ -1,0 +1,164 @@
+// sweptccd-service: the collision daemon. Parses flags and the YAML
+// configuration, loads the environment once, starts the service and its LCM
+// transport, and waits: on LCM traffic, on the status timer and on SIGINT or
+// SIGTERM (then in-flight work is finished and published before exit).
+
+#include <poll.h>
+#include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <chrono>
+#include <cstdio>
+#include <lcm/lcm-cpp.hpp>
+
+#include "core/collision_filter.h"
+#include "core/environment.h"
+#include "core/errors.h"
+#include "core/skeleton.h"
+#include "service/collision_service.h"
+#include "service/lcm_transport.h"
+#include "service/service_config.h"
+
+namespace {
+
+int g_signal_pipe[2] = {-1, -1};
+
+void OnSignal(int) {
+  const char byte = 1;
+  // Async-signal-safe: one write to a pipe the main loop polls.
+  [[maybe_unused]] const ssize_t n = write(g_signal_pipe[1], &byte, 1);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace sweptccd;
+  spdlog::set_default_logger(spdlog::stderr_color_mt("sweptccd-service"));
+  spdlog::set_pattern("[%H:%M:%S.%e] [%^%l%$] %v");
+
+  CLI::App app{"sweptccd-service: continuous collision answers for tracked avatars over LCM"};
+  std::string config_path, lcm_url, backend, log_level;
+  std::vector<std::string> env_paths, client_flags;
+  double eps = -1, delta = -1, status_period = -1;
+  int workers = 0;
+  app.add_option("--config", config_path, "YAML configuration (see deploy/sweptccd.yaml)");
+  app.add_option("--lcm-url", lcm_url, "LCM provider URL (overrides lcm_url)");
+  app.add_option("--env", env_paths, "Mesh file; repeat (replaces 'environment')");
+  app.add_option("--client", client_flags,
+                 "ID=SKELETON.json: one more client (articulated, no filter); repeat");
+  app.add_option("--eps", eps, "Time tolerance, seconds");
+  app.add_option("--delta", delta, "Distance tolerance, metres");
+  app.add_option("--workers", workers, "Worker threads");
+  app.add_option("--backend", backend, "cpu or auto");
+  app.add_option("--status-period", status_period, "Seconds between status messages");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "error: sweptccd-service: %s\n", e.what());
+    return 2;
+  }
+
+  try {
+    ServiceConfig config = config_path.empty() ? ServiceConfig() : LoadServiceConfig(config_path);
+    if (!lcm_url.empty()) config.lcm_url = lcm_url;
+    if (!env_paths.empty()) config.environment = env_paths;
+    for (const std::string& flag : client_flags) {
+      const size_t eq = flag.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == flag.size()) {
+        throw InputError("--client '" + flag + "': expected ID=SKELETON.json");
+      }
+      ClientSpec spec;
+      spec.id = flag.substr(0, eq);
+      spec.skeleton_path = flag.substr(eq + 1);
+      config.clients.push_back(spec);
+    }
+    if (eps >= 0) config.query.eps_s = eps;
+    if (delta >= 0) config.query.delta_m = delta;
+    if (workers != 0) config.workers = workers;
+    if (!backend.empty()) config.backend = backend;
+    if (status_period >= 0) config.status_period_s = status_period;
+    if (!log_level.empty()) config.log_level = log_level;
+    ValidateServiceConfig(config);
+    const auto level = spdlog::level::from_str(config.log_level);
+    if (level == spdlog::level::off && config.log_level != "off") {
+      throw InputError("configuration: unknown log_level '" + config.log_level + "'");
+    }
+    spdlog::set_level(level);
+
+    const auto t0 = std::chrono::steady_clock::now();
+    auto env = std::make_shared<Environment>(Environment::LoadFiles(config.environment));
+    spdlog::info("environment: {} objects, {} triangles, loaded in {:.3f} s", env->num_objects(),
+                 env->num_triangles(),
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    std::vector<ClientConfig> clients;
+    for (const ClientSpec& spec : config.clients) {
+      ClientConfig cc;
+      cc.client_id = spec.id;
+      cc.skeleton = std::make_shared<const Skeleton>(LoadSkeletonFile(spec.skeleton_path));
+      cc.motion = spec.motion;
+      cc.filter = CollisionFilter(cc.skeleton->num_links(), env->num_objects());
+      if (!spec.filter_path.empty()) {
+        cc.filter = CollisionFilter::FromFile(spec.filter_path, *cc.skeleton, *env);
+      }
+      for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, *env);
+      clients.push_back(std::move(cc));
+    }
+    if (config.backend == "auto") spdlog::info("backend auto: cpu (no GPU backend in this build)");
+
+    lcm::LCM lcm(config.lcm_url);
+    if (!lcm.good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
+    LcmTransport transport(&lcm, config.channels);
+    ServiceOptions options;
+    options.num_workers = config.workers;
+    options.query = config.query;
+    options.backend = "cpu";
+    CollisionService service(env, std::move(clients), options, &transport);
+    transport.Subscribe(&service);
+
+    if (pipe(g_signal_pipe) != 0) throw InputError("cannot create the signal pipe");
+    struct sigaction action {};
+    action.sa_handler = OnSignal;
+    sigemptyset(&action.sa_mask);
+    sigaction(SIGINT, &action, nullptr);
+    sigaction(SIGTERM, &action, nullptr);
+    spdlog::info("ready: {} clients, {} workers, listening on '{}' channel {}", config.clients.size(),
+                 config.workers, config.lcm_url, config.channels.pose);
+
+    const auto period = std::chrono::duration<double>(config.status_period_s);
+    auto next_status = std::chrono::steady_clock::now() + period;
+    for (;;) {
+      const auto now = std::chrono::steady_clock::now();
+      if (now >= next_status) {
+        service.PublishStatus();
+        next_status += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
+        if (next_status < now) next_status = now + std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
+        continue;
+      }
+      const int timeout_ms = static_cast<int>(
+          std::chrono::duration_cast<std::chrono::milliseconds>(next_status - now).count() + 1);
+      pollfd fds[2] = {{lcm.getFileno(), POLLIN, 0}, {g_signal_pipe[0], POLLIN, 0}};
+      const int ready = poll(fds, 2, timeout_ms);
+      if (ready < 0) {
+        if (errno == EINTR) continue;
+        throw InputError("poll failed");
+      }
+      if (fds[1].revents & POLLIN) break;
+      if (fds[0].revents & POLLIN) lcm.handleTimeout(0);
+    }
+    spdlog::info("shutting down: finishing in-flight work");
+    transport.Unsubscribe();
+    service.Stop();
+    service.PublishStatus();
+    spdlog::info("stopped");
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}

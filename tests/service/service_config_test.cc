@@ -1,0 +1,121 @@
+// The daemon's YAML configuration: a full file, relative paths, overrides'
+// validation, and every refusal naming the key and the problem.
+
+#include "service/service_config.h"
+
+#include <gtest/gtest.h>
+
+#include "core/errors.h"
+
+namespace sweptccd {
+namespace {
+
+std::string RefusalOf(const std::string& yaml) {
+  try {
+    ValidateServiceConfig(ParseServiceConfig(yaml, "cfg.yaml", "/base"));
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+const char* kFull = R"(
+lcm_url: "udpm://239.255.76.67:7667?ttl=0"
+channels: {pose: P, contact: C, reject: R, status: S}
+environment: [room.ply, /abs/dragon.ply.gz]
+query: {eps: 2.0e-4, delta: 0.002, per_link: true, max_intervals: 5000}
+backend: cpu
+workers: 3
+status_period_s: 0.5
+log_level: debug
+clients:
+  - id: alice
+    skeleton: alice.json
+    motion: independent
+    filter: feet.json
+    ignore: ["foot_l:0", "*:1"]
+  - id: bob
+    skeleton: /abs/bob.json
+)";
+
+TEST(ServiceConfigTest, FullFileParses) {
+  const ServiceConfig c = ParseServiceConfig(kFull, "cfg.yaml", "/base");
+  EXPECT_EQ(c.lcm_url, "udpm://239.255.76.67:7667?ttl=0");
+  EXPECT_EQ(c.channels.pose, "P");
+  EXPECT_EQ(c.channels.contact, "C");
+  EXPECT_EQ(c.channels.reject, "R");
+  EXPECT_EQ(c.channels.status, "S");
+  ASSERT_EQ(c.environment.size(), 2u);
+  EXPECT_EQ(c.environment[0], "/base/room.ply");  // Relative to the file's folder.
+  EXPECT_EQ(c.environment[1], "/abs/dragon.ply.gz");
+  EXPECT_DOUBLE_EQ(c.query.eps_s, 2e-4);
+  EXPECT_DOUBLE_EQ(c.query.delta_m, 0.002);
+  EXPECT_TRUE(c.query.per_link);
+  EXPECT_EQ(c.query.max_intervals, 5000);
+  EXPECT_EQ(c.workers, 3);
+  EXPECT_DOUBLE_EQ(c.status_period_s, 0.5);
+  EXPECT_EQ(c.log_level, "debug");
+  ASSERT_EQ(c.clients.size(), 2u);
+  EXPECT_EQ(c.clients[0].id, "alice");
+  EXPECT_EQ(c.clients[0].skeleton_path, "/base/alice.json");
+  EXPECT_EQ(c.clients[0].motion, MotionModel::kIndependent);
+  EXPECT_EQ(c.clients[0].filter_path, "/base/feet.json");
+  EXPECT_EQ(c.clients[0].ignore_rules, (std::vector<std::string>{"foot_l:0", "*:1"}));
+  EXPECT_EQ(c.clients[1].motion, MotionModel::kArticulated);
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+}
+
+TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
+  const std::string base = "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\n";
+  EXPECT_EQ(RefusalOf(base), "");
+  struct Case {
+    std::string yaml, must_contain;
+  };
+  const std::vector<Case> cases = {
+      {"[not, a, map]", "mapping"},
+      {"key: [unclosed", "not valid YAML"},
+      {base + "colour: red\n", "unknown key 'colour'"},
+      {base + "workers: many\n", "workers: expected a number"},
+      {base + "workers: 0\n", "workers must be >= 1"},
+      {base + "backend: gpu\n", "backend must be cpu or auto"},
+      {base + "status_period_s: 0\n", "status_period_s must be > 0"},
+      {base + "query: {eps: 0}\n", "eps must be"},
+      {base + "query: {delta: -1}\n", "delta must be"},
+      {base + "query: {speed: 1}\n", "query: unknown key 'speed'"},
+      {base + "channels: {pose: [1, 2]}\n", "channels.pose: expected a string"},
+      {"environment: [a.ply]\nclients: [{id: a}]\n", "clients[0]: missing 'skeleton'"},
+      {"environment: [a.ply]\nclients: [{skeleton: s}]\n", "clients[0]: missing 'id'"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s, motion: linear}]\n",
+       "clients[0].motion: must be articulated or independent"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}, {id: a, skeleton: t}]\n",
+       "duplicate client id 'a'"},
+      {"clients: [{id: a, skeleton: s}]\n", "no environment"},
+      {"environment: [a.ply]\n", "no clients"},
+      {"environment: a.ply\nclients: [{id: a, skeleton: s}]\n", "environment: expected a list"},
+  };
+  for (const Case& c : cases) {
+    const std::string message = RefusalOf(c.yaml);
+    EXPECT_NE(message.find(c.must_contain), std::string::npos)
+        << "yaml:\n" << c.yaml << "\nmessage: " << message;
+  }
+}
+
+TEST(ServiceConfigTest, MissingFileNamesThePath) {
+  try {
+    LoadServiceConfig("/nonexistent/sweptccd.yaml");
+    FAIL() << "no refusal";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/sweptccd.yaml"), std::string::npos);
+  }
+}
+
+// The example shipped in deploy/ must parse (its paths are examples).
+TEST(ServiceConfigTest, DeployExampleParses) {
+  const ServiceConfig c = LoadServiceConfig(SWEPTCCD_SOURCE_DIR "/deploy/sweptccd.yaml");
+  EXPECT_FALSE(c.environment.empty());
+  EXPECT_FALSE(c.clients.empty());
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+}
+
+}  // namespace
+}  // namespace sweptccd
