@@ -55,6 +55,16 @@ int main(int argc, char** argv) {
   app.add_option("--backend", backend, "cpu or auto");
   app.add_option("--status-period", status_period, "Seconds between status messages");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
+  std::string pose_channel, contact_channel, reject_channel, status_channel;
+  std::vector<std::string> filter_flags, ignore_flags;
+  app.add_option("--pose-channel", pose_channel, "Channel of tracker_pose_t (in)");
+  app.add_option("--contact-channel", contact_channel, "Channel of contact_event_t (out)");
+  app.add_option("--reject-channel", reject_channel, "Channel of rejection_t (out)");
+  app.add_option("--status-channel", status_channel, "Channel of status_t (out)");
+  app.add_option("--filter", filter_flags, "ID=FILTER.json: a client's collision filter; repeat");
+  app.add_option("--ignore", ignore_flags,
+                 "ID=LINK:OBJECT: a client ignores LINK against OBJECT (names, indices or *); "
+                 "repeat");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -78,6 +88,31 @@ int main(int argc, char** argv) {
       spec.skeleton_path = flag.substr(eq + 1);
       config.clients.push_back(spec);
     }
+    auto split = [](const std::string& flag, const char* name) {
+      const size_t eq = flag.find('=');
+      if (eq == std::string::npos || eq == 0 || eq + 1 == flag.size()) {
+        throw InputError(std::string(name) + " '" + flag + "': expected ID=VALUE");
+      }
+      return std::make_pair(flag.substr(0, eq), flag.substr(eq + 1));
+    };
+    auto client_named = [&](const std::string& id, const char* name) -> ClientSpec& {
+      for (ClientSpec& c : config.clients) {
+        if (c.id == id) return c;
+      }
+      throw InputError(std::string(name) + ": unknown client '" + id + "'");
+    };
+    for (const std::string& flag : filter_flags) {
+      const auto [id, path] = split(flag, "--filter");
+      client_named(id, "--filter").filter_path = path;
+    }
+    for (const std::string& flag : ignore_flags) {
+      const auto [id, rule] = split(flag, "--ignore");
+      client_named(id, "--ignore").ignore_rules.push_back(rule);
+    }
+    if (!pose_channel.empty()) config.channels.pose = pose_channel;
+    if (!contact_channel.empty()) config.channels.contact = contact_channel;
+    if (!reject_channel.empty()) config.channels.reject = reject_channel;
+    if (!status_channel.empty()) config.channels.status = status_channel;
     if (eps >= 0) config.query.eps_s = eps;
     if (delta >= 0) config.query.delta_m = delta;
     if (workers != 0) config.workers = workers;
