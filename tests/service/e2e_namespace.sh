@@ -11,6 +11,8 @@ if [ "${SWEPTCCD_IN_NETNS:-}" != 1 ]; then
 fi
 sweptccd=$1 service=$2 client=$3 src=$4 work=$5
 mkdir -p "$work"
+# Refuse to run on a real network: a fresh namespace has only "lo".
+[ "$(ip -o link show | wc -l)" = 1 ] || { echo "$0: not in a private network namespace" >&2; exit 1; }
 ip link set lo up
 ip route add 224.0.0.0/4 dev lo
 url='udpm://239.255.76.67:7667?ttl=0'
