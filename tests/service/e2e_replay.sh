@@ -8,29 +8,17 @@
 # by latest-wins from a query on the two poses).
 #   e2e_replay.sh SWEPTCCD SERVICE E2E_TOOL SOURCE_DIR WORK_DIR
 set -euo pipefail
-if [ "${SWEPTCCD_IN_NETNS:-}" != 1 ]; then
-  if [ "$(id -u)" = 0 ]; then flags=-n; else flags=-rn; fi
-  exec env SWEPTCCD_IN_NETNS=1 unshare $flags bash "$0" "$@"
-fi
+source "$(dirname "$0")/../../tools/netns.sh"
+enter_private_netns "$@"
 sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
-# Refuse to run on a real network: a fresh namespace has only "lo".
-[ "$(ip -o link show | wc -l)" = 1 ] || { echo "$0: not in a private network namespace" >&2; exit 1; }
-ip link set lo up
-ip route add 224.0.0.0/4 dev lo
-url='udpm://239.255.76.67:7667?ttl=0'
+setup_loopback_multicast
+url=$SWEPTCCD_URL
 env_ply="$src/data/morse_apartment.ply"
-"$sweptccd" import-bvh --bvh "$src/data/demo/cmu_02_01_walk.bvh" --up z --rate 30 \
-  --offset 0 -1 0 --utime-start 1000000 \
-  --skeleton-out "$work/skeleton.json" --poses-out "$work/poses.jsonl"
-"$sweptccd" query --skeleton "$work/skeleton.json" --poses "$work/poses.jsonl" \
-  --env "$env_ply" --output "$work/expected.jsonl"
+import_walk "$sweptccd" "$src" 30 "$work"
+query_walk "$sweptccd" "$env_ply" "$work"
 pids=()
 trap 'for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null || true; done' EXIT
-wait_for() {  # FILE PATTERN: bounded wait (10 s) for PATTERN in FILE
-  for _ in $(seq 100); do grep -q "$2" "$1" 2>/dev/null && return 0; sleep 0.1; done
-  echo "e2e_replay: no '$2' in $1 within 10 s" >&2; return 1
-}
 start_daemon() {  # LOG
   "$service" --lcm-url "$url" --env "$env_ply" --client "alice=$work/skeleton.json" \
     --log-level info 2> "$1" &

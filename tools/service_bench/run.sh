@@ -3,21 +3,15 @@
 # network): for 1, 8 and 32 clients at 90 Hz, publication -> contact event.
 #   bash tools/service_bench/run.sh [BUILD_DIR]   (default build)
 set -euo pipefail
-if [ "${SWEPTCCD_IN_NETNS:-}" != 1 ]; then
-  if [ "$(id -u)" = 0 ]; then flags=-n; else flags=-rn; fi
-  exec env SWEPTCCD_IN_NETNS=1 unshare $flags bash "$0" "$@"
-fi
+source "$(dirname "$0")/../netns.sh"
+enter_private_netns "$@"
 cd "$(dirname "$0")/../.."
 build=${1:-build}
 work=$build/service_bench
 mkdir -p "$work"
-# Refuse to run on a real network: a fresh namespace has only "lo".
-[ "$(ip -o link show | wc -l)" = 1 ] || { echo "$0: not in a private network namespace" >&2; exit 1; }
-ip link set lo up
-ip route add 224.0.0.0/4 dev lo
-url='udpm://239.255.76.67:7667?ttl=0'
-"$build/bin/sweptccd" import-bvh --bvh data/demo/cmu_02_01_walk.bvh --up z --rate 90 \
-  --offset 0 -1 0 --skeleton-out "$work/skeleton.json" --poses-out "$work/poses.jsonl"
+setup_loopback_multicast
+url=$SWEPTCCD_URL
+import_walk "$build/bin/sweptccd" . 90 "$work"
 echo "| clients | Hz | poses sent | events | median us | p99 us | max us |"
 echo "|---:|---:|---:|---:|---:|---:|---:|"
 for n in 1 8 32; do
