@@ -2,11 +2,11 @@
 # End-to-end test of the daemon over udpm:// inside a private network
 # namespace this script creates (never the host network): the bundled walk
 # through the bundled apartment, every event compared with `sweptccd query`.
-#   e2e_namespace.sh SWEPTCCD SERVICE E2E_CLIENT SOURCE_DIR WORK_DIR
+#   e2e_namespace.sh SWEPTCCD SERVICE E2E_TOOL SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
 enter_private_netns "$@"
-sweptccd=$1 service=$2 client=$3 src=$4 work=$5
+sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
@@ -21,7 +21,7 @@ query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
-"$client" "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
+"$tool" lockstep "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"

@@ -5,6 +5,11 @@
 //     Publishes pose k of POSES.jsonl (seq k, the file's utime) for every
 //     client ID, one round every 1/RATE_HZ seconds, then exits.
 //
+//   e2e_tool lockstep URL ID POSES.jsonl EXPECTED.jsonl
+//     Publishes ID's poses one at a time, waiting (bounded) for the event of
+//     each pair before the next, so the daemon never has to skip; every event
+//     must answer (k-1, k) and equal EXPECTED line k-1 (`sweptccd query`).
+//
 //   e2e_tool probe URL CHANNEL
 //     Publishes a few bytes on CHANNEL once (to see that a logger listens).
 //
@@ -20,7 +25,7 @@
 //     two-line pose file (seq0, seq1).
 //
 //   e2e_tool badinput URL GOOD_ID BAD_ID POSES.jsonl EXPECTED.jsonl
-//     Publishes GOOD_ID's stream lock-step (as e2e_client) and, between its
+//     Publishes GOOD_ID's stream lock-step (as lockstep) and, between its
 //     poses, one bad message per step (BAD_ID and an unknown client, raw
 //     garbage bytes); checks each bad message gets a rejection_t with the
 //     right reason, client and seq, BAD_ID (one accepted pose) gets no event,
@@ -116,6 +121,42 @@ int Publish(int argc, char** argv) {
   std::printf("e2e_tool publish: %zu poses x %d clients at %g Hz\n", poses.size(), argc - 5,
               rate);
   return 0;
+}
+
+int Lockstep(int argc, char** argv) {
+  if (argc != 6) return 2;
+  lcm::LCM lcm(argv[2]);
+  if (!lcm.good()) return 2;
+  Receiver rx;
+  lcm.subscribe("SWEPTCCD_CONTACT", &Receiver::On, &rx);
+  const std::vector<nlohmann::json> poses = ReadLines(argv[4]);
+  const std::vector<nlohmann::json> expected = ReadLines(argv[5]);
+  int mismatches = 0;
+  for (size_t k = 0; k < poses.size(); ++k) {
+    sweptccd::tracker_pose_t m = MakePose(poses[k], argv[3], static_cast<int64_t>(k));
+    lcm.publish("SWEPTCCD_POSE", &m);
+    if (k == 0) continue;  // The first pose only anchors the stream.
+    for (int waited_ms = 0; rx.events.size() < k && waited_ms < 10000; waited_ms += 10) {
+      lcm.handleTimeout(10);
+    }
+    if (rx.events.size() < k) {
+      std::fprintf(stderr, "e2e_tool lockstep: no event for pair %zu within 10 s\n", k - 1);
+      return 1;
+    }
+    const sweptccd::contact_event_t& e = rx.events[k - 1];
+    const nlohmann::json& want = expected.at(k - 1);
+    if (e.seq0 != static_cast<int64_t>(k - 1) || e.seq1 != static_cast<int64_t>(k) ||
+        !Same(e, want)) {
+      ++mismatches;
+      std::fprintf(stderr, "e2e_tool lockstep: pair %zu differs: event result %d s [%.17g, %.17g], "
+                   "query %s\n", k - 1, e.result, e.s_lo, e.s_hi, want.dump().c_str());
+    }
+  }
+  int contacts = 0;
+  for (const auto& e : rx.events) contacts += e.result == 1;
+  std::printf("e2e_tool lockstep: %zu events, %d contact, %d mismatches\n", rx.events.size(),
+              contacts, mismatches);
+  return mismatches == 0 && rx.events.size() + 1 == poses.size() ? 0 : 1;
 }
 
 int Probe(int argc, char** argv) {
@@ -397,6 +438,7 @@ int main(int argc, char** argv) {
   const std::string mode = argc > 1 ? argv[1] : "";
   int rc = 2;
   if (mode == "publish") rc = Publish(argc, argv);
+  if (mode == "lockstep") rc = Lockstep(argc, argv);
   if (mode == "probe") rc = Probe(argc, argv);
   if (mode == "collect") rc = Collect(argc, argv);
   if (mode == "badinput") rc = BadInput(argc, argv);
