@@ -35,12 +35,6 @@ bool CollisionFilter::IgnoresAll(int link) const {
   return true;
 }
 
-int CollisionFilter::num_ignored_pairs() const {
-  int n = 0;
-  for (bool b : ignored_) n += b;
-  return n;
-}
-
 namespace {
 
 bool ParseIndex(const std::string& s, int* out) {

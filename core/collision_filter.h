@@ -21,7 +21,6 @@ class CollisionFilter {
     return !ignored_.empty() && ignored_[static_cast<size_t>(link) * num_objects_ + object];
   }
   bool IgnoresAll(int link) const;
-  int num_ignored_pairs() const;
 
   /// Parses `{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"}]}`.
   /// Links by name or index ("*" = all), objects by index, name (path) or "*".

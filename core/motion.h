@@ -73,11 +73,6 @@ class PairMotion {
                             const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
                             Eigen::Vector3d* p_WB, double* growth) const;
 
-  /// Upper bound on |d^2 P / ds^2| for the link frame origin (m per unit s^2).
-  double origin_acceleration_bound(int link) const { return links_[link].accel_bound; }
-  /// Upper bound on |d omega / ds| of the link frame (rad per unit s^2).
-  double angular_acceleration_bound(int link) const { return links_[link].angular_accel_bound; }
-
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link
