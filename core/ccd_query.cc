@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <queue>
+#include <unordered_map>
 
 #include "core/distance.h"
 #include "core/errors.h"
@@ -79,6 +80,35 @@ struct TaskLater {
   }
 };
 
+// The chronological queue, with its pending tasks readable (for batching
+// culler round trips over them).
+class TaskQueue : public std::priority_queue<Task, std::vector<Task>, TaskLater> {
+ public:
+  const std::vector<Task>& pending() const { return c; }
+};
+
+// A time interval of one link, as the culler's answers are keyed.
+struct IntervalKey {
+  int link;
+  double s0, s1;
+  bool operator==(const IntervalKey& o) const {
+    return link == o.link && s0 == o.s0 && s1 == o.s1;
+  }
+};
+
+struct IntervalKeyHash {
+  size_t operator()(const IntervalKey& k) const {
+    return std::hash<double>()(k.s0) * 1000003u ^ std::hash<double>()(k.s1) * 31u ^
+           static_cast<size_t>(k.link);
+  }
+};
+
+// Levels of the time-slicing tree below an interval that one culler round
+// trip answers ahead of the descent (15 intervals per interval asked about),
+// and the most capsules sent in one round trip.
+constexpr int kCullLevels = 3;
+constexpr size_t kMaxCullBatch = 4096;
+
 // Swept bound of one link over [s0, s1]: a capsule around the segment at the
 // midpoint. Every point of the link over the interval lies inside it.
 struct Capsule {
@@ -126,7 +156,8 @@ class QueryRun {
         // routines: at most ~2e-8 of the coordinates' magnitude (see
         // tests/core/distance_test.cc); 2^-22 of the avatar's is ten times that.
         tol_(std::max(env_.coordinate_tolerance(),
-                      std::ldexp(motion_.coordinate_scale(), -22) + 1e-9)) {}
+                      std::ldexp(motion_.coordinate_scale(), -22) + 1e-9)),
+        culler_(engine.culler()) {}
 
   QueryResult Run();
 
@@ -169,6 +200,19 @@ class QueryRun {
   void FinishLeaf(const Task& task, const ContactRecord& witness, bool exact_witness = false);
   void FinishUndecided(int link, double s_lo);
   bool InitiallyTouching(int link);
+  // Culler: appends the swept capsule of [s0, s1] and of its descendants
+  // `levels` deep, computed exactly as the descent computes them.
+  void AppendSubtree(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                     const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                     const Eigen::Vector3d& b1, int levels);
+  // Sends the pending capsules in one round trip and records the answers.
+  // Returns false (and drops the culler for this query) when it failed.
+  bool FlushCull();
+  // 1: the culler cleared the interval; 0: it did not; -1: not asked yet.
+  int Culled(int link, double s0, double s1) const;
+  // One round trip for `task` and, while the batch has room, the other
+  // pending tasks the culler has not answered.
+  void CullAhead(const Task& task);
 
   const CcdEngine& engine_;
   const Skeleton& skel_;
@@ -185,9 +229,64 @@ class QueryRun {
   std::vector<uint32_t> top_begin_, top_count_;
   std::vector<bool> top_overflow_;
   std::vector<bool> link_done_;
-  std::priority_queue<Task, std::vector<Task>, TaskLater> queue_;
+  TaskQueue queue_;
   QueryResult result_;
+
+  const CapsuleCuller* culler_;
+  std::vector<CullCapsule> cull_batch_;
+  std::vector<IntervalKey> cull_keys_;
+  std::vector<uint8_t> cull_answer_;
+  std::unordered_map<IntervalKey, bool, IntervalKeyHash> cleared_;  // key -> cleared
+  std::vector<bool> culled_link_;  // The culler cleared the link's whole pair.
 };
+
+void QueryRun::AppendSubtree(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                             const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                             const Eigen::Vector3d& b1, int levels) {
+  CullCapsule c;
+  double growth;
+  motion_.SweptCapsuleFromEnds(link, s0, s1, a0, b0, a1, b1, &c.a, &c.b, &growth);
+  c.radius = skel_.link(link).radius + growth + tol_;
+  c.link = link;
+  cull_batch_.push_back(c);
+  cull_keys_.push_back(IntervalKey{link, s0, s1});
+  const double mid = 0.5 * (s0 + s1);
+  if (levels == 0 || !(mid > s0 && mid < s1)) return;
+  const Eigen::Vector3d am = c.a, bm = c.b;  // The segment at mid.
+  AppendSubtree(link, s0, mid, a0, b0, am, bm, levels - 1);
+  AppendSubtree(link, mid, s1, am, bm, a1, b1, levels - 1);
+}
+
+bool QueryRun::FlushCull() {
+  if (cull_batch_.empty() || culler_ == nullptr) return culler_ != nullptr;
+  const bool ok = culler_->Cull(cull_batch_, &cull_answer_);
+  if (ok) {
+    ++result_.stats.cull_round_trips;
+    result_.stats.cull_capsules += static_cast<int64_t>(cull_batch_.size());
+    for (size_t i = 0; i < cull_keys_.size(); ++i) cleared_[cull_keys_[i]] = cull_answer_[i] == 0;
+  } else {
+    culler_ = nullptr;  // Failed (logged by the culler): the CPU decides alone.
+  }
+  cull_batch_.clear();
+  cull_keys_.clear();
+  return ok;
+}
+
+int QueryRun::Culled(int link, double s0, double s1) const {
+  const auto it = cleared_.find(IntervalKey{link, s0, s1});
+  return it == cleared_.end() ? -1 : (it->second ? 1 : 0);
+}
+
+void QueryRun::CullAhead(const Task& task) {
+  AppendSubtree(task.link, task.s0, task.s1, task.a0, task.b0, task.a1, task.b1, kCullLevels);
+  const size_t per_task = cull_batch_.size();
+  for (const Task& t : queue_.pending()) {
+    if (cull_batch_.size() + per_task > kMaxCullBatch) break;
+    if (link_done_[t.link] || t.prefiltered || Culled(t.link, t.s0, t.s1) >= 0) continue;
+    AppendSubtree(t.link, t.s0, t.s1, t.a0, t.b0, t.a1, t.b1, kCullLevels);
+  }
+  FlushCull();
+}
 
 bool QueryRun::CollectFromBvh(int link, const Capsule& cap, int object, uint32_t start_node) {
   const size_t start = pool_.size();
@@ -300,7 +399,7 @@ void QueryRun::InitialCandidates() {
   for (int o = 0; o < env_.num_objects(); ++o) {
     std::vector<int> links;
     for (int l = 0; l < n; ++l) {
-      if (!filter_.Ignores(l, o)) links.push_back(l);
+      if (!filter_.Ignores(l, o) && !culled_link_[l]) links.push_back(l);
     }
     if (!links.empty()) CollectDual(links, o, 0);
   }
@@ -403,10 +502,26 @@ QueryResult QueryRun::Run() {
       if (!options_.per_link) break;
     }
   }
+  culled_link_.assign(n, false);
+  if (culler_ != nullptr && (options_.per_link || result_.links.empty())) {
+    // The published method's culling step, on the culler: every link's swept
+    // bound over the whole pair (and the first levels below it) in one round
+    // trip. A link it clears is free for the pair without CPU work.
+    for (int l = 0; l < n; ++l) {
+      if (filter_.IgnoresAll(l) || link_done_[l]) continue;
+      Eigen::Vector3d a0, b0, a1, b1;
+      motion_.SegmentAt(l, 0, &a0, &b0);
+      motion_.SegmentAt(l, 1, &a1, &b1);
+      AppendSubtree(l, 0, 1, a0, b0, a1, b1, kCullLevels);
+    }
+    if (FlushCull()) {
+      for (int l = 0; l < n; ++l) culled_link_[l] = Culled(l, 0, 1) == 1;
+    }
+  }
   if (options_.per_link || result_.links.empty()) InitialCandidates();
   for (int l = 0; l < n && (options_.per_link || result_.links.empty()); ++l) {
     if (filter_.IgnoresAll(l) || link_done_[l]) continue;
-    if (top_count_[l] == 0 && !top_overflow_[l]) {
+    if (culled_link_[l] || (top_count_[l] == 0 && !top_overflow_[l])) {
       ++result_.stats.links_culled;
       continue;
     }
@@ -438,6 +553,13 @@ QueryResult QueryRun::Run() {
     motion_.SweptCapsuleFromEnds(task.link, task.s0, task.s1, task.a0, task.b0, task.a1, task.b1,
                                  &cap.a, &cap.b, &growth);
     cap.radius = skel_.link(task.link).radius + growth + tol_;
+    if (culler_ != nullptr && !task.prefiltered) {
+      if (Culled(task.link, task.s0, task.s1) < 0) CullAhead(task);
+      if (Culled(task.link, task.s0, task.s1) == 1) {
+        ++result_.stats.cull_cleared;
+        continue;  // Certified free over [s0, s1] by the culler.
+      }
+    }
     if (task.prefiltered) {
       // The root interval: InitialCandidates already tested this capsule.
       begin = task.cand_begin;

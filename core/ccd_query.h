@@ -4,9 +4,11 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "core/capsule_culler.h"
 #include "core/collision_filter.h"
 #include "core/environment.h"
 #include "core/motion.h"
@@ -58,6 +60,11 @@ struct QueryStats {
   int links_culled = 0;   // Links the link BVH cleared for the whole pair.
   int64_t intervals = 0;  // Time intervals tested.
   int64_t triangle_tests = 0;
+  // With a culler (the GPU backend): round trips, capsules sent, and
+  // intervals it cleared (the CPU did not test those).
+  int64_t cull_round_trips = 0;
+  int64_t cull_capsules = 0;
+  int64_t cull_cleared = 0;
 };
 
 struct QueryResult {
@@ -86,6 +93,13 @@ class CcdEngine {
   CcdEngine(const Skeleton& skeleton, const Environment& environment,
             CollisionFilter filter = CollisionFilter());
 
+  /// Hands the swept-volume tests to `culler` (the GPU backend) first: an
+  /// interval it clears is free without a CPU test; the CPU decides the rest
+  /// exactly as without it, so brackets are the same. Set before queries
+  /// start (not thread-safe against Query); nullptr: CPU only.
+  void SetCuller(std::shared_ptr<const CapsuleCuller> culler) { culler_ = std::move(culler); }
+  const CapsuleCuller* culler() const { return culler_.get(); }
+
   /// Preconditions: both poses valid (ValidateAndNormalizePose) and
   /// pose1.utime > pose0.utime; options valid (ValidateQueryOptions).
   QueryResult Query(const Pose& pose0, const Pose& pose1, const QueryOptions& options) const;
@@ -108,6 +122,7 @@ class CcdEngine {
   const Skeleton& skeleton_;
   const Environment& env_;
   CollisionFilter filter_;
+  std::shared_ptr<const CapsuleCuller> culler_;
 };
 
 }  // namespace sweptccd

@@ -58,6 +58,7 @@
 
 #include "core/ccd_query.h"
 #include "core/collision_filter.h"
+#include "tests/core/backend_under_test.h"
 #include "core/distance.h"
 #include "core/environment.h"
 #include "core/mesh.h"
@@ -248,6 +249,12 @@ class SceneUnderTest {
       for (const auto& [link, object] : scene_.ignored) filter.Ignore(link, object);
       engine_ = std::make_unique<CcdEngine>(scene_.skeleton, env_, std::move(filter));
     }
+    // The backend under test; with an accelerator, the CPU engine answers
+    // beside it and the two must agree.
+    testing::AttachBackend(engine_.get());
+    if (engine_->culler() != nullptr) {
+      cpu_engine_ = std::make_unique<CcdEngine>(scene_.skeleton, env_, engine_->filter());
+    }
     for (int o = 0; o < m; ++o) {
       const TriangleMesh& mesh = scene_.meshes[o];
       for (size_t t = 0; t < mesh.num_triangles(); ++t) {
@@ -269,6 +276,8 @@ class SceneUnderTest {
   const Scene& scene() const { return scene_; }
   const Skeleton& skeleton() const { return scene_.skeleton; }
   const CcdEngine& engine() const { return *engine_; }
+  /// The CPU engine beside an accelerated one; nullptr when testing the CPU.
+  const CcdEngine* cpu_engine() const { return cpu_engine_.get(); }
   const std::vector<RefTri>& tris() const { return tris_; }
   int num_objects() const { return static_cast<int>(scene_.meshes.size()); }
   bool Ignored(int link, int object) const {
@@ -296,6 +305,7 @@ class SceneUnderTest {
   Scene scene_;
   Environment env_;
   std::unique_ptr<CcdEngine> engine_;
+  std::unique_ptr<CcdEngine> cpu_engine_;
   std::vector<RefTri> tris_;
   std::vector<char> ignored_;
 };
@@ -458,12 +468,20 @@ class Suite {
   // Prints the tally; fails on too many undecided answers or too few queries.
   void Finish(int64_t min_queries, bool limit_undecided = true) {
     std::printf(
-        "[%s] queries %lld (per-link %lld, filtered %lld, independent %lld): contact %lld "
-        "(initially colliding %lld), free %lld, undecided %lld; reference touched in %lld; "
+        "[%s, %s backend] queries %lld (per-link %lld, filtered %lld, independent %lld): contact "
+        "%lld (initially colliding %lld), free %lld, undecided %lld; reference touched in %lld; "
         "failures %lld; engine %.2f s, reference %.2f s\n",
-        name_.c_str(), ll(queries_), ll(per_link_), ll(filtered_), ll(independent_), ll(contact_),
-        ll(initially_), ll(free_), ll(undecided_), ll(touched_), ll(failures_), engine_s_,
-        reference_s_);
+        name_.c_str(), testing::BackendName(), ll(queries_), ll(per_link_), ll(filtered_),
+        ll(independent_), ll(contact_), ll(initially_), ll(free_), ll(undecided_), ll(touched_),
+        ll(failures_), engine_s_, reference_s_);
+    if (std::string(testing::BackendName()) != "cpu") {
+      std::printf("[%s, %s backend] culler: %lld round trips, %lld capsules, %lld intervals cleared\n",
+                  name_.c_str(), testing::BackendName(), ll(cull_round_trips_),
+                  ll(cull_capsules_), ll(cull_cleared_));
+      // The accelerator must have been used (a fallback to the CPU would
+      // otherwise pass unnoticed).
+      EXPECT_GT(cull_round_trips_, 0) << name_ << ": the backend under test never ran";
+    }
     EXPECT_GE(queries_, min_queries) << name_;
     EXPECT_EQ(failures_, 0) << name_ << ": " << failures_ << " of " << queries_
                             << " queries failed (the first ones are printed above)";
@@ -494,6 +512,7 @@ class Suite {
   std::string name_;
   int64_t queries_ = 0, per_link_ = 0, filtered_ = 0, independent_ = 0, contact_ = 0,
           initially_ = 0, free_ = 0, undecided_ = 0, touched_ = 0, failures_ = 0;
+  int64_t cull_round_trips_ = 0, cull_capsules_ = 0, cull_cleared_ = 0;
   double engine_s_ = 0, reference_s_ = 0;
 };
 
@@ -610,6 +629,14 @@ Outcome Suite::Run(const SceneUnderTest& sut, const QuerySpec& q, uint64_t seed,
   }
   out.ref_touches = first_touch >= 0;
   if (out.ref_touches) out.ref_first_touch = ref.s[first_touch];
+  if (sut.cpu_engine() != nullptr) {
+    const QueryResult cpu = sut.cpu_engine()->Query(q.pose0, q.pose1, q.options);
+    if (!testing::SameAnswer(r, cpu)) {
+      os << "BACKENDS DISAGREE: " << testing::BackendName() << ": " << DescribeResult(r)
+         << "\n  cpu: " << DescribeResult(cpu);
+      problem();
+    }
+  }
   if (out.ref_touches && !r.contact) {
     os << "MISS: answered free but the reference touches at s " << ref.s[first_touch]
        << " (separation " << ref.Min(first_touch) << ")";
@@ -801,6 +828,9 @@ Outcome Suite::Run(const SceneUnderTest& sut, const QuerySpec& q, uint64_t seed,
   free_ += !r.contact;
   undecided_ += r.undecided;
   touched_ += out.ref_touches;
+  cull_round_trips_ += r.stats.cull_round_trips;
+  cull_capsules_ += r.stats.cull_capsules;
+  cull_cleared_ += r.stats.cull_cleared;
   engine_s_ += std::chrono::duration<double>(t1 - t0).count();
   reference_s_ += std::chrono::duration<double>(t2 - t1).count();
   if (!problems.empty()) {

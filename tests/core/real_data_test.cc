@@ -27,6 +27,7 @@
 
 #include "core/bvh.h"
 #include "core/ccd_query.h"
+#include "tests/core/backend_under_test.h"
 #include "core/collision_filter.h"
 #include "core/distance.h"
 #include "core/environment.h"
@@ -109,6 +110,7 @@ std::vector<double> SamplesBelow(double end, double near, bool include_end) {
 struct Tally {
   int pairs = 0, contact = 0, free_pairs = 0, initially = 0, onset = 0, undecided = 0;
   int per_link_checked = 0;
+  int64_t cull_round_trips = 0, cull_cleared = 0;  // The backend's culler (GPU).
   std::vector<int> witness_objects = std::vector<int>(4, 0);  // Contact pairs per witness object.
   double query_s = 0;
 };
@@ -180,7 +182,9 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
                size_t first, size_t pairs, const std::string& label, Tally* tally,
                const Straddle& straddle = {}) {
   const Skeleton& skel = clip.skeleton;
-  const CcdEngine engine(skel, env, filter);
+  CcdEngine engine(skel, env, filter);
+  testing::AttachBackend(&engine);  // With an accelerator, the CPU answers beside it.
+  const CcdEngine cpu_engine(skel, env, filter);
   QueryOptions options;
   QueryOptions per_link_options;
   per_link_options.per_link = true;
@@ -209,6 +213,15 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
     const auto start = std::chrono::steady_clock::now();
     const QueryResult r = engine.Query(p0, p1, options);
     local.query_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    local.cull_round_trips += r.stats.cull_round_trips;
+    local.cull_cleared += r.stats.cull_cleared;
+    if (engine.culler() != nullptr) {
+      const QueryResult cpu = cpu_engine.Query(p0, p1, options);
+      EXPECT_TRUE(testing::SameAnswer(r, cpu))
+          << "BACKENDS DISAGREE: " << testing::BackendName() << " contact " << r.contact << " ["
+          << r.s_lo << ", " << r.s_hi << "] vs cpu contact " << cpu.contact << " [" << cpu.s_lo
+          << ", " << cpu.s_hi << "]";
+    }
     const PairMotion motion(skel, p0, p1, options.motion);
     ++local.pairs;
     local.contact += r.contact;
@@ -257,6 +270,10 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
     // links it leaves out never touch at the samples.
     ++local.per_link_checked;
     const QueryResult pl = engine.Query(p0, p1, per_link_options);
+    if (engine.culler() != nullptr) {
+      EXPECT_TRUE(testing::SameAnswer(pl, cpu_engine.Query(p0, p1, per_link_options)))
+          << "BACKENDS DISAGREE in per-link mode";
+    }
     EXPECT_TRUE(pl.contact);
     EXPECT_EQ(pl.initially_colliding, r.initially_colliding);
     std::vector<const LinkBracket*> by_link(skel.num_links(), nullptr);
@@ -299,6 +316,8 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
   tally->undecided += local.undecided;
   tally->per_link_checked += local.per_link_checked;
   tally->query_s += local.query_s;
+  tally->cull_round_trips += local.cull_round_trips;
+  tally->cull_cleared += local.cull_cleared;
 }
 
 MocapClip LoadClip(const std::string& file, char up_axis) {
@@ -347,6 +366,12 @@ void Report(const char* scene, const Tally& t) {
               "%d undecided, query time %.2f s\n",
               scene, t.pairs, t.contact, t.initially, t.onset, t.free_pairs, t.undecided,
               t.query_s);
+  if (std::string(testing::BackendName()) != "cpu") {
+    std::printf("%s, %s backend: %lld culler round trips, %lld intervals cleared\n", scene,
+                testing::BackendName(), static_cast<long long>(t.cull_round_trips),
+                static_cast<long long>(t.cull_cleared));
+    EXPECT_GT(t.cull_round_trips, 0) << scene << ": the backend under test never ran";
+  }
   EXPECT_GT(t.onset, 40) << scene << " produced too few contacts that begin inside a pair";
   EXPECT_GT(t.contact, 0) << scene << " produced no contact pair";
   EXPECT_GT(t.free_pairs, 0) << scene << " produced no free pair";

@@ -1,0 +1,61 @@
+#include "core/gpu/backend.h"
+
+#include <spdlog/spdlog.h>
+
+#include "core/errors.h"
+#include "core/gpu/gpu_culler.h"
+
+namespace sweptccd::gpu {
+
+std::string ValidateBackendName(const std::string& backend) {
+  if (backend == "cpu" || backend == "gpu" || backend == "auto") return {};
+  return "backend must be cpu, gpu or auto, got '" + backend + "'";
+}
+
+Backend::Backend(const BackendOptions& options) {
+  const std::string problem = ValidateBackendName(options.backend);
+  if (!problem.empty()) throw InputError(problem);
+  if (options.backend == "cpu") {
+    reason_ = "cpu (requested)";
+    return;
+  }
+  GlContextOptions context_options;
+  context_options.device_index = options.device_index;
+  context_options.require_hardware = options.require_hardware || options.backend == "auto";
+  try {
+    context_ = std::make_shared<GlContext>(context_options);
+  } catch (const GpuError& e) {
+    if (options.backend == "auto") {
+      reason_ = std::string("cpu (auto: no hardware EGL device; ") + e.what() + ")";
+      spdlog::info("backend {}", reason_);
+    } else {
+      reason_ = std::string("cpu (gpu requested but unavailable: ") + e.what() + ")";
+      spdlog::error("backend {}", reason_);
+    }
+    return;
+  }
+  reason_ = "gpu (" + std::string(options.backend == "auto" ? "auto: hardware EGL device" : "requested") +
+            "; " + context_->info().Summary() + ")";
+  spdlog::info("backend {}", reason_);
+}
+
+Backend::~Backend() = default;
+
+std::string Backend::renderer() const { return gpu() ? context_->info().renderer : std::string(); }
+
+void Backend::Attach(CcdEngine* engine) {
+  if (!gpu()) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (attach_failed_) return;
+  try {
+    std::shared_ptr<const GpuEnvironment>& env = uploaded_[&engine->environment()];
+    if (env == nullptr) env = std::make_shared<const GpuEnvironment>(context_, engine->environment());
+    engine->SetCuller(
+        std::make_shared<GpuCuller>(env, engine->filter(), engine->skeleton().num_links()));
+  } catch (const GpuError& e) {
+    attach_failed_ = true;
+    spdlog::error("GPU backend failed, queries continue on the CPU: {}", e.what());
+  }
+}
+
+}  // namespace sweptccd::gpu

@@ -1,0 +1,61 @@
+#pragma once
+// Choosing the query backend (`--backend cpu|gpu|auto`) and attaching the GPU
+// one to engines. The process keeps one Backend: one headless context, each
+// environment uploaded once.
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+
+#include "core/ccd_query.h"
+#include "core/gpu/gl_context.h"
+
+namespace sweptccd::gpu {
+
+class GpuEnvironment;
+
+struct BackendOptions {
+  std::string backend = "auto";  // cpu, gpu or auto.
+  int device_index = -1;         // EGL device to use; -1: the first that works.
+  bool require_hardware = false;  // gpu: refuse software renderers (auto always does).
+};
+
+/// Empty when `backend` is cpu, gpu or auto, else the problem.
+std::string ValidateBackendName(const std::string& backend);
+
+class Backend {
+ public:
+  /// cpu: the CPU. gpu: the headless context on the configured device, else
+  /// the first that works, software renderers included unless
+  /// require_hardware. auto: the GPU only on a hardware device, else the CPU.
+  /// A GPU that cannot be had is not an error: the cause is logged once and
+  /// the CPU is chosen; reason() says so. Throws InputError for a bad name.
+  explicit Backend(const BackendOptions& options);
+  ~Backend();
+
+  bool gpu() const { return context_ != nullptr; }
+  /// "cpu" or "gpu".
+  const char* name() const { return gpu() ? "gpu" : "cpu"; }
+  /// One line: what was asked, what was chosen, and why.
+  const std::string& reason() const { return reason_; }
+  /// The GPU renderer, empty on the CPU.
+  std::string renderer() const;
+  std::shared_ptr<GlContext> context() const { return context_; }
+
+  /// Gives `engine` the GPU swept-volume test (its environment is uploaded
+  /// on first use and stays resident; it must outlive this Backend's use of
+  /// it). No-op on the CPU. On a GPU failure the cause is logged and the
+  /// engine stays on the CPU. Thread-safe.
+  void Attach(CcdEngine* engine);
+
+ private:
+  std::shared_ptr<GlContext> context_;
+  std::string reason_;
+  std::mutex mutex_;
+  std::map<const Environment*, std::shared_ptr<const GpuEnvironment>> uploaded_;
+  bool attach_failed_ = false;
+};
+
+}  // namespace sweptccd::gpu

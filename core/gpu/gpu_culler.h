@@ -1,0 +1,65 @@
+#pragma once
+// The GPU backend's swept-volume test: capsules against the environment's
+// triangles in a compute shader, with outward-rounded single-precision
+// tolerances, so that it only ever clears what is provably separated (see
+// docs/GPU.md). The environment is uploaded once and stays resident.
+
+#include <memory>
+#include <vector>
+
+#include "core/capsule_culler.h"
+#include "core/collision_filter.h"
+#include "core/environment.h"
+#include "core/gpu/gl_context.h"
+
+namespace sweptccd::gpu {
+
+/// An environment's BVH nodes and triangles held in GPU buffers. Immutable
+/// after construction; shared by every culler (client) that tests against it.
+class GpuEnvironment {
+ public:
+  /// Uploads every object's hierarchy and triangles. Throws GpuError.
+  GpuEnvironment(std::shared_ptr<GlContext> context, const Environment& environment);
+  /// Frees the buffers on the context's owner thread.
+  ~GpuEnvironment();
+  GpuEnvironment(const GpuEnvironment&) = delete;
+  GpuEnvironment& operator=(const GpuEnvironment&) = delete;
+
+  GlContext& context() const { return *context_; }
+  int num_objects() const { return num_objects_; }
+  size_t uploaded_bytes() const { return uploaded_bytes_; }
+
+  struct Buffers;  // GL names; private to core/gpu.
+  const Buffers& buffers() const { return *buffers_; }
+
+ private:
+  std::shared_ptr<GlContext> context_;
+  std::unique_ptr<Buffers> buffers_;
+  int num_objects_ = 0;
+  size_t uploaded_bytes_ = 0;
+};
+
+/// CapsuleCuller on the GPU for one skeleton's links and one collision filter.
+/// Thread-safe: work is handed to the context's owner thread. When the
+/// context fails, the cause is logged once and Cull returns false from then
+/// on (queries continue on the CPU path).
+class GpuCuller : public CapsuleCuller {
+ public:
+  GpuCuller(std::shared_ptr<const GpuEnvironment> environment, const CollisionFilter& filter,
+            int num_links);
+  ~GpuCuller() override;
+
+  bool Cull(const std::vector<CullCapsule>& capsules,
+            std::vector<uint8_t>* may_touch) const override;
+
+  /// Round trips made and capsules tested so far (all threads).
+  int64_t round_trips() const;
+  int64_t capsules_tested() const;
+
+ private:
+  struct State;
+  std::shared_ptr<const GpuEnvironment> env_;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace sweptccd::gpu
