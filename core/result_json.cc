@@ -64,6 +64,11 @@ std::string ResultToJson(int64_t pair, int64_t utime0, int64_t utime1, const Que
                 {"links_culled", result.stats.links_culled},
                 {"intervals", result.stats.intervals},
                 {"triangle_tests", result.stats.triangle_tests}};
+  if (result.stats.cull_round_trips > 0) {  // The GPU backend's share.
+    j["stats"]["gpu_round_trips"] = result.stats.cull_round_trips;
+    j["stats"]["gpu_capsules"] = result.stats.cull_capsules;
+    j["stats"]["gpu_cleared"] = result.stats.cull_cleared;
+  }
   return j.dump();
 }
 

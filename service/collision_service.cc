@@ -89,6 +89,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     }
     client_index_[c.client_id] = static_cast<int>(clients_.size());
     clients_.push_back(std::make_unique<Client>(std::move(c), *environment_));
+    if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
   workers_.reserve(options_.num_workers);
   for (int i = 0; i < options_.num_workers; ++i) {

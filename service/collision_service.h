@@ -42,6 +42,9 @@ struct ServiceOptions {
   QueryOptions query;
   std::string backend = "cpu";  // Reported in status_t.
   std::string renderer;         // Reported in status_t (GPU renderer string).
+  /// Called once for each client's engine before queries start (the daemon
+  /// attaches the GPU backend here); may be empty.
+  std::function<void(CcdEngine*)> prepare_engine;
   /// Latencies (receive -> publish) kept per client for median and p99.
   int latency_window = 1024;
   /// Wall clock in microseconds for utime fields; default: system clock.

@@ -61,7 +61,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
   CheckKeys(root,
-            {"lcm_url", "channels", "environment", "query", "backend", "workers",
+            {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
              "status_period_s", "log_level", "clients"},
             source);
   const std::string at = source + ": ";
@@ -90,6 +90,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     }
   }
   if (root["backend"]) c.backend = Get<std::string>(root["backend"], at + "backend");
+  if (root["gpu_device"]) c.gpu_device = Get<int>(root["gpu_device"], at + "gpu_device");
+  if (root["require_hardware"]) {
+    c.require_hardware = Get<bool>(root["require_hardware"], at + "require_hardware");
+  }
   if (root["workers"]) c.workers = Get<int>(root["workers"], at + "workers");
   if (root["status_period_s"]) {
     c.status_period_s = Get<double>(root["status_period_s"], at + "status_period_s");
@@ -142,9 +146,12 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
-  if (c.backend != "cpu" && c.backend != "auto") {
-    throw InputError("configuration: backend must be cpu or auto (this build has no GPU backend), got '" +
-                     c.backend + "'");
+  if (c.backend != "cpu" && c.backend != "gpu" && c.backend != "auto") {
+    throw InputError("configuration: backend must be cpu, gpu or auto, got '" + c.backend + "'");
+  }
+  if (c.gpu_device < -1) {
+    throw InputError("configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "
+                     "first that works), got " + std::to_string(c.gpu_device));
   }
   const std::string problem = ValidateQueryOptions(c.query);
   if (!problem.empty()) throw InputError("configuration: query: " + problem);

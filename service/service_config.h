@@ -23,7 +23,9 @@ struct ServiceConfig {
   LcmChannels channels;
   std::vector<std::string> environment;  // Mesh files, in object order.
   QueryOptions query;
-  std::string backend = "auto";
+  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  int gpu_device = -1;           // EGL device index; -1: the first that works.
+  bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
   double status_period_s = 1.0;
   std::string log_level = "info";
@@ -41,7 +43,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
 
 /// Checks a configuration after overrides: environment and clients present,
 /// unique client ids, workers >= 1, status period > 0, query options valid,
-/// backend cpu or auto. Throws InputError naming the problem.
+/// backend cpu, gpu or auto. Throws InputError naming the problem.
 void ValidateServiceConfig(const ServiceConfig& config);
 
 }  // namespace sweptccd

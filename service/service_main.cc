@@ -17,6 +17,7 @@
 #include "core/collision_filter.h"
 #include "core/environment.h"
 #include "core/errors.h"
+#include "core/gpu/backend.h"
 #include "core/skeleton.h"
 #include "service/collision_service.h"
 #include "service/lcm_transport.h"
@@ -43,7 +44,8 @@ int main(int argc, char** argv) {
   std::string config_path, lcm_url, backend, log_level;
   std::vector<std::string> env_paths, client_flags;
   double eps = -1, delta = -1, status_period = -1;
-  int workers = 0;
+  int workers = 0, gpu_device = -2;
+  bool require_hardware = false;
   app.add_option("--config", config_path, "YAML configuration (see deploy/sweptccd.yaml)");
   app.add_option("--lcm-url", lcm_url, "LCM provider URL (overrides lcm_url)");
   app.add_option("--env", env_paths, "Mesh file; repeat (replaces 'environment')");
@@ -52,7 +54,11 @@ int main(int argc, char** argv) {
   app.add_option("--eps", eps, "Time tolerance, seconds");
   app.add_option("--delta", delta, "Distance tolerance, metres");
   app.add_option("--workers", workers, "Worker threads");
-  app.add_option("--backend", backend, "cpu or auto");
+  app.add_option("--backend", backend,
+                 "cpu, gpu or auto (auto: the GPU on a hardware EGL device, else the CPU)");
+  app.add_option("--gpu-device", gpu_device, "EGL device index for the GPU backend");
+  app.add_flag("--require-hardware", require_hardware,
+               "GPU backend: refuse software renderers (llvmpipe)");
   app.add_option("--status-period", status_period, "Seconds between status messages");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
   std::string pose_channel, contact_channel, reject_channel, status_channel;
@@ -117,6 +123,8 @@ int main(int argc, char** argv) {
     if (delta >= 0) config.query.delta_m = delta;
     if (workers != 0) config.workers = workers;
     if (!backend.empty()) config.backend = backend;
+    if (gpu_device != -2) config.gpu_device = gpu_device;
+    if (require_hardware) config.require_hardware = true;
     if (status_period >= 0) config.status_period_s = status_period;
     if (!log_level.empty()) config.log_level = log_level;
     ValidateServiceConfig(config);
@@ -144,7 +152,13 @@ int main(int argc, char** argv) {
       for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, *env);
       clients.push_back(std::move(cc));
     }
-    if (config.backend == "auto") spdlog::info("backend auto: cpu (no GPU backend in this build)");
+    // One headless context for the daemon's life; the environment is uploaded
+    // once and every client's engine tests against it.
+    gpu::BackendOptions backend_options;
+    backend_options.backend = config.backend;
+    backend_options.device_index = config.gpu_device;
+    backend_options.require_hardware = config.require_hardware;
+    gpu::Backend query_backend(backend_options);  // Logs its choice and why.
 
     lcm::LCM lcm(config.lcm_url);
     if (!lcm.good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
@@ -152,7 +166,9 @@ int main(int argc, char** argv) {
     ServiceOptions options;
     options.num_workers = config.workers;
     options.query = config.query;
-    options.backend = "cpu";
+    options.backend = query_backend.name();
+    options.renderer = query_backend.renderer();
+    options.prepare_engine = [&query_backend](CcdEngine* engine) { query_backend.Attach(engine); };
     CollisionService service(env, std::move(clients), options, &transport);
     transport.Subscribe(&service);
 

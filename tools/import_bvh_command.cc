@@ -3,12 +3,12 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 
 #include "core/errors.h"
-#include "core/mocap_import.h"
 
 namespace sweptccd {
 
@@ -26,21 +26,26 @@ void AddImportBvhOptions(CLI::App* app, ImportBvhCommandOptions* o) {
   app->add_option("--utime-start", o->utime_start, "Microseconds added to every utime");
 }
 
+MocapClip ImportBvhClip(const ImportBvhCommandOptions& o) {
+  MocapImportOptions mo;
+  mo.up_axis = o.up_axis;
+  mo.unit_scale_m = o.unit_scale_m;
+  mo.start_frame = o.start_frame;
+  mo.frame_count = o.frame_count;
+  if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) {
+    throw InputError("import-bvh: --rate must be a positive number of Hz");
+  }
+  MocapClip probe = ImportBvhFile(o.bvh_path, mo);
+  if (o.rate_hz > 0) {
+    mo.frame_step = std::max(1, static_cast<int>(std::lround(1.0 / (probe.frame_time_s * o.rate_hz))));
+    probe = ImportBvhFile(o.bvh_path, mo);
+  }
+  return probe;
+}
+
 int RunImportBvhCommand(const ImportBvhCommandOptions& o) {
   try {
-    MocapImportOptions mo;
-    mo.up_axis = o.up_axis;
-    mo.unit_scale_m = o.unit_scale_m;
-    mo.start_frame = o.start_frame;
-    mo.frame_count = o.frame_count;
-    if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) {
-      throw InputError("import-bvh: --rate must be a positive number of Hz");
-    }
-    MocapClip probe = ImportBvhFile(o.bvh_path, mo);
-    if (o.rate_hz > 0) {
-      mo.frame_step = std::max(1, static_cast<int>(std::lround(1.0 / (probe.frame_time_s * o.rate_hz))));
-      probe = ImportBvhFile(o.bvh_path, mo);
-    }
+    MocapClip probe = ImportBvhClip(o);
     if (o.offset.size() == 3) {
       TranslateClip(&probe, Eigen::Vector3d(o.offset[0], o.offset[1], o.offset[2]));
     }

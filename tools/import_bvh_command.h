@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "core/mocap_import.h"
+
 namespace CLI {
 class App;
 }
@@ -26,5 +28,12 @@ struct ImportBvhCommandOptions {
 
 void AddImportBvhOptions(CLI::App* app, ImportBvhCommandOptions* options);
 int RunImportBvhCommand(const ImportBvhCommandOptions& options);
+
+/// Imports `options.bvh_path` as `sweptccd import-bvh` does: up axis, unit,
+/// start, frames and the --rate subsampling (frame skipping). `offset` and
+/// `utime_start` are NOT applied (callers place the clip themselves).
+/// Throws InputError for a bad file or bad options. Also used in-process by
+/// `sweptccd simulate-tracker --bvh`, so both give the same poses.
+MocapClip ImportBvhClip(const ImportBvhCommandOptions& options);
 
 }  // namespace sweptccd

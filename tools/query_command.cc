@@ -11,6 +11,7 @@
 #include "core/collision_filter.h"
 #include "core/environment.h"
 #include "core/errors.h"
+#include "core/gpu/backend.h"
 #include "core/pose.h"
 #include "core/result_json.h"
 #include "core/skeleton.h"
@@ -32,14 +33,8 @@ int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd query: " + problem);
-    if (options.backend == "gpu") {
-      throw InputError(
-          "sweptccd query: --backend gpu: this build has no GPU backend yet; use cpu or auto");
-    }
-    if (options.backend != "cpu" && options.backend != "auto") {
-      throw InputError("sweptccd query: --backend must be cpu, gpu or auto, got '" +
-                       options.backend + "'");
-    }
+    const std::string backend_problem = gpu::ValidateBackendName(options.backend);
+    if (!backend_problem.empty()) throw InputError("sweptccd query: --" + backend_problem);
     if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path);
     std::ifstream poses(options.poses_path, std::ios::binary);
@@ -51,7 +46,6 @@ int RunQueryCommand(const QueryCommandOptions& options) {
                  env.num_objects(), env.num_triangles(), env.memory_bytes() / 1048576.0,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
                      .count());
-    if (options.backend == "auto") spdlog::info("backend auto: cpu (no GPU backend in this build)");
 
     CollisionFilter filter(skeleton.num_links(), env.num_objects());
     if (!options.filter_path.empty()) {
@@ -67,7 +61,16 @@ int RunQueryCommand(const QueryCommandOptions& options) {
       out = &file_out;
     }
 
-    const CcdEngine engine(skeleton, env, std::move(filter));
+    CcdEngine engine(skeleton, env, std::move(filter));
+    // The backend: says on stderr which it picked and why (a GPU that cannot
+    // be had is logged and the CPU answers).
+    gpu::BackendOptions backend_options;
+    backend_options.backend = options.backend;
+    backend_options.device_index = options.gpu_device;
+    backend_options.require_hardware = options.require_hardware;
+    gpu::Backend backend(backend_options);
+    if (options.backend != "cpu") std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
+    backend.Attach(&engine);
     PosePairer pairer;
     std::string line;
     int64_t line_number = 0;

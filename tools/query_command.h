@@ -13,7 +13,9 @@ struct QueryCommandOptions {
   std::string poses_path;
   std::vector<std::string> env_paths;
   std::string output_path;  // Empty: standard output.
-  std::string backend = "auto";
+  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  int gpu_device = -1;           // EGL device index; -1: the first that works.
+  bool require_hardware = false;
   std::string filter_path;
   std::vector<std::string> ignore_rules;  // LINK:OBJECT
   QueryOptions query;

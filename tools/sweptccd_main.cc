@@ -9,7 +9,9 @@
 
 #include "tools/bench_command.h"
 #include "tools/import_bvh_command.h"
+#include "tools/monitor_command.h"
 #include "tools/query_command.h"
+#include "tools/simulate_tracker_command.h"
 
 int main(int argc, char** argv) {
   // Diagnostics go to standard error, never into the results.
@@ -33,7 +35,11 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"articulated", "independent"}));
   query->add_option("--eps", q.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   query->add_option("--delta", q.query.delta_m, "Distance tolerance, metres (default 1e-3)");
-  query->add_option("--backend", q.backend, "cpu, gpu or auto (default auto)");
+  query->add_option("--backend", q.backend,
+                    "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
+  query->add_option("--gpu-device", q.gpu_device, "EGL device index for the GPU backend");
+  query->add_flag("--require-hardware", q.require_hardware,
+                  "GPU backend: refuse software renderers (llvmpipe)");
   query->add_flag("--per-link", q.query.per_link, "A bracket for every touching link");
   query->add_option("--output", q.output_path, "Results file (default: standard output)");
   query->add_option("--filter", q.filter_path,
@@ -53,6 +59,16 @@ int main(int argc, char** argv) {
       app.add_subcommand("import-bvh", "BVH motion capture to a skeleton and a pose stream");
   sweptccd::AddImportBvhOptions(import_bvh, &ib);
 
+  sweptccd::SimulateTrackerCommandOptions st;
+  CLI::App* simulate = app.add_subcommand(
+      "simulate-tracker", "Publish a pose stream or BVH clip as tracker poses over LCM");
+  sweptccd::AddSimulateTrackerOptions(simulate, &st);
+
+  sweptccd::MonitorCommandOptions mon;
+  CLI::App* monitor =
+      app.add_subcommand("monitor", "Print the contact events, status and rejections of the daemon");
+  sweptccd::AddMonitorOptions(monitor, &mon);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -71,5 +87,7 @@ int main(int argc, char** argv) {
   }
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
   if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
+  if (simulate->parsed()) return sweptccd::RunSimulateTrackerCommand(st);
+  if (monitor->parsed()) return sweptccd::RunMonitorCommand(mon);
   return 1;
 }

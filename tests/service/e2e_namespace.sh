@@ -16,13 +16,17 @@ status=0
 [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q missing.ply "$work/bad.log"
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
-"$service" --lcm-url "$url" --env "$src/data/morse_apartment.ply" \
-  --client "alice=$work/skeleton.json" --log-level info 2> "$work/daemon.log" &
-daemon=$!
-trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
-wait_for "$work/daemon.log" ready
-"$tool" lockstep "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
-kill -TERM $daemon
-wait $daemon
-grep -q stopped "$work/daemon.log"
+# The CPU backend, then the GPU backend (llvmpipe in CI): the same answers.
+for backend in cpu gpu; do
+  "$service" --lcm-url "$url" --env "$src/data/morse_apartment.ply" --backend $backend \
+    --client "alice=$work/skeleton.json" --log-level info 2> "$work/daemon_$backend.log" &
+  daemon=$!
+  trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
+  wait_for "$work/daemon_$backend.log" ready
+  "$tool" lockstep "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
+  kill -TERM $daemon
+  wait $daemon
+  grep -q stopped "$work/daemon_$backend.log"
+done
+grep -q "backend gpu (requested; " "$work/daemon_gpu.log"
 echo "e2e_namespace: passed"

@@ -837,15 +837,63 @@ TEST_F(QueryCommandTest, OptionRefusals) {
     ExpectRefusal(QueryArgs(poses, {"--delta", bad}), {"delta"}, std::string("--delta ") + bad);
   }
   ExpectRefusal(QueryArgs(poses, {"--eps", "abc"}), {"eps"}, "--eps abc");
-  ExpectRefusal(QueryArgs(poses, {"--backend", "gpu"}), {"gpu"}, "--backend gpu");
   ExpectRefusal(QueryArgs(poses, {"--backend", "tpu"}), {"backend", "tpu"}, "--backend tpu");
+  ExpectRefusal(QueryArgs(poses, {"--gpu-device", "x"}), {"gpu-device"}, "--gpu-device x");
   // A bad motion model is a refusal like the others: one line naming it.
   ExpectRefusal(QueryArgs(poses, {"--motion", "linear"}), {"motion", "linear"}, "--motion linear");
   // The usable values still run.
-  for (const char* backend : {"cpu", "auto"}) {
+  for (const char* backend : {"cpu", "gpu", "auto"}) {
     EXPECT_EQ(RunRecords(QueryArgs(poses, {"--backend", backend})).size(), 1u) << backend;
   }
   EXPECT_EQ(RunRecords(QueryArgs(poses, {"--eps", "1e-6", "--delta", "1e-5"})).size(), 1u);
+}
+
+// The GPU backend (llvmpipe in CI) answers exactly as the CPU backend; auto
+// and gpu say on stderr which backend they picked and why; a GPU that cannot
+// be had (a device that does not exist) is reported and the CPU answers.
+TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
+  const int64_t dt = 33333;
+  std::string text;
+  const std::vector<Eigen3> path = {{0, 1, 0},   {0, -1, 0}, {0, 1, 0},     {1, 1, 0},
+                                    {1, 0.05, 0}, {1, 2, 0},  {1, 0.5, 0},   {2.5, 0.5, 0},
+                                    {0.3, 0.8, 0}, {2.2, 0.4, 0.3}, {1.9, 0.35, 0.2}};
+  for (size_t k = 0; k < path.size(); ++k) {
+    text += TwoLinkPose(1000000 + static_cast<int64_t>(k) * dt, path[k]) + "\n";
+  }
+  const std::string poses = Write("poses.jsonl", text);
+  auto without_timing = [](std::vector<json> records) {
+    for (json& r : records) {
+      r.erase("stats");
+      r.erase("elapsed_us");
+    }
+    return records;
+  };
+  const RunResult cpu = Run(QueryArgs(poses, {"--backend", "cpu", "--per-link"}));
+  const RunResult gpu = Run(QueryArgs(poses, {"--backend", "gpu", "--per-link"}));
+  ASSERT_TRUE(cpu.exited && cpu.code == 0) << cpu.Describe();
+  ASSERT_TRUE(gpu.exited && gpu.code == 0) << gpu.Describe();
+  const std::vector<json> c = ParseRecords(cpu.out), g = ParseRecords(gpu.out);
+  ASSERT_EQ(c.size(), path.size() - 1);
+  int contacts = 0;
+  for (const json& r : c) contacts += r["result"] == "contact";
+  EXPECT_GE(contacts, 5);
+  EXPECT_EQ(without_timing(c), without_timing(g));
+  EXPECT_NE(gpu.err.find("backend gpu (requested; "), std::string::npos) << gpu.err;
+  EXPECT_EQ(cpu.err.find("backend"), std::string::npos) << "cpu needs no explanation: " << cpu.err;
+
+  const RunResult automatic = Run(QueryArgs(poses, {"--backend", "auto"}));
+  ASSERT_TRUE(automatic.exited && automatic.code == 0) << automatic.Describe();
+  // auto takes only a hardware device: here either one, or the CPU with why.
+  EXPECT_TRUE(automatic.err.find("backend gpu (auto: hardware EGL device") != std::string::npos ||
+              automatic.err.find("backend cpu (auto: no hardware EGL device") != std::string::npos)
+      << automatic.err;
+
+  const RunResult missing = Run(QueryArgs(poses, {"--backend", "gpu", "--gpu-device", "31"}));
+  ASSERT_TRUE(missing.exited && missing.code == 0) << missing.Describe();
+  EXPECT_NE(missing.err.find("EGL device 31 does not exist"), std::string::npos) << missing.err;
+  EXPECT_NE(missing.err.find("backend cpu (gpu requested but unavailable"), std::string::npos)
+      << missing.err;
+  EXPECT_EQ(without_timing(ParseRecords(missing.out)).size(), c.size());
 }
 
 // --- Corrupted inputs ----------------------------------------------------------

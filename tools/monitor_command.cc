@@ -1,0 +1,417 @@
+#include "tools/monitor_command.h"
+
+#include <poll.h>
+#include <spdlog/fmt/fmt.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <exception>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <set>
+#include <vector>
+
+#include "core/errors.h"
+#include "core/skeleton.h"
+#include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
+#include "tools/stop_signal.h"
+
+namespace sweptccd {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+// Insertion order: "type" first, as documented.
+using json = nlohmann::ordered_json;
+
+// What this monitor saw of one client.
+struct ClientTally {
+  int64_t events = 0, contact = 0, free = 0, invalid = 0, rejected = 0;
+  int64_t skipped = 0;            // skipped_pairs_total of the newest event.
+  int64_t next_pair = -1;         // The pair number expected next; -1 before the first event.
+  int64_t gaps = 0;               // Events missed (pair numbers jumped over) since the first.
+  std::deque<double> latency_us;  // The newest kMaxLatencies, for the median.
+};
+
+constexpr size_t kMaxLatencies = 100000;
+
+double Percentile(const std::deque<double>& d, double q) {
+  std::vector<double> v(d.begin(), d.end());
+  if (v.empty()) return 0;
+  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+  return v[k];
+}
+
+// Decodes an LCM message; nullopt (with *problem) for wrong fingerprints and
+// truncated or malformed bytes. The generated decoders resize arrays from
+// untrusted lengths, so they may throw: caught here.
+template <typename Msg>
+std::optional<Msg> Decode(const lcm::ReceiveBuffer* rbuf, std::string* problem) {
+  Msg msg;
+  try {
+    if (msg.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) >= 0) return msg;
+    *problem = "wrong fingerprint or truncated message";
+  } catch (const std::exception& e) {
+    *problem = std::string("malformed message: ") + e.what();
+  }
+  return std::nullopt;
+}
+
+class Monitor {
+ public:
+  Monitor(const MonitorCommandOptions& options, std::optional<Skeleton> skeleton)
+      : o_(options), skeleton_(std::move(skeleton)) {}
+
+  // LCM callbacks (called from handle() on the main thread). Nothing may
+  // escape into LCM's C code: every exception is caught and counted.
+  void OnContact(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    Guard(channel, [&] {
+      std::string problem;
+      const auto e = Decode<contact_event_t>(rbuf, &problem);
+      if (!e) return Undecodable(channel, problem);
+      Contact(*e);
+    });
+  }
+  void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    Guard(channel, [&] {
+      std::string problem;
+      const auto s = Decode<status_t>(rbuf, &problem);
+      if (!s) return Undecodable(channel, problem);
+      Status(*s);
+    });
+  }
+  void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    Guard(channel, [&] {
+      std::string problem;
+      const auto r = Decode<rejection_t>(rbuf, &problem);
+      if (!r) return Undecodable(channel, problem);
+      Reject(*r);
+    });
+  }
+
+  void Listening(const std::string& url) {
+    if (o_.json) {
+      Emit(json{{"type", "listening"},
+                {"lcm_url", url},
+                {"contact_channel", o_.contact_channel},
+                {"status_channel", o_.status_channel},
+                {"reject_channel", o_.reject_channel}});
+    } else {
+      Line(fmt::format("monitor: listening on {} (contact {}, status {}, reject {})",
+                       url.empty() ? "LCM's default URL" : url, o_.contact_channel,
+                       o_.status_channel, o_.reject_channel));
+    }
+  }
+
+  bool count_reached() const { return o_.count > 0 && contact_total_ >= o_.count; }
+
+  void Summary(double elapsed_s) {
+    int64_t events = 0, contact = 0, free = 0, invalid = 0, rejected = 0;
+    for (const auto& [id, t] : tally_) {
+      events += t.events;
+      contact += t.contact;
+      free += t.free;
+      invalid += t.invalid;
+      rejected += t.rejected;
+      const double median = Percentile(t.latency_us, 0.5);
+      if (o_.json) {
+        Emit(json{{"type", "summary"},
+                  {"client", id},
+                  {"events", t.events},
+                  {"contact", t.contact},
+                  {"free", t.free},
+                  {"invalid", t.invalid},
+                  {"rejected", t.rejected},
+                  {"skipped", t.skipped},
+                  {"gaps", t.gaps},
+                  {"latency_median_us", median}});
+      } else {
+        Line(
+            fmt::format("summary {} events {} contact {} free {} invalid {} rejected {} "
+                        "skipped {} gaps {} latency median {:.0f} us",
+                        Name(id), t.events, t.contact, t.free, t.invalid, t.rejected, t.skipped,
+                        t.gaps, median));
+      }
+    }
+    if (o_.json) {
+      Emit(json{{"type", "total"},
+                {"events", events},
+                {"contact", contact},
+                {"free", free},
+                {"invalid", invalid},
+                {"rejected", rejected},
+                {"status", status_messages_},
+                {"undecodable", undecodable_},
+                {"elapsed_s", elapsed_s}});
+    } else {
+      Line(fmt::format(
+          "monitor: {} events ({} contact, {} free, {} invalid), {} rejections, "
+          "{} status messages, {} undecodable, {:.3f} s",
+          events, contact, free, invalid, rejected, status_messages_, undecodable_, elapsed_s));
+    }
+  }
+
+ private:
+  template <typename F>
+  void Guard(const std::string& channel, F&& f) noexcept {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      ++undecodable_;
+      spdlog::error("monitor: message on {}: {}", channel, e.what());
+    } catch (...) {
+      ++undecodable_;
+      spdlog::error("monitor: message on {}: unknown exception", channel);
+    }
+  }
+
+  void Undecodable(const std::string& channel, const std::string& problem) {
+    ++undecodable_;
+    spdlog::warn("monitor: undecodable message on {}: {}", channel, problem);
+  }
+
+  // Client ids come from the network: shown as "-" when empty.
+  static std::string Name(const std::string& id) { return id.empty() ? "-" : id; }
+
+  std::string LinkName(int32_t link) const {
+    if (skeleton_ && link >= 0 && link < skeleton_->num_links()) return skeleton_->link(link).name;
+    return std::to_string(link);
+  }
+
+  void Contact(const contact_event_t& e) {
+    ClientTally& t = tally_[e.client_id];
+    ++t.events;
+    // The monitor may start mid-stream: gaps count from its first event.
+    if (t.next_pair >= 0 && e.pair > t.next_pair) t.gaps += e.pair - t.next_pair;
+    t.next_pair = e.pair + 1;
+    t.skipped = e.skipped_pairs_total;
+    const int64_t latency_us = e.utime - e.receive_utime;
+    t.latency_us.push_back(static_cast<double>(latency_us));
+    if (t.latency_us.size() > kMaxLatencies) t.latency_us.pop_front();
+    const char* result = e.result == contact_event_t::RESULT_CONTACT ? "contact"
+                         : e.result == contact_event_t::RESULT_FREE  ? "free"
+                                                                     : "invalid";
+    if (e.result == contact_event_t::RESULT_CONTACT) {
+      ++t.contact;
+      ++contact_total_;
+    } else if (e.result == contact_event_t::RESULT_FREE) {
+      ++t.free;
+    } else {
+      ++t.invalid;
+    }
+    if (e.result == contact_event_t::RESULT_FREE && !o_.all) return;
+
+    // Witness links (first-seen order), objects and the smallest separation.
+    std::vector<int32_t> links;
+    std::set<int32_t> objects;
+    double separation = 0;
+    for (size_t i = 0; i < e.contacts.size(); ++i) {
+      const contact_record_t& c = e.contacts[i];
+      if (std::find(links.begin(), links.end(), c.link) == links.end()) links.push_back(c.link);
+      objects.insert(c.object);
+      separation = i == 0 ? c.separation : std::min(separation, c.separation);
+    }
+    if (o_.json) {
+      json j{{"type", result},
+             {"client", e.client_id},
+             {"pair", e.pair},
+             {"seq0", e.seq0},
+             {"seq1", e.seq1},
+             {"utime0", e.utime0},
+             {"utime1", e.utime1},
+             {"latency_us", latency_us},
+             {"compute_us", e.compute_us},
+             {"queue_us", e.queue_us},
+             {"receive_utime", e.receive_utime},
+             {"utime", e.utime},
+             {"skipped_pairs_total", e.skipped_pairs_total}};
+      if (e.result == contact_event_t::RESULT_CONTACT) {
+        j["t_lo"] = e.t_lo;
+        j["t_hi"] = e.t_hi;
+        j["s_lo"] = e.s_lo;
+        j["s_hi"] = e.s_hi;
+        j["initially_colliding"] = e.initially_colliding;
+        j["undecided"] = e.undecided;
+        json contacts = json::array();
+        for (const contact_record_t& c : e.contacts) {
+          contacts.push_back({{"link", c.link},
+                              {"link_name", LinkName(c.link)},
+                              {"object", c.object},
+                              {"triangle", c.triangle},
+                              {"s", c.s},
+                              {"separation", c.separation}});
+        }
+        j["contacts"] = contacts;
+      }
+      if (e.result == contact_event_t::RESULT_INVALID) j["error"] = e.error;
+      Emit(j);
+      return;
+    }
+    const std::string head =
+        fmt::format("{} {} pair {} seq {}-{}", result, Name(e.client_id), e.pair, e.seq0, e.seq1);
+    const std::string timing =
+        fmt::format("latency {} us compute {:.1f} us", latency_us, e.compute_us);
+    if (e.result == contact_event_t::RESULT_CONTACT) {
+      std::string link_list, object_list;
+      for (int32_t l : links) link_list += (link_list.empty() ? "" : ",") + LinkName(l);
+      for (int32_t ob : objects)
+        object_list += (object_list.empty() ? "" : ",") + std::to_string(ob);
+      Line(fmt::format("{} t {:.1f}..{:.1f} us links {} object {} separation {:.5f} m {}{}{}", head,
+                       e.t_lo, e.t_hi, link_list.empty() ? "-" : link_list,
+                       object_list.empty() ? "-" : object_list, separation, timing,
+                       e.initially_colliding ? " initially_colliding" : "",
+                       e.undecided ? " undecided" : ""));
+    } else if (e.result == contact_event_t::RESULT_FREE) {
+      Line(fmt::format("{} {}", head, timing));
+    } else {
+      Line(fmt::format("{} {} error: {}", head, timing, e.error));
+    }
+  }
+
+  void Reject(const rejection_t& r) {
+    ++tally_[r.client_id].rejected;
+    if (o_.json) {
+      Emit(json{{"type", "reject"},
+                {"client", r.client_id},
+                {"seq", r.seq},
+                {"reason", r.reason},
+                {"message", r.message},
+                {"utime", r.utime}});
+    } else {
+      Line(fmt::format("reject {} seq {} {}: {}", Name(r.client_id), r.seq, r.reason, r.message));
+    }
+  }
+
+  void Status(const status_t& s) {
+    ++status_messages_;
+    const size_t n = static_cast<size_t>(std::max(0, s.num_clients));
+    for (size_t i = 0; i < n; ++i) {
+      if (o_.json) {
+        Emit(json{{"type", "status"},
+                  {"client", s.client_id[i]},
+                  {"poses_received", s.poses_received[i]},
+                  {"pairs_answered", s.pairs_answered[i]},
+                  {"pairs_skipped", s.pairs_skipped[i]},
+                  {"rejected", s.rejected[i]},
+                  {"latency_median_us", s.latency_median_us[i]},
+                  {"latency_p99_us", s.latency_p99_us[i]},
+                  {"utime", s.utime}});
+      } else {
+        Line(fmt::format(
+            "status {} poses {} answered {} skipped {} rejected {} latency median "
+            "{:.0f} us p99 {:.0f} us",
+            Name(s.client_id[i]), s.poses_received[i], s.pairs_answered[i], s.pairs_skipped[i],
+            s.rejected[i], s.latency_median_us[i], s.latency_p99_us[i]));
+      }
+    }
+    if (o_.json) {
+      Emit(json{{"type", "service"},
+                {"backend", s.backend},
+                {"renderer", s.renderer},
+                {"queue_depth", s.queue_depth},
+                {"dropped_total", s.dropped_total},
+                {"rejected_unattributed", s.rejected_unattributed},
+                {"utime", s.utime}});
+    } else {
+      Line(fmt::format("status service backend {} queue {} dropped {} unattributed {}", s.backend,
+                       s.queue_depth, s.dropped_total, s.rejected_unattributed));
+    }
+  }
+
+  // Strings from the network may hold invalid UTF-8: replaced, never thrown.
+  void Emit(const json& j) { Line(j.dump(-1, ' ', false, json::error_handler_t::replace)); }
+
+  static void Line(const std::string& line) {
+    std::fwrite(line.data(), 1, line.size(), stdout);
+    std::fputc('\n', stdout);
+    std::fflush(stdout);
+  }
+
+  const MonitorCommandOptions& o_;
+  std::optional<Skeleton> skeleton_;
+  std::map<std::string, ClientTally> tally_;
+  int64_t contact_total_ = 0;
+  int64_t status_messages_ = 0;
+  int64_t undecodable_ = 0;
+};
+
+}  // namespace
+
+void AddMonitorOptions(CLI::App* app, MonitorCommandOptions* o) {
+  app->add_option("--lcm-url", o->lcm_url, "LCM provider URL (default: LCM's default)");
+  app->add_option("--contact-channel", o->contact_channel,
+                  "Channel of contact_event_t (default SWEPTCCD_CONTACT)");
+  app->add_option("--status-channel", o->status_channel,
+                  "Channel of status_t (default SWEPTCCD_STATUS)");
+  app->add_option("--reject-channel", o->reject_channel,
+                  "Channel of rejection_t (default SWEPTCCD_REJECT)");
+  app->add_option("--skeleton", o->skeleton_path, "Skeleton JSON: link names instead of indices");
+  app->add_option("--count", o->count, "Exit after this many contact events (default: no limit)");
+  app->add_option("--timeout", o->timeout_s,
+                  "Exit after this many seconds (default: until SIGINT/SIGTERM)");
+  app->add_flag("--all", o->all, "Print free events too (always counted)");
+  app->add_flag("--json", o->json, "One JSON object per line, with a \"type\" field");
+}
+
+int RunMonitorCommand(const MonitorCommandOptions& o) {
+  std::optional<Skeleton> skeleton;
+  try {
+    if (o.count < 0) throw InputError("monitor: --count must be >= 0 (0: no limit)");
+    if (!(o.timeout_s >= 0) || !std::isfinite(o.timeout_s)) {
+      throw InputError("monitor: --timeout must be >= 0 seconds (0: no limit)");
+    }
+    if (!o.skeleton_path.empty()) skeleton = LoadSkeletonFile(o.skeleton_path);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+  lcm::LCM lcm(o.lcm_url);
+  if (!lcm.good()) {
+    std::fprintf(stderr, "error: monitor: --lcm-url '%s': LCM cannot open it\n", o.lcm_url.c_str());
+    return 2;
+  }
+  StopSignal stop;
+  Monitor monitor(o, std::move(skeleton));
+  lcm.subscribe(o.contact_channel, &Monitor::OnContact, &monitor);
+  lcm.subscribe(o.status_channel, &Monitor::OnStatus, &monitor);
+  lcm.subscribe(o.reject_channel, &Monitor::OnReject, &monitor);
+  monitor.Listening(o.lcm_url);
+
+  const Clock::time_point t0 = Clock::now();
+  const Clock::time_point deadline = o.timeout_s > 0
+                                         ? t0 + std::chrono::duration_cast<Clock::duration>(
+                                                    std::chrono::duration<double>(o.timeout_s))
+                                         : Clock::time_point::max();
+  while (!monitor.count_reached()) {
+    int timeout_ms = -1;
+    if (deadline != Clock::time_point::max()) {
+      const auto left = deadline - Clock::now();
+      if (left <= Clock::duration::zero()) break;
+      timeout_ms =
+          static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(left).count() + 1);
+    }
+    pollfd fds[2] = {{lcm.getFileno(), POLLIN, 0}, {stop.fd(), POLLIN, 0}};
+    const int ready = poll(fds, 2, timeout_ms);
+    if (ready < 0) {
+      if (errno == EINTR) continue;
+      spdlog::error("monitor: poll failed");
+      break;
+    }
+    if (fds[1].revents & POLLIN) break;
+    if (fds[0].revents & POLLIN) lcm.handleTimeout(0);
+  }
+  monitor.Summary(std::chrono::duration<double>(Clock::now() - t0).count());
+  return 0;
+}
+
+}  // namespace sweptccd
