@@ -1,9 +1,15 @@
 #include "core/environment.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace sweptccd {
+
+uint64_t Environment::NextContentId() {
+  static std::atomic<uint64_t> next{1};
+  return next++;
+}
 
 Environment Environment::LoadFiles(const std::vector<std::string>& paths) {
   Environment env;
@@ -22,6 +28,7 @@ void Environment::AddMesh(const TriangleMesh& mesh, const std::string& name) {
   coordinate_tolerance_ =
       std::max(coordinate_tolerance_, std::ldexp(obj.bvh.max_abs_coordinate(), -22) + 1e-9);
   objects_.push_back(std::move(obj));
+  content_id_ = NextContentId();
 }
 
 size_t Environment::num_triangles() const {

@@ -1,6 +1,7 @@
 #pragma once
 // The static environment: objects (one per mesh file), each with its BVH.
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,9 +40,17 @@ class Environment {
   /// more digits than a float keeps.
   double coordinate_tolerance() const { return coordinate_tolerance_; }
 
+  /// Identifies this content: unique in the process for every environment
+  /// built and every AddMesh; copies share it. Caches of derived data (the
+  /// GPU backend's uploads) key on it, never on the object's address, which
+  /// a later environment may reuse.
+  uint64_t content_id() const { return content_id_; }
+
  private:
+  static uint64_t NextContentId();
   std::vector<EnvironmentObject> objects_;
   double coordinate_tolerance_ = 1e-9;
+  uint64_t content_id_ = NextContentId();
 };
 
 }  // namespace sweptccd

@@ -14,6 +14,7 @@
 #include "core/ccd_query.h"
 #include "core/environment.h"
 #include "core/errors.h"
+#include "core/gpu/backend.h"
 #include "core/mesh.h"
 #include "core/mocap_import.h"
 
@@ -27,6 +28,10 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
   app->add_option("--eps", o->eps_s, "Time tolerance, seconds");
   app->add_option("--delta", o->delta_m, "Distance tolerance, metres");
   app->add_flag("!--no-peers", o->peers, "Skip the FCL peer");
+  app->add_option("--gpu", o->gpu,
+                  "GPU backend beside the CPU: gpu (any renderer), hardware, or off")
+      ->check(CLI::IsMember({"gpu", "hardware", "off"}));
+  app->add_option("--gpu-device", o->gpu_device, "EGL device index for the GPU backend");
   app->add_option("--markdown", o->markdown_path, "Also write the tables as Markdown");
 }
 
@@ -180,6 +185,8 @@ struct Row {
   int pairs = 0, contacts = 0, undecided = 0;
   Stats ours_us;
   Stats fcl_us;
+  Stats gpu_us;
+  int gpu_mismatches = -1;  // Pairs whose GPU answer differs from the CPU's; -1: no GPU.
   int fcl_misses = 0;  // Pairs where we found contact and FCL's end-pose test saw none.
   double fcl_build_s = 0;
 };
@@ -191,35 +198,42 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
   if (markdown) {
     out << "| scene | triangles | clip | pairs | contact | undecided | median us | p99 us | max us"
            " | BVH build s | bytes/tri | FCL median us | FCL p99 us | ratio FCL/ours (median)"
-           " | FCL missed contacts | FCL build s |\n";
-    out << "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+           " | FCL missed contacts | FCL build s | GPU median us | GPU p99 us | GPU max us"
+           " | ratio CPU/GPU (median) | GPU answers differing |\n";
+    out << "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+           "---:|---:|---:|---:|---:|\n";
   } else {
     std::snprintf(buf, sizeof(buf),
-                  "%-22s %9s %-18s %5s %7s %5s %9s %9s %9s %8s %9s %9s %9s %7s %6s %8s\n",
+                  "%-22s %9s %-18s %5s %7s %5s %9s %9s %9s %8s %9s %9s %9s %7s %6s %8s %9s %9s "
+                  "%9s %7s %6s\n",
                   "scene", "tris", "clip", "pairs", "contact", "undec", "median_us", "p99_us",
                   "max_us", "build_s", "B/tri", "fcl_med", "fcl_p99", "ratio", "missed",
-                  "fcl_bld");
+                  "fcl_bld", "gpu_med", "gpu_p99", "gpu_max", "cpu/gpu", "differ");
     out << buf;
   }
   for (const Row& r : rows) {
     if (markdown) {
       std::snprintf(buf, sizeof(buf),
                     "| %s | %zu | %s | %d | %d | %d | %.1f | %.1f | %.1f | %.3f | %.1f | %.1f | "
-                    "%.1f | %.2f | %d | %.3f |\n",
+                    "%.1f | %.2f | %d | %.3f | %.1f | %.1f | %.1f | %.2f | %d |\n",
                     r.scene.c_str(), r.triangles, r.clip.c_str(), r.pairs, r.contacts, r.undecided,
                     r.ours_us.median, r.ours_us.p99, r.ours_us.max, r.build_s, r.bytes_per_tri,
                     r.fcl_us.median, r.fcl_us.p99,
                     r.ours_us.median > 0 ? r.fcl_us.median / r.ours_us.median : 0.0, r.fcl_misses,
-                    r.fcl_build_s);
+                    r.fcl_build_s, r.gpu_us.median, r.gpu_us.p99, r.gpu_us.max,
+                    r.gpu_us.median > 0 ? r.ours_us.median / r.gpu_us.median : 0.0,
+                    r.gpu_mismatches);
     } else {
       std::snprintf(buf, sizeof(buf),
                     "%-22s %9zu %-18s %5d %7d %5d %9.1f %9.1f %9.1f %8.3f %9.1f %9.1f %9.1f %7.2f "
-                    "%6d %8.3f\n",
+                    "%6d %8.3f %9.1f %9.1f %9.1f %7.2f %6d\n",
                     r.scene.c_str(), r.triangles, r.clip.substr(0, 18).c_str(), r.pairs,
                     r.contacts, r.undecided, r.ours_us.median, r.ours_us.p99, r.ours_us.max,
                     r.build_s, r.bytes_per_tri, r.fcl_us.median, r.fcl_us.p99,
                     r.ours_us.median > 0 ? r.fcl_us.median / r.ours_us.median : 0.0, r.fcl_misses,
-                    r.fcl_build_s);
+                    r.fcl_build_s, r.gpu_us.median, r.gpu_us.p99, r.gpu_us.max,
+                    r.gpu_us.median > 0 ? r.ours_us.median / r.gpu_us.median : 0.0,
+                    r.gpu_mismatches);
     }
     out << buf;
   }
@@ -245,6 +259,17 @@ int RunBenchCommand(const BenchCommandOptions& options) {
          -1.42,
          {-0.67, -1.9}},
     };
+    // The GPU backend beside the CPU one, same pairs, same run.
+    std::unique_ptr<gpu::Backend> gpu_backend;
+    if (options.gpu != "off") {
+      gpu::BackendOptions bo;
+      bo.backend = "gpu";
+      bo.device_index = options.gpu_device;
+      bo.require_hardware = options.gpu == "hardware";
+      gpu_backend = std::make_unique<gpu::Backend>(bo);
+      std::fprintf(stderr, "backend %s\n", gpu_backend->reason().c_str());
+      if (!gpu_backend->gpu()) gpu_backend.reset();
+    }
     std::vector<Row> rows;
     for (const SceneSpec& scene : scenes) {
       std::vector<TriangleMesh> meshes;
@@ -258,7 +283,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       std::unique_ptr<FclPeer> fcl;
       if (options.peers) fcl = std::make_unique<FclPeer>(meshes);
       Row all_row;
-      std::vector<double> all_ours, all_theirs;
+      std::vector<double> all_ours, all_theirs, all_gpu;
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
@@ -271,6 +296,9 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         clip.poses = poses;
         PlaceClip(&clip, scene);
         const CcdEngine engine(clip.skeleton, env);
+        CcdEngine gpu_engine(clip.skeleton, env);
+        if (gpu_backend) gpu_backend->Attach(&gpu_engine);
+        const bool with_gpu = gpu_engine.culler() != nullptr;
         QueryOptions q;
         q.eps_s = options.eps_s;
         q.delta_m = options.delta_m;
@@ -281,7 +309,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         row.build_s = build_s;
         row.bytes_per_tri = static_cast<double>(env.memory_bytes()) / env.num_triangles();
         row.rss_per_tri = 1024.0 * (rss1 - rss0) / env.num_triangles();
-        std::vector<double> ours, theirs;
+        std::vector<double> ours, theirs, gpu_times;
+        if (with_gpu) row.gpu_mismatches = 0;
         const int n = std::min<int>(options.max_pairs, static_cast<int>(clip.poses.size()) - 1);
         for (int k = 0; k < n; ++k) {
           const Pose& p0 = clip.poses[k];
@@ -293,6 +322,12 @@ int RunBenchCommand(const BenchCommandOptions& options) {
           ++row.pairs;
           row.contacts += r.contact;
           row.undecided += r.undecided;
+          if (with_gpu) {
+            const auto c = Clock::now();
+            const QueryResult g = gpu_engine.Query(p0, p1, q);
+            gpu_times.push_back(1e6 * Seconds(c, Clock::now()));
+            row.gpu_mismatches += g.contact != r.contact || g.s_lo != r.s_lo || g.s_hi != r.s_hi;
+          }
           if (fcl) {
             const auto c = Clock::now();
             const bool hit = fcl->Collide(clip.skeleton, p1);
@@ -302,6 +337,9 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         }
         all_ours.insert(all_ours.end(), ours.begin(), ours.end());
         all_theirs.insert(all_theirs.end(), theirs.begin(), theirs.end());
+        all_gpu.insert(all_gpu.end(), gpu_times.begin(), gpu_times.end());
+        if (with_gpu) all_row.gpu_mismatches = std::max(0, all_row.gpu_mismatches) + row.gpu_mismatches;
+        row.gpu_us = Summarise(gpu_times);
         all_row.pairs += row.pairs;
         all_row.contacts += row.contacts;
         all_row.undecided += row.undecided;
@@ -321,10 +359,15 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       all_row.clip = "ALL CLIPS";
       all_row.ours_us = Summarise(all_ours);
       all_row.fcl_us = Summarise(all_theirs);
+      all_row.gpu_us = Summarise(all_gpu);
       rows.push_back(all_row);
     }
-    std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, single thread, CPU backend\n",
-                options.rate_hz, options.eps_s, options.delta_m);
+    std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, single thread\n", options.rate_hz,
+                options.eps_s, options.delta_m);
+    std::printf("ours: CPU backend; gpu_*: GPU backend on the same pairs (%s), times include "
+                "upload and read-back; differ: pairs whose GPU answer or bracket differs (must be "
+                "0)\n",
+                gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
     std::printf("ours: certified CCD per pair; FCL: discrete capsule-vs-OBBRSS collide at the "
                 "second pose only (no sweep)\n\n");
     std::fputs(FormatTable(rows, false).c_str(), stdout);

@@ -23,6 +23,10 @@ struct BenchCommandOptions {
   double eps_s = 1e-4;
   double delta_m = 1e-3;
   bool peers = true;  // Also time FCL in the same run.
+  /// Also time the GPU backend on the same pairs ("gpu": any renderer, also
+  /// llvmpipe; "hardware": only a hardware EGL device; "off").
+  std::string gpu = "gpu";
+  int gpu_device = -1;
   std::string markdown_path;  // Also write the table as Markdown here.
 };
 

@@ -48,8 +48,16 @@ void Backend::Attach(CcdEngine* engine) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (attach_failed_) return;
   try {
-    std::shared_ptr<const GpuEnvironment>& env = uploaded_[&engine->environment()];
-    if (env == nullptr) env = std::make_shared<const GpuEnvironment>(context_, engine->environment());
+    const uint64_t id = engine->environment().content_id();
+    std::shared_ptr<const GpuEnvironment> env;
+    for (const auto& [key, upload] : uploaded_) {
+      if (key == id) env = upload;
+    }
+    if (env == nullptr) {
+      env = std::make_shared<const GpuEnvironment>(context_, engine->environment());
+      uploaded_.emplace_back(id, env);
+      if (uploaded_.size() > kKeptUploads) uploaded_.pop_front();
+    }
     engine->SetCuller(
         std::make_shared<GpuCuller>(env, engine->filter(), engine->skeleton().num_links()));
   } catch (const GpuError& e) {

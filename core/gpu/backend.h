@@ -3,7 +3,7 @@
 // one to engines. The process keeps one Backend: one headless context, each
 // environment uploaded once.
 
-#include <map>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -44,9 +44,9 @@ class Backend {
   std::string renderer() const;
   std::shared_ptr<GlContext> context() const { return context_; }
 
-  /// Gives `engine` the GPU swept-volume test (its environment is uploaded
-  /// on first use and stays resident; it must outlive this Backend's use of
-  /// it). No-op on the CPU. On a GPU failure the cause is logged and the
+  /// Gives `engine` the GPU swept-volume test. Its environment is uploaded
+  /// once and stays resident while an engine uses it (later engines on the
+  /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and the
   /// engine stays on the CPU. Thread-safe.
   void Attach(CcdEngine* engine);
 
@@ -54,7 +54,11 @@ class Backend {
   std::shared_ptr<GlContext> context_;
   std::string reason_;
   std::mutex mutex_;
-  std::map<const Environment*, std::shared_ptr<const GpuEnvironment>> uploaded_;
+  // The latest uploads by Environment::content_id() (an address can be
+  // reused by a later environment; the id cannot), oldest first. Engines keep
+  // their own upload alive; this only saves re-uploading for the next engine.
+  static constexpr size_t kKeptUploads = 8;
+  std::deque<std::pair<uint64_t, std::shared_ptr<const GpuEnvironment>>> uploaded_;
   bool attach_failed_ = false;
 };
 

@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "core/ccd_query.h"
+#include "core/gpu/backend.h"
 #include "core/distance.h"
 #include "core/gpu/gl_api.h"
 #include "core/gpu/gl_context.h"
@@ -269,6 +270,52 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
   std::vector<uint8_t> may_touch;
   EXPECT_FALSE(culler->Cull({CullCapsule{}}, &may_touch));
   EXPECT_EQ(may_touch, std::vector<uint8_t>{1});
+}
+
+// Regression: the Backend once cached uploads by the Environment's address;
+// a later environment at the same address (a loop's local) was then tested
+// against the earlier one's triangles and contacts were missed (found by the
+// benchmark, which builds one environment per scene).
+TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
+  BackendOptions options;
+  options.backend = "gpu";
+  Backend backend(options);
+  ASSERT_TRUE(backend.gpu()) << backend.reason();
+  const Skeleton skeleton = ParseSkeletonJson(
+      R"({"name": "stick", "links": [{"name": "a", "parent": null, "a": [0, 0, 0],
+                                      "b": [0, 0.4, 0], "radius": 0.05}]})",
+      "test skeleton");
+  const void* first_address = nullptr;
+  int same_address = 0;
+  for (int k = 0; k < 4; ++k) {
+    // A wall at x = k, 1 m wide; the stick moves from x = k - 0.5 to k + 0.5
+    // and must hit it at s = 0.45 whatever the earlier walls were.
+    TriangleMesh wall;
+    for (const Vector3d& v : {Vector3d(k, -1, -1), Vector3d(k, 2, -1), Vector3d(k, 2, 1),
+                              Vector3d(k, -1, 1)}) {
+      wall.vertices.push_back(v.cast<float>());
+    }
+    wall.indices = {0, 1, 2, 0, 2, 3};
+    Environment env;
+    env.AddMesh(wall, "wall");
+    if (k == 0) first_address = &env;
+    same_address += &env == first_address;
+    CcdEngine gpu_engine(skeleton, env), cpu_engine(skeleton, env);
+    backend.Attach(&gpu_engine);
+    ASSERT_NE(gpu_engine.culler(), nullptr);
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 33333;
+    p0.links = {LinkPose{Vector3d(k - 0.5, 0, 0), Eigen::Quaterniond::Identity()}};
+    p1.links = {LinkPose{Vector3d(k + 0.5, 0, 0), Eigen::Quaterniond::Identity()}};
+    const QueryResult g = gpu_engine.Query(p0, p1, QueryOptions());
+    const QueryResult c = cpu_engine.Query(p0, p1, QueryOptions());
+    ASSERT_TRUE(c.contact) << k;
+    EXPECT_TRUE(g.contact) << "wall " << k;
+    EXPECT_EQ(g.s_lo, c.s_lo) << k;
+    EXPECT_NEAR(c.s_lo, 0.45, 1e-3) << k;
+  }
+  std::printf("environments at the first one's address: %d of 4\n", same_address);
 }
 
 }  // namespace
