@@ -11,6 +11,7 @@
 #include "tools/import_bvh_command.h"
 #include "tools/monitor_command.h"
 #include "tools/query_command.h"
+#include "tools/render_command.h"
 #include "tools/simulate_tracker_command.h"
 
 int main(int argc, char** argv) {
@@ -59,6 +60,11 @@ int main(int argc, char** argv) {
       app.add_subcommand("import-bvh", "BVH motion capture to a skeleton and a pose stream");
   sweptccd::AddImportBvhOptions(import_bvh, &ib);
 
+  sweptccd::RenderCommandOptions rn;
+  CLI::App* render = app.add_subcommand(
+      "render", "PNG pictures of a contact and a timeline of a pose stream");
+  sweptccd::AddRenderOptions(render, &rn);
+
   sweptccd::SimulateTrackerCommandOptions st;
   CLI::App* simulate = app.add_subcommand(
       "simulate-tracker", "Publish a pose stream or BVH clip as tracker poses over LCM");
@@ -87,6 +93,7 @@ int main(int argc, char** argv) {
   }
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
   if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
+  if (render->parsed()) return sweptccd::RunRenderCommand(rn);
   if (simulate->parsed()) return sweptccd::RunSimulateTrackerCommand(st);
   if (monitor->parsed()) return sweptccd::RunMonitorCommand(mon);
   return 1;

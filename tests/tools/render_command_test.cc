@@ -1,0 +1,378 @@
+// `sweptccd render`, run as the real binary on the bundled walk (CMU 02_01,
+// imported as tools/demo.sh does) through the bundled apartment (MORSE):
+// the contact picture and the timeline are PNG files that decode (libpng),
+// have the requested size and real content, the witness marker sits at the
+// pixel the JSON sidecar names, the first-contact marks of the timeline sit
+// where the sidecar says; and bad input is refused with one line and exit 2.
+// Runs on Mesa's llvmpipe through EGL in CI (never skipped: no context, no
+// picture, the test fails).
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <png.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+extern char** environ;
+
+namespace sweptccd {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const std::string kBinary = SWEPTCCD_BINARY;
+const std::string kSource = SWEPTCCD_SOURCE_DIR;
+
+struct RunResult {
+  bool exited = false;
+  int code = -1;
+  bool timed_out = false;
+  std::string out, err;
+  std::string Describe() const {
+    std::ostringstream s;
+    s << (timed_out ? "timed out"
+          : exited  ? "exit " + std::to_string(code)
+                    : "killed")
+      << "\n--- stderr ---\n"
+      << err << "--- stdout ---\n"
+      << out.substr(0, 2000);
+    return s.str();
+  }
+};
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// A decoded PNG, 8-bit RGBA, top row first (libpng's simplified API).
+struct Png {
+  bool ok = false;
+  std::string error;
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;
+  std::array<int, 3> At(int x, int y) const {
+    const uint8_t* p = &rgba[(static_cast<size_t>(y) * width + x) * 4];
+    return {p[0], p[1], p[2]};
+  }
+  size_t DistinctColours() const {
+    std::set<uint32_t> seen;
+    for (size_t i = 0; i < rgba.size(); i += 4) {
+      seen.insert(rgba[i] << 16 | rgba[i + 1] << 8 | rgba[i + 2]);
+    }
+    return seen.size();
+  }
+  size_t Count(std::array<int, 3> c) const {
+    size_t n = 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) n += At(x, y) == c;
+    }
+    return n;
+  }
+};
+
+Png ReadPng(const std::string& path) {
+  Png png;
+  png_image image;
+  std::memset(&image, 0, sizeof image);
+  image.version = PNG_IMAGE_VERSION;
+  if (!png_image_begin_read_from_file(&image, path.c_str())) {
+    png.error = image.message;
+    return png;
+  }
+  image.format = PNG_FORMAT_RGBA;
+  png.width = static_cast<int>(image.width);
+  png.height = static_cast<int>(image.height);
+  png.rgba.resize(PNG_IMAGE_SIZE(image));
+  if (!png_image_finish_read(&image, nullptr, png.rgba.data(), 0, nullptr)) {
+    png.error = image.message;
+    png_image_free(&image);
+    return png;
+  }
+  png.ok = true;
+  return png;
+}
+
+std::array<int, 3> Rgb(const json& c) {
+  return {c[0].get<int>(), c[1].get<int>(), c[2].get<int>()};
+}
+
+class RenderCommandTest : public ::testing::Test {
+ protected:
+  // The walk is imported once for all tests.
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(fs::temp_directory_path() /
+                        ("sweptccd_render_test_" + std::to_string(::getpid())));
+    fs::remove_all(*dir_);
+    fs::create_directories(*dir_);
+  }
+  static void TearDownTestSuite() {
+    std::error_code ec;
+    if (!::testing::UnitTest::GetInstance()->Failed()) fs::remove_all(*dir_, ec);
+    delete dir_;
+  }
+
+  static std::string Path(const std::string& name) { return (*dir_ / name).string(); }
+
+  RunResult Run(const std::vector<std::string>& args, double limit_s = 300) {
+    static int run_count = 0;
+    const int n = run_count++;
+    const std::string out_path = Path("run" + std::to_string(n) + ".out");
+    const std::string err_path = Path("run" + std::to_string(n) + ".err");
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+    posix_spawn_file_actions_addopen(&actions, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+    std::vector<std::string> argv_s{kBinary};
+    argv_s.insert(argv_s.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : argv_s) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_t pid = 0;
+    RunResult r;
+    const int rc = posix_spawn(&pid, kBinary.c_str(), &actions, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&actions);
+    if (rc != 0) {
+      ADD_FAILURE() << "posix_spawn failed: " << rc;
+      return r;
+    }
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
+    int status = 0;
+    while (true) {
+      if (::waitpid(pid, &status, WNOHANG) == pid) break;
+      if (std::chrono::steady_clock::now() > deadline) {
+        ::kill(pid, SIGKILL);
+        ::waitpid(pid, &status, 0);
+        r.timed_out = true;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    if (!r.timed_out) {
+      r.exited = WIFEXITED(status);
+      r.code = r.exited ? WEXITSTATUS(status) : -1;
+    }
+    r.out = ReadFile(out_path);
+    r.err = ReadFile(err_path);
+    return r;
+  }
+
+  // The bundled walk, imported as tools/demo.sh does (once).
+  void ImportWalk() {
+    skeleton_ = Path("walk_skeleton.json");
+    poses_ = Path("walk_poses.jsonl");
+    if (fs::exists(poses_)) return;
+    const RunResult r = Run({"import-bvh", "--bvh", kSource + "/data/demo/cmu_02_01_walk.bvh",
+                             "--up", "z", "--rate", "30", "--offset", "0", "-1", "0",
+                             "--skeleton-out", skeleton_, "--poses-out", poses_});
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  }
+
+  std::vector<std::string> RenderArgs(std::initializer_list<std::string> extra) const {
+    std::vector<std::string> args{"render", "--skeleton", skeleton_, "--poses",
+                                  poses_,   "--env",      apartment_};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
+
+  // Runs a refusal: exit 2, exactly one line on stderr containing `needle`,
+  // no picture written.
+  void ExpectRefused(const std::vector<std::string>& args, const std::string& needle,
+                     const std::string& picture) {
+    SCOPED_TRACE(needle);
+    const RunResult r = Run(args);
+    EXPECT_TRUE(r.exited && r.code == 2) << r.Describe();
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("error: "), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(picture)) << picture;
+  }
+
+  static fs::path* dir_;
+  std::string skeleton_, poses_;
+  const std::string apartment_ = kSource + "/data/morse_apartment.ply";
+};
+
+fs::path* RenderCommandTest::dir_ = nullptr;
+
+TEST_F(RenderCommandTest, FirstContactPictureAndTimelineOfTheWalk) {
+  ImportWalk();
+  const std::string picture = Path("contact.png"), timeline = Path("timeline.png");
+  const std::string sidecar = Path("contact.json");
+  const RunResult r =
+      Run(RenderArgs({"--out", picture, "--timeline", timeline, "--info-out", sidecar}));
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const json info = json::parse(ReadFile(sidecar));
+  ASSERT_TRUE(info.contains("picture") && info.contains("timeline")) << info.dump(2);
+
+  // The picture: the first pair with contact, as `query` would pick it.
+  const json& pic = info["picture"];
+  EXPECT_EQ(pic["result"], "contact");
+  const int pair = pic["pair"].get<int>();
+  EXPECT_GE(pair, 0);
+  EXPECT_LE(pic["s_lo"].get<double>(), pic["s_hi"].get<double>());
+  EXPECT_FALSE(pic["link_name"].get<std::string>().empty());
+  EXPECT_EQ(pic["link_name"], info["links"][pic["link"].get<int>()]);
+  EXPECT_EQ(pic["witness"]["point_env"].size(), 3u);
+  const Png png = ReadPng(picture);
+  ASSERT_TRUE(png.ok) << picture << ": " << png.error;
+  EXPECT_EQ(png.width, 1280);
+  EXPECT_EQ(png.height, 720);
+  EXPECT_GT(png.DistinctColours(), 200u) << "the picture looks blank";
+  const std::array<int, 3> background = png.At(png.width - 1, png.height - 1);
+  EXPECT_LT(png.Count(background), static_cast<size_t>(png.width) * png.height * 9 / 10);
+  // The witness marker, drawn without depth test in pure magenta, at the
+  // pixel the sidecar names (and its 3x3 neighbourhood).
+  ASSERT_TRUE(pic["marker"]["drawn"].get<bool>()) << pic.dump(2);
+  const std::array<int, 3> magenta = Rgb(pic["marker"]["colour"]);
+  EXPECT_EQ(magenta, (std::array<int, 3>{255, 0, 255}));
+  const int mx = pic["marker"]["pixel"][0], my = pic["marker"]["pixel"][1];
+  ASSERT_TRUE(mx >= 1 && my >= 1 && mx + 1 < png.width && my + 1 < png.height);
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      EXPECT_EQ(png.At(mx + dx, my + dy), magenta) << "at " << mx + dx << "," << my + dy;
+    }
+  }
+  // The normal arrow is drawn in its own pure colour.
+  EXPECT_GT(png.Count(Rgb(pic["normal_colour"])), 20u);
+
+  // The timeline: size, content, a first-contact mark for every pair with
+  // contact, the picture's pair among them.
+  const json& tl = info["timeline"];
+  const Png line = ReadPng(timeline);
+  ASSERT_TRUE(line.ok) << timeline << ": " << line.error;
+  EXPECT_EQ(line.width, 1280);
+  EXPECT_EQ(line.height, 720);
+  EXPECT_GT(line.DistinctColours(), 16u);
+  EXPECT_LT(line.Count({255, 255, 255}), static_cast<size_t>(line.width) * line.height * 95 / 100);
+  ASSERT_FALSE(tl["contact_marks"].empty()) << tl.dump(2);
+  EXPECT_EQ(tl["contact_marks"][0]["pair"], pair);
+  const std::array<int, 3> red = Rgb(tl["mark_colour"]);
+  for (const json& mark : tl["contact_marks"]) {
+    const int x = mark["pixel"][0], y = mark["pixel"][1];
+    EXPECT_EQ(line.At(x, y), red) << mark.dump();
+    // Inside the plot.
+    EXPECT_GE(x, tl["plot"][0].get<int>());
+    EXPECT_LE(x, tl["plot"][2].get<int>());
+  }
+  EXPECT_GT(line.Count(Rgb(tl["band_colour"])), 100u) << "no contact bands";
+}
+
+TEST_F(RenderCommandTest, ChosenPairSizeAndCamera) {
+  ImportWalk();
+  // A pair late in the walk (it walks into furniture), a smaller picture, and
+  // a camera given by hand looking at the witness of the automatic one.
+  const std::string first = Path("late.png"), first_info = Path("late.json");
+  RunResult r = Run(RenderArgs({"--pair", "75", "--width", "640", "--height", "400", "--out", first,
+                                "--info-out", first_info}));
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  json info = json::parse(ReadFile(first_info))["picture"];
+  EXPECT_EQ(info["pair"], 75);
+  Png png = ReadPng(first);
+  ASSERT_TRUE(png.ok) << png.error;
+  EXPECT_EQ(png.width, 640);
+  EXPECT_EQ(png.height, 400);
+  EXPECT_GT(png.DistinctColours(), 100u);
+  // The walk is in the furniture from about 2.3 s (pair 69) on.
+  ASSERT_EQ(info["result"], "contact") << info.dump(2);
+  {
+    ASSERT_TRUE(info["marker"]["drawn"].get<bool>());
+    EXPECT_EQ(png.At(info["marker"]["pixel"][0], info["marker"]["pixel"][1]),
+              (std::array<int, 3>{255, 0, 255}));
+    const json& w = info["witness"]["point_env"];
+    const std::string own = Path("own.png"), own_info = Path("own.json");
+    const auto num = [](const json& v) { return std::to_string(v.get<double>()); };
+    r = Run(RenderArgs({"--pair",
+                        "75",
+                        "--width",
+                        "320",
+                        "--height",
+                        "240",
+                        "--eye",
+                        num(w[0]),
+                        num(w[1].get<double>() - 2.5),
+                        num(w[2].get<double>() + 1.0),
+                        "--target",
+                        num(w[0]),
+                        num(w[1]),
+                        num(w[2]),
+                        "--fov",
+                        "60",
+                        "--up",
+                        "z",
+                        "--out",
+                        own,
+                        "--info-out",
+                        own_info}));
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+    const json own_json = json::parse(ReadFile(own_info))["picture"];
+    png = ReadPng(own);
+    ASSERT_TRUE(png.ok) << png.error;
+    EXPECT_EQ(png.width, 320);
+    EXPECT_EQ(png.height, 240);
+    // Looking straight at the witness: the marker is at the centre.
+    ASSERT_TRUE(own_json["marker"]["drawn"].get<bool>());
+    const int x = own_json["marker"]["pixel"][0], y = own_json["marker"]["pixel"][1];
+    EXPECT_NEAR(x, 160, 1);
+    EXPECT_NEAR(y, 120, 1);
+    EXPECT_EQ(png.At(x, y), (std::array<int, 3>{255, 0, 255}));
+  }
+}
+
+TEST_F(RenderCommandTest, BadInputIsRefusedWithOneLine) {
+  ImportWalk();
+  const std::string png = Path("refused.png");
+  ExpectRefused({"render", "--skeleton", Path("missing.json"), "--poses", poses_, "--env",
+                 apartment_, "--out", png},
+                "missing.json", png);
+  ExpectRefused({"render", "--skeleton", skeleton_, "--poses", Path("missing.jsonl"), "--env",
+                 apartment_, "--out", png},
+                "missing.jsonl", png);
+  ExpectRefused(RenderArgs({"--env", Path("missing.ply"), "--out", png}), "missing.ply", png);
+  ExpectRefused(RenderArgs({"--pair", "100000", "--out", png}), "out of range", png);
+  ExpectRefused(RenderArgs({"--width", "0", "--out", png}), "--width 0", png);
+  ExpectRefused(RenderArgs({"--height", "100000", "--out", png}), "--height 100000", png);
+  ExpectRefused(RenderArgs({"--fov", "0", "--out", png}), "--fov", png);
+  ExpectRefused(RenderArgs({"--out", Path("no_such_folder/x.png")}), "no_such_folder", png);
+  ExpectRefused(RenderArgs({"--out", Path("")}), "is a folder", png);
+  ExpectRefused(RenderArgs({"--timeline", "/proc/sweptccd_timeline.png"}),
+                "/proc/sweptccd_timeline.png", png);
+  ExpectRefused(RenderArgs({}), "--out", png);
+  ExpectRefused(RenderArgs({"--up", "w", "--out", png}), "--up", png);
+  // A stream that never comes near the apartment: no contact to draw.
+  std::ifstream in(poses_);
+  std::ofstream far(Path("far.jsonl"));
+  std::string line;
+  for (int i = 0; i < 4 && std::getline(in, line); ++i) {
+    json pose = json::parse(line);
+    for (json& link : pose["links"]) link[2] = link[2].get<double>() + 100.0;
+    far << pose.dump() << '\n';
+  }
+  far.close();
+  ExpectRefused({"render", "--skeleton", skeleton_, "--poses", Path("far.jsonl"), "--env",
+                 apartment_, "--out", png},
+                "no contact in the stream", png);
+}
+
+}  // namespace
+}  // namespace sweptccd
