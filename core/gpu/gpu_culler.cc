@@ -35,17 +35,30 @@ uniform uint u_num_capsules;
 uniform uint u_num_objects;
 uniform uint u_mask_words;
 
-// Each dot product below is within 3u * sum |n_i x_i| of exact (u = 2^-24,
-// a + b and a * b correctly rounded per GLSL 4.30 section 4.7.1); kDotSlack is
-// 16u. kGrow covers the roundings of the final comparison and of sqrt.
+// Each dot product below is within 6u * sum |n_i x_i| of exact (u = 2^-24;
+// GLSL 4.30 section 4.7.1 makes a + b and a * b correctly rounded but leaves
+// the rounding mode open, so 2u per operation); kDotSlack is 16u. kGrow
+// covers the roundings of the final comparison and of sqrt.
 const float kDotSlack = 1.0 / 1048576.0;
 const float kGrow = 1.0 + 1.0 / 65536.0;
 
+// The answer written for a capsule proved clear; anything else (0 from a
+// buffer that was never written, say) reads as "may touch".
+const uint kCleared = 0xC1EA4EDu;
+
 // True only when every point of segment a-b is farther than r from the
-// triangle, certified along axis n: the projections of the two convex sets on
-// n are apart by more than r |n| after the rounding bounds are taken off.
-// NaN or infinity anywhere makes the comparison false (not certified).
-bool SeparatedAlong(vec3 n, vec3 a, vec3 b, vec3 v0, vec3 v1, vec3 v2, float r) {
+// triangle, certified along axis n_in: the projections of the two convex sets
+// on it are apart by more than r |n| after the rounding bounds are taken off.
+// The axis is first scaled by a power of two (exact) so that its largest
+// component is in [0.5, 1): |n| then cannot underflow (a tiny cross product
+// of a sliver triangle once made r |n| vanish and certified anything).
+// An axis that is zero, tiny, huge or not finite is not used.
+bool SeparatedAlong(vec3 n_in, vec3 a, vec3 b, vec3 v0, vec3 v1, vec3 v2, float r) {
+  float m = max(max(abs(n_in.x), abs(n_in.y)), abs(n_in.z));
+  if (!(m >= 1e-30 && m <= 1e30)) return false;
+  int e;
+  frexp(m, e);
+  precise vec3 n = ldexp(n_in, ivec3(-e));
   precise float sa = dot(n, a);
   precise float sb = dot(n, b);
   precise float t0 = dot(n, v0);
@@ -175,9 +188,12 @@ void main() {
       }
     }
   }
-  hits[id] = hit;
+  hits[id] = hit == 0u ? kCleared : 1u;
 }
 )GLSL";
+
+// The shader's kCleared.
+constexpr uint32_t kClearedAnswer = 0xC1EA4EDu;
 
 struct GpuCapsule {
   float a_r[4];
@@ -267,6 +283,15 @@ GpuEnvironment::GpuEnvironment(std::shared_ptr<GlContext> context, const Environ
                     table.size() * sizeof(uint32_t);
   Buffers& b = *buffers_;
   context_->Run([&] {
+    // Reads past this limit are undefined: refuse rather than miss triangles.
+    GLint64 max_block = 0;
+    glGetInteger64v(GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &max_block);
+    const size_t largest = std::max(nodes.size() * sizeof(nodes[0]), tris.size() * sizeof(float));
+    if (max_block > 0 && largest > static_cast<size_t>(max_block)) {
+      throw GpuError("the environment needs a " + std::to_string(largest >> 20) +
+                     " MiB storage buffer; this GPU allows " + std::to_string(max_block >> 20) +
+                     " MiB (GL_MAX_SHADER_STORAGE_BLOCK_SIZE)");
+    }
     auto upload = [](GLuint* name, const void* data, size_t bytes) {
       glGenBuffers(1, name);
       glBindBuffer(GL_SHADER_STORAGE_BUFFER, *name);
@@ -358,9 +383,19 @@ bool GpuCuller::Cull(const std::vector<CullCapsule>& capsules,
   if (capsules.empty()) return true;
   if (s.failed) return false;
   std::vector<GpuCapsule> upload(capsules.size());
+  // Capsules a float cannot hold (not finite, beyond 1e30) are never cleared.
+  std::vector<uint8_t> unusable(capsules.size(), 0);
   for (size_t i = 0; i < capsules.size(); ++i) {
-    if (capsules[i].link < 0 || capsules[i].link >= s.num_links) return false;
-    upload[i] = ToGpu(capsules[i]);
+    const CullCapsule& c = capsules[i];
+    if (c.link < 0 || c.link >= s.num_links) return false;
+    const double extent = std::max({c.a.cwiseAbs().maxCoeff(), c.b.cwiseAbs().maxCoeff(), c.radius});
+    if (!(extent <= 1e30) || !(c.radius >= 0)) {
+      unusable[i] = 1;
+      upload[i] = GpuCapsule{};
+      upload[i].meta[0] = static_cast<uint32_t>(c.link);
+      continue;
+    }
+    upload[i] = ToGpu(c);
   }
   const GpuEnvironment::Buffers& env = env_->buffers();
   const GLuint num_objects = static_cast<GLuint>(env_->num_objects());
@@ -397,7 +432,9 @@ bool GpuCuller::Cull(const std::vector<CullCapsule>& capsules,
       glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, static_cast<GLsizeiptr>(n * 4),
                          s.hits.data());
       internal::CheckGl("the swept-volume test");
-      for (size_t i = 0; i < n; ++i) (*may_touch)[i] = s.hits[i] != 0 ? 1 : 0;
+      for (size_t i = 0; i < n; ++i) {
+        (*may_touch)[i] = s.hits[i] == kClearedAnswer && !unusable[i] ? 0 : 1;
+      }
     });
   } catch (const GpuError& e) {
     std::lock_guard<std::mutex> lock(s.failure_mutex);

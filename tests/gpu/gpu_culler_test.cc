@@ -46,10 +46,17 @@ TriangleMesh Soup(Rng& rng, const Vector3d& centre, int count, double half) {
   for (int t = 0; t < count; ++t) {
     const Vector3d a = centre + rng.Box(half);
     Vector3d b = a + rng.Box(0.3), c = a + rng.Box(0.3);
-    const int kind = rng.I(10);
+    const int kind = rng.I(12);
     if (kind == 0) c = a + 0.5 * (b - a);                        // Collinear (degenerate).
     if (kind == 1) c = b;                                         // Two equal vertices.
     if (kind == 2) c = a + 0.5 * (b - a) + 1e-7 * rng.Dir();      // Sliver.
+    // Slivers whose cross product underflows in float (regression: the
+    // certificate's r |n| vanished and everything was cleared).
+    if (kind == 3) c = a + 0.5 * (b - a) + std::pow(10.0, -rng.U(15, 40)) * rng.Dir();
+    if (kind == 4) {  // Micrometre-sized triangle.
+      b = a + 1e-6 * rng.Dir();
+      c = a + 1e-6 * rng.Dir();
+    }
     for (const Vector3d& v : {a, b, c}) {
       m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));
       m.vertices.push_back(v.cast<float>());
@@ -168,6 +175,9 @@ TEST(GpuCullerTest, HandCases) {
   };
   add({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
   add({5, 0, 0}, {6, 0, 0}, {7, 0, 0});  // Degenerate: a segment on the x axis.
+  add({0, 20, 0}, {1, 20, 0}, {0.5, 20 + 1e-24, 0});  // Slivers (y rounds to 20 in float;
+  add({0, 21, 0}, {1, 21, 0}, {0.5, 21, 1e-20});      // z keeps 1e-20).
+  add({0.5, 19, 0}, {0.5 + 1e-12, 19, 0}, {0.5, 19 + 1e-12, 0});  // A 1e-12 m triangle.
   f.env.AddMesh(m, "hand");
   f.filter = CollisionFilter(f.num_links, 1);
   const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
@@ -190,6 +200,11 @@ TEST(GpuCullerTest, HandCases) {
       {{6, -1, 0}, {6, 1, 0}, 0.0, true, "through the degenerate triangle"},
       {{6, 0.01, -1}, {6, 0.01, 1}, 0.0099, false, "beside the degenerate triangle"},
       {{3, 3, 3}, {4, 4, 4}, 1.0, false, "far away"},
+      // Regression (review): tiny-area triangles, whose normal underflows.
+      {{0.5, 20, 0.005}, {0.5, 20, 0.005}, 0.01, true, "above a 1e-24 sliver"},
+      {{0.5, 21, 0.005}, {0.5, 21, 0.005}, 0.01, true, "above a 1e-20 sliver"},
+      {{0.5, 19, -1}, {0.5, 19, 1}, 0.0, true, "through a 1e-12 m triangle"},
+      {{0.5, 20, 0.02}, {0.5, 20, 0.02}, 0.01, false, "1 cm above a 1e-24 sliver"},
   };
   std::vector<CullCapsule> caps;
   for (const Case& c : cases) caps.push_back(CullCapsule{c.a, c.b, c.radius, 0});
@@ -199,6 +214,60 @@ TEST(GpuCullerTest, HandCases) {
     EXPECT_EQ(may_touch[i] != 0, cases[i].touches) << cases[i].name;
     EXPECT_EQ(f.Separation(caps[i]) <= 0, cases[i].touches) << "brute force: " << cases[i].name;
   }
+}
+
+// A link moving over a sliver whose float normal underflows: the GPU
+// backend must find the contact the CPU finds (it once answered free).
+TEST(GpuCullerTest, SliverTriangleContactIsNotMissed) {
+  for (const double tiny : {1e-24, 1e-20, 1e-30}) {
+    TriangleMesh m;
+    for (const Vector3d& v : {Vector3d(0, 0, 0), Vector3d(1, 0, 0), Vector3d(0.5, 0, tiny)}) {
+      m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));
+      m.vertices.push_back(v.cast<float>());
+    }
+    Environment env;
+    env.AddMesh(m, "sliver");
+    const Skeleton skeleton = ParseSkeletonJson(
+        R"({"name": "ball", "links": [{"name": "a", "parent": null, "a": [0, 0, 0],
+                                       "b": [0, 0, 0], "radius": 0.05}]})",
+        "test skeleton");
+    auto culler = std::make_shared<GpuCuller>(
+        std::make_shared<const GpuEnvironment>(SharedContext(), env), CollisionFilter(1, 1), 1);
+    CcdEngine gpu(skeleton, env), cpu(skeleton, env);
+    gpu.SetCuller(culler);
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 33333;
+    p0.links = {LinkPose{Vector3d(0.5, -1, 0.02), Eigen::Quaterniond::Identity()}};
+    p1.links = {LinkPose{Vector3d(0.5, 1, 0.02), Eigen::Quaterniond::Identity()}};
+    const QueryResult c = cpu.Query(p0, p1, QueryOptions());
+    const QueryResult g = gpu.Query(p0, p1, QueryOptions());
+    ASSERT_TRUE(c.contact) << tiny;
+    EXPECT_TRUE(g.contact) << "sliver " << tiny << ": the GPU backend missed the contact";
+    EXPECT_EQ(g.s_lo, c.s_lo) << tiny;
+    EXPECT_GT(g.stats.cull_round_trips, 0) << tiny;
+  }
+}
+
+// Capsules a float cannot hold are never cleared (they go to the CPU).
+TEST(GpuCullerTest, NonFiniteAndHugeCapsulesAreKept) {
+  Rng rng(3);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 50, 1.0), "soup");
+  f.filter = CollisionFilter(f.num_links, 1);
+  const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
+                         f.num_links);
+  const double nan = std::nan(""), inf = HUGE_VAL;
+  const std::vector<CullCapsule> caps = {
+      CullCapsule{Vector3d(nan, 0, 0), Vector3d(0, 0, 0), 0.1, 0},
+      CullCapsule{Vector3d(0, 0, 0), Vector3d(0, inf, 0), 0.1, 0},
+      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), nan, 0},
+      CullCapsule{Vector3d(1e35, 0, 0), Vector3d(1e35, 0, 0), 0.1, 0},
+      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1, 0},  // Clear: cleared.
+  };
+  std::vector<uint8_t> may_touch;
+  ASSERT_TRUE(culler.Cull(caps, &may_touch));
+  EXPECT_EQ(may_touch, (std::vector<uint8_t>{1, 1, 1, 1, 0}));
 }
 
 TEST(GpuCullerTest, ConcurrentCallersGetTheSerialAnswers) {

@@ -7,12 +7,8 @@
 // Runs on Mesa's llvmpipe through EGL in CI (never skipped: no context, no
 // picture, the test fails).
 
-#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <png.h>
-#include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -27,7 +23,7 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
+#include "tests/tools/run_binary.h"
 
 namespace sweptccd {
 namespace {
@@ -38,29 +34,8 @@ using nlohmann::json;
 const std::string kBinary = SWEPTCCD_BINARY;
 const std::string kSource = SWEPTCCD_SOURCE_DIR;
 
-struct RunResult {
-  bool exited = false;
-  int code = -1;
-  bool timed_out = false;
-  std::string out, err;
-  std::string Describe() const {
-    std::ostringstream s;
-    s << (timed_out ? "timed out"
-          : exited  ? "exit " + std::to_string(code)
-                    : "killed")
-      << "\n--- stderr ---\n"
-      << err << "--- stdout ---\n"
-      << out.substr(0, 2000);
-    return s.str();
-  }
-};
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using testing::ReadFile;
+using testing::RunResult;
 
 // A decoded PNG, 8-bit RGBA, top row first (libpng's simplified API).
 struct Png {
@@ -134,47 +109,8 @@ class RenderCommandTest : public ::testing::Test {
   RunResult Run(const std::vector<std::string>& args, double limit_s = 300) {
     static int run_count = 0;
     const int n = run_count++;
-    const std::string out_path = Path("run" + std::to_string(n) + ".out");
-    const std::string err_path = Path("run" + std::to_string(n) + ".err");
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
-    posix_spawn_file_actions_addopen(&actions, 1, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
-    posix_spawn_file_actions_addopen(&actions, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
-    std::vector<std::string> argv_s{kBinary};
-    argv_s.insert(argv_s.end(), args.begin(), args.end());
-    std::vector<char*> argv;
-    for (std::string& a : argv_s) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    pid_t pid = 0;
-    RunResult r;
-    const int rc = posix_spawn(&pid, kBinary.c_str(), &actions, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&actions);
-    if (rc != 0) {
-      ADD_FAILURE() << "posix_spawn failed: " << rc;
-      return r;
-    }
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
-    int status = 0;
-    while (true) {
-      if (::waitpid(pid, &status, WNOHANG) == pid) break;
-      if (std::chrono::steady_clock::now() > deadline) {
-        ::kill(pid, SIGKILL);
-        ::waitpid(pid, &status, 0);
-        r.timed_out = true;
-        break;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-    if (!r.timed_out) {
-      r.exited = WIFEXITED(status);
-      r.code = r.exited ? WEXITSTATUS(status) : -1;
-    }
-    r.out = ReadFile(out_path);
-    r.err = ReadFile(err_path);
-    return r;
+    return testing::RunBinary(kBinary, args, Path("run" + std::to_string(n) + ".out"),
+                              Path("run" + std::to_string(n) + ".err"), limit_s);
   }
 
   // The bundled walk, imported as tools/demo.sh does (once).
