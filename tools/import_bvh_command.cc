@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
 
 #include "core/errors.h"
 
@@ -24,7 +26,43 @@ void AddImportBvhOptions(CLI::App* app, ImportBvhCommandOptions* o) {
   app->add_option("--frames", o->frame_count, "Frames to read (default: all)");
   app->add_option("--offset", o->offset, "x y z metres added to every position")->expected(3);
   app->add_option("--utime-start", o->utime_start, "Microseconds added to every utime");
+  app->add_option("--radii", o->radii_path,
+                  "JSON file {\"LINK\": RADIUS_M, ...} overriding the default capsule radii");
 }
+
+namespace {
+
+// The --radii file: an object of link name -> radius in metres (> 0, finite).
+std::map<std::string, double> ReadRadiiFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the radii file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path + ": not JSON (" + e.what() + ")");
+  }
+  if (!j.is_object()) {
+    throw InputError(path + ": expected an object {\"link name\": radius in metres, ...}");
+  }
+  std::map<std::string, double> radii;
+  for (const auto& [name, value] : j.items()) {
+    if (!value.is_number() || !std::isfinite(value.get<double>()) || !(value.get<double>() > 0)) {
+      throw InputError(path + ": radius of '" + name + "' must be a finite number of metres > 0, got " +
+                       value.dump());
+    }
+    const std::vector<std::string>& links = MocapLinkNames();
+    if (std::find(links.begin(), links.end(), name) == links.end()) {
+      std::string known;
+      for (const std::string& l : links) known += (known.empty() ? "" : ", ") + l;
+      throw InputError(path + ": unknown link '" + name + "' (links: " + known + ")");
+    }
+    radii[name] = value.get<double>();
+  }
+  return radii;
+}
+
+}  // namespace
 
 MocapClip ImportBvhClip(const ImportBvhCommandOptions& o) {
   MocapImportOptions mo;
@@ -32,6 +70,7 @@ MocapClip ImportBvhClip(const ImportBvhCommandOptions& o) {
   mo.unit_scale_m = o.unit_scale_m;
   mo.start_frame = o.start_frame;
   mo.frame_count = o.frame_count;
+  if (!o.radii_path.empty()) mo.radius_override_m = ReadRadiiFile(o.radii_path);
   if (o.rate_hz < 0 || !std::isfinite(o.rate_hz)) {
     throw InputError("import-bvh: --rate must be a positive number of Hz");
   }

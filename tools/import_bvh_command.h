@@ -24,6 +24,7 @@ struct ImportBvhCommandOptions {
   int frame_count = -1;       // -1: to the end.
   std::vector<double> offset;  // x y z added to every position (metres).
   double utime_start = 0;     // Microseconds added to every utime.
+  std::string radii_path;     // JSON {"link name": radius in metres, ...}; empty: defaults.
 };
 
 void AddImportBvhOptions(CLI::App* app, ImportBvhCommandOptions* options);

@@ -826,6 +826,44 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
   EXPECT_EQ(without_timing(ParseRecords(missing.out)).size(), c.size());
 }
 
+// import-bvh --radii: a small JSON file overrides the default capsule radii;
+// a bad file is refused with one line naming it.
+TEST_F(QueryCommandTest, ImportBvhRadiiFile) {
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string radii = Write("radii.json", R"({"hand_l": 0.071, "head": 0.123})");
+  const std::string skel = Path("walk_skeleton.json"), poses = Path("walk_poses.jsonl");
+  const RunResult r = Run({"import-bvh", "--bvh", bvh, "--radii", radii, "--skeleton-out", skel,
+                           "--poses-out", poses});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const json s = json::parse(ReadFile(skel));
+  int overridden = 0;
+  for (const json& link : s["links"]) {
+    if (link["name"] == "hand_l") {
+      EXPECT_EQ(link["radius"].get<double>(), 0.071);
+      ++overridden;
+    } else if (link["name"] == "head") {
+      EXPECT_EQ(link["radius"].get<double>(), 0.123);
+      ++overridden;
+    } else {
+      EXPECT_LT(link["radius"].get<double>(), 0.2) << link.dump();
+    }
+  }
+  EXPECT_EQ(overridden, 2);
+  const std::vector<std::string> base = {"import-bvh", "--bvh", bvh, "--skeleton-out", skel,
+                                         "--poses-out", poses, "--radii"};
+  auto with = [&](const std::string& file) {
+    std::vector<std::string> args = base;
+    args.push_back(file);
+    return args;
+  };
+  ExpectRefusal(with(Write("r1.json", R"({"tail": 0.1})")), {"r1.json", "tail"}, "unknown link");
+  ExpectRefusal(with(Write("r2.json", R"({"head": -0.1})")), {"r2.json", "head"}, "negative");
+  ExpectRefusal(with(Write("r3.json", R"({"head": "big"})")), {"r3.json", "head"}, "string");
+  ExpectRefusal(with(Write("r4.json", "[0.1]")), {"r4.json"}, "not an object");
+  ExpectRefusal(with(Write("r5.json", "{")), {"r5.json"}, "not JSON");
+  ExpectRefusal(with(Path("missing.json")), {"missing.json"}, "missing file");
+}
+
 // --- Corrupted inputs ----------------------------------------------------------
 
 struct Corrupter {
