@@ -320,7 +320,7 @@ void CollisionService::Stop() {
 status_t CollisionService::Status() const {
   status_t s;
   s.utime = NowUtime();
-  s.backend = options_.backend;
+  s.backend = options_.backend_state ? options_.backend_state() : options_.backend;
   s.renderer = options_.renderer;
   std::lock_guard<std::mutex> lock(mutex_);
   s.num_clients = static_cast<int32_t>(clients_.size());

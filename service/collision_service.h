@@ -40,7 +40,10 @@ struct ServiceOptions {
   /// eps, delta, per-link and work limits for every query. `motion` is taken
   /// from each client's ClientConfig instead.
   QueryOptions query;
-  std::string backend = "cpu";  // Reported in status_t.
+  std::string backend = "cpu";  // Reported in status_t...
+  /// ...unless this is set: asked at every status (the GPU backend reports
+  /// "cpu (gpu failed: ...)" once its context is lost). May be empty.
+  std::function<std::string()> backend_state;
   std::string renderer;         // Reported in status_t (GPU renderer string).
   /// Called once for each client's engine before queries start (the daemon
   /// attaches the GPU backend here); may be empty.

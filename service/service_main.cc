@@ -167,6 +167,7 @@ int main(int argc, char** argv) {
     options.num_workers = config.workers;
     options.query = config.query;
     options.backend = query_backend.name();
+    options.backend_state = [&query_backend] { return query_backend.State(); };
     options.renderer = query_backend.renderer();
     options.prepare_engine = [&query_backend](CcdEngine* engine) { query_backend.Attach(engine); };
     CollisionService service(env, std::move(clients), options, &transport);

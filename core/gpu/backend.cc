@@ -41,6 +41,14 @@ Backend::Backend(const BackendOptions& options) {
 
 Backend::~Backend() = default;
 
+std::string Backend::State() const {
+  if (!gpu()) return "cpu";
+  if (context_->lost()) return "cpu (gpu failed: the OpenGL context was lost)";
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (attach_failed_) return "cpu (gpu failed: " + failure_ + ")";
+  return "gpu";
+}
+
 std::string Backend::renderer() const { return gpu() ? context_->info().renderer : std::string(); }
 
 void Backend::Attach(CcdEngine* engine) {
@@ -62,6 +70,7 @@ void Backend::Attach(CcdEngine* engine) {
         std::make_shared<GpuCuller>(env, engine->filter(), engine->skeleton().num_links()));
   } catch (const GpuError& e) {
     attach_failed_ = true;
+    failure_ = e.what();
     spdlog::error("GPU backend failed, queries continue on the CPU: {}", e.what());
   }
 }

@@ -36,8 +36,11 @@ class Backend {
   ~Backend();
 
   bool gpu() const { return context_ != nullptr; }
-  /// "cpu" or "gpu".
+  /// "cpu" or "gpu": what was chosen at start.
   const char* name() const { return gpu() ? "gpu" : "cpu"; }
+  /// What answers now: "gpu", or "cpu (gpu failed: CAUSE)" once the context
+  /// was lost or an upload failed (queries then run on the CPU), or "cpu".
+  std::string State() const;
   /// One line: what was asked, what was chosen, and why.
   const std::string& reason() const { return reason_; }
   /// The GPU renderer, empty on the CPU.
@@ -53,13 +56,14 @@ class Backend {
  private:
   std::shared_ptr<GlContext> context_;
   std::string reason_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   // The latest uploads by Environment::content_id() (an address can be
   // reused by a later environment; the id cannot), oldest first. Engines keep
   // their own upload alive; this only saves re-uploading for the next engine.
   static constexpr size_t kKeptUploads = 8;
   std::deque<std::pair<uint64_t, std::shared_ptr<const GpuEnvironment>>> uploaded_;
   bool attach_failed_ = false;
+  std::string failure_;
 };
 
 }  // namespace sweptccd::gpu

@@ -341,6 +341,25 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
   EXPECT_EQ(may_touch, std::vector<uint8_t>{1});
 }
 
+// The Backend says what answers now: "gpu", then "cpu (gpu failed: ...)" once
+// its context is lost (the daemon reports this in status_t).
+TEST(GpuBackendTest, StateReportsALostContext) {
+  BackendOptions options;
+  options.backend = "gpu";
+  Backend backend(options);
+  ASSERT_TRUE(backend.gpu());
+  EXPECT_EQ(backend.State(), "gpu");
+  EXPECT_THROW(backend.context()->Run([] {
+    eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  }),
+               GpuError);
+  EXPECT_EQ(backend.State(), "cpu (gpu failed: the OpenGL context was lost)");
+  EXPECT_STREQ(backend.name(), "gpu");  // What was chosen at start.
+  BackendOptions cpu_options;
+  cpu_options.backend = "cpu";
+  EXPECT_EQ(Backend(cpu_options).State(), "cpu");
+}
+
 // Regression: the Backend once cached uploads by the Environment's address;
 // a later environment at the same address (a loop's local) was then tested
 // against the earlier one's triangles and contacts were missed (found by the
