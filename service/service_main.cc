@@ -53,13 +53,14 @@ int main(int argc, char** argv) {
                  "ID=SKELETON.json: one more client (articulated, no filter); repeat");
   app.add_option("--eps", eps, "Time tolerance, seconds");
   app.add_option("--delta", delta, "Distance tolerance, metres");
-  app.add_option("--workers", workers, "Worker threads");
+  app.add_option("--workers", workers, "Worker threads")->check(CLI::Range(1, 1024));
   app.add_option("--backend", backend,
                  "cpu, gpu or auto (auto: the GPU on a hardware EGL device, else the CPU)");
   app.add_option("--gpu-device", gpu_device, "EGL device index for the GPU backend");
   app.add_flag("--require-hardware", require_hardware,
                "GPU backend: refuse software renderers (llvmpipe)");
-  app.add_option("--status-period", status_period, "Seconds between status messages");
+  app.add_option("--status-period", status_period, "Seconds between status messages")
+      ->check(CLI::Range(0.001, 3600.0));
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
   std::string pose_channel, contact_channel, reject_channel, status_channel;
   std::vector<std::string> filter_flags, ignore_flags;
@@ -158,7 +159,12 @@ int main(int argc, char** argv) {
     backend_options.backend = config.backend;
     backend_options.device_index = config.gpu_device;
     backend_options.require_hardware = config.require_hardware;
-    gpu::Backend query_backend(backend_options);  // Logs its choice and why.
+    gpu::Backend query_backend(backend_options);
+    if (config.backend == "gpu" && !query_backend.gpu()) {
+      spdlog::error("backend {}", query_backend.reason());
+    } else {
+      spdlog::info("backend {}", query_backend.reason());
+    }
 
     lcm::LCM lcm(config.lcm_url);
     if (!lcm.good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");

@@ -23,8 +23,10 @@ namespace sweptccd {
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
   app->add_option("--data", o->data_dir, "Folder with env/ and mocap/ (default: ../shared/data)");
   app->add_option("--clip", o->clips, "BVH clips in mocap/ to replay");
-  app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip");
-  app->add_option("--rate", o->rate_hz, "Tracker rate, Hz (the clip is resampled)");
+  app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip")
+      ->check(CLI::Range(1, 100000000));
+  app->add_option("--rate", o->rate_hz, "Tracker rate, Hz (the clip is resampled)")
+      ->check(CLI::Range(1.0, 1000.0));
   app->add_option("--eps", o->eps_s, "Time tolerance, seconds");
   app->add_option("--delta", o->delta_m, "Distance tolerance, metres");
   app->add_flag("!--no-peers", o->peers, "Skip the FCL peer");

@@ -6,11 +6,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 
 #include "core/errors.h"
+#include "core/pose.h"
+#include "tools/output_paths.h"
 
 namespace sweptccd {
 
@@ -82,22 +85,67 @@ MocapClip ImportBvhClip(const ImportBvhCommandOptions& o) {
   return probe;
 }
 
+namespace {
+
+void CheckPlacement(const ImportBvhCommandOptions& o, const MocapClip& clip) {
+  for (double v : o.offset) {
+    if (!std::isfinite(v) || std::fabs(v) > kMaxCoordinate) {
+      throw InputError("import-bvh: --offset must be three finite numbers of metres within 1e9");
+    }
+  }
+  // utime_start plus the clip's utimes must stay an int64 (SPEC utime).
+  if (!std::isfinite(o.utime_start) || std::fabs(o.utime_start) > 4e18 ||
+      (!clip.poses.empty() && std::fabs(static_cast<double>(clip.poses.back().utime)) +
+                                      std::fabs(o.utime_start) > 9e18)) {
+    throw InputError("import-bvh: --utime-start must be finite and keep every utime within int64 "
+                     "(|value| <= 4e18 microseconds)");
+  }
+}
+
+// Writes `text` to `path`; throws InputError naming the file when it fails.
+void WriteWhole(const std::string& path, const std::string& text, const char* what) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path + ": cannot write the " + what);
+  out << text;
+  out.flush();
+  if (!out) throw InputError(path + ": error while writing the " + what);
+}
+
+}  // namespace
+
 int RunImportBvhCommand(const ImportBvhCommandOptions& o) {
   try {
+    RefuseClashingPaths({{"--bvh", o.bvh_path}, {"--radii", o.radii_path}},
+                        {{"--skeleton-out", o.skeleton_out}, {"--poses-out", o.poses_out}});
     MocapClip probe = ImportBvhClip(o);
+    CheckPlacement(o, probe);
     if (o.offset.size() == 3) {
       TranslateClip(&probe, Eigen::Vector3d(o.offset[0], o.offset[1], o.offset[2]));
     }
-    std::ofstream skel(o.skeleton_out);
-    if (!skel) throw InputError(o.skeleton_out + ": cannot write the skeleton");
-    skel << SkeletonToJson(probe.skeleton) << '\n';
-    std::ofstream poses(o.poses_out);
-    if (!poses) throw InputError(o.poses_out + ": cannot write the poses");
+    // Both files are made in memory first, so a refusal writes nothing; a
+    // write that fails names its file (and removes the skeleton written
+    // before it, so no half of the pair is left behind).
+    std::string poses_text;
     for (Pose pose : probe.poses) {
       pose.utime += static_cast<int64_t>(o.utime_start);
-      poses << PoseToJsonLine(pose) << '\n';
+      Pose check = pose;  // Validated as `query` would read it; written as is.
+      const std::string error = ValidateAndNormalizePose(&check, probe.skeleton.num_links());
+      if (!error.empty()) {
+        throw InputError("import-bvh: pose at utime " + std::to_string(pose.utime) +
+                         " would be invalid: " + error);
+      }
+      poses_text += PoseToJsonLine(pose) + '\n';
     }
-    if (!skel || !poses) throw InputError("import-bvh: error while writing the output files");
+    WriteWhole(o.skeleton_out, SkeletonToJson(probe.skeleton) + '\n', "skeleton");
+    try {
+      WriteWhole(o.poses_out, poses_text, "poses");
+    } catch (const InputError&) {
+      std::error_code ec;
+      if (std::filesystem::is_regular_file(o.skeleton_out, ec)) {
+        std::filesystem::remove(o.skeleton_out, ec);
+      }
+      throw;
+    }
     spdlog::info("{}: {} links, {} poses at {:.1f} Hz, {:.4f} m per unit", o.bvh_path,
                  probe.skeleton.num_links(), probe.poses.size(), 1.0 / probe.frame_time_s,
                  probe.unit_scale_m);

@@ -15,6 +15,7 @@
 #include "core/pose.h"
 #include "core/result_json.h"
 #include "core/skeleton.h"
+#include "tools/output_paths.h"
 
 namespace sweptccd {
 
@@ -36,6 +37,11 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     const std::string backend_problem = gpu::ValidateBackendName(options.backend);
     if (!backend_problem.empty()) throw InputError("sweptccd query: --" + backend_problem);
     if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
+    std::vector<NamedPath> inputs = {{"--skeleton", options.skeleton_path},
+                                     {"--poses", options.poses_path},
+                                     {"--filter", options.filter_path}};
+    for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
+    RefuseClashingPaths(inputs, {{"--output", options.output_path}});
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path);
     std::ifstream poses(options.poses_path, std::ios::binary);
     if (!poses) throw InputError(options.poses_path + ": cannot open the pose stream file");

@@ -23,6 +23,7 @@
 #include "core/motion.h"
 #include "core/pose.h"
 #include "core/skeleton.h"
+#include "tools/output_paths.h"
 
 namespace sweptccd {
 
@@ -124,6 +125,11 @@ void Validate(const RenderCommandOptions& o) {
   if (o.swept_steps < 0 || o.swept_steps > 200) {
     throw InputError("sweptccd render: --swept-steps must be in 0..200");
   }
+  std::vector<NamedPath> inputs = {{"--skeleton", o.skeleton_path}, {"--poses", o.poses_path}};
+  for (const std::string& e : o.env_paths) inputs.push_back({"--env", e});
+  RefuseClashingPaths(inputs, {{"--out", o.out_path},
+                               {"--timeline", o.timeline_path},
+                               {"--info-out", o.info_out}});
   CheckWritable(o.out_path, "the picture (--out)");
   CheckWritable(o.timeline_path, "the timeline (--timeline)");
   CheckWritable(o.info_out, "the sidecar (--info-out)");
@@ -635,7 +641,8 @@ void AddRenderOptions(CLI::App* app, RenderCommandOptions* o) {
   app->add_option("--eps", o->query.eps_s, "Time tolerance, seconds (default 1e-4)");
   app->add_option("--delta", o->query.delta_m, "Distance tolerance, metres (default 1e-3)");
   app->add_option("--max-intervals", o->query.max_intervals, "Work limit per pair");
-  app->add_option("--pair", o->pair, "Pair to draw (default: the first with contact)");
+  app->add_option("--pair", o->pair, "Pair to draw (default: the first with contact)")
+      ->check(CLI::Range(0, 2147483647));
   app->add_option("--out", o->out_path, "Picture of the contact (PNG)");
   app->add_option("--timeline", o->timeline_path, "Timeline of the whole stream (PNG)");
   app->add_option("--info-out", o->info_out, "JSON sidecar: pair, bracket, witness, marker pixel");

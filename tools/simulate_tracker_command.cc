@@ -84,7 +84,7 @@ std::vector<Pose> ReadPoseStream(const std::string& path, int* num_links) {
 void CheckOptions(const SimulateTrackerCommandOptions& o) {
   auto bad = [](const std::string& what) { throw InputError("simulate-tracker: " + what); };
   if (o.poses_path.empty() == o.bvh.bvh_path.empty()) bad("give exactly one of --poses and --bvh");
-  if (!(o.speed > 0) || !std::isfinite(o.speed)) bad("--speed must be a positive factor");
+  if (!(o.speed >= 1e-6 && o.speed <= 1e6)) bad("--speed must be a factor in [1e-6, 1e6]");
   if (!(o.bvh.rate_hz >= 0) || !std::isfinite(o.bvh.rate_hz))
     bad("--rate must be a positive number of Hz");
   if (o.loops < 0) bad("--loop must be >= 0 (0: until stopped)");
@@ -95,8 +95,11 @@ void CheckOptions(const SimulateTrackerCommandOptions& o) {
   if (!(o.duration_s >= 0) || !std::isfinite(o.duration_s))
     bad("--duration must be >= 0 seconds (0: no limit)");
   if (o.num_clients == 0 || o.num_clients < -1) bad("--clients must be >= 1");
-  if (o.seq_start < 0) bad("--seq-start must be >= 0");
-  if (!std::isfinite(o.bvh.utime_start)) bad("--utime-start must be finite");
+  // Far from int64's end, so that seq and utime cannot wrap however long it runs.
+  if (o.seq_start < 0 || o.seq_start > (int64_t{1} << 62)) bad("--seq-start must be in [0, 2^62]");
+  if (!(std::fabs(o.bvh.utime_start) <= 4e18)) {
+    bad("--utime-start must be finite, |value| <= 4e18 microseconds");
+  }
   for (double v : o.spacing) {
     if (!std::isfinite(v)) bad("--spacing must be three finite numbers (metres)");
   }

@@ -21,6 +21,8 @@ int main(int argc, char** argv) {
 
   CLI::App app{"SweptCCD: certified continuous collision detection for tracked avatars"};
   app.require_subcommand(1);
+  // --log-level (an option of sweptccd itself) also after the subcommand.
+  app.fallthrough();
   std::string log_level = "warn";
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));

@@ -27,16 +27,13 @@ Backend::Backend(const BackendOptions& options) {
   } catch (const GpuError& e) {
     if (options.backend == "auto") {
       reason_ = std::string("cpu (auto: no hardware EGL device; ") + e.what() + ")";
-      spdlog::info("backend {}", reason_);
     } else {
       reason_ = std::string("cpu (gpu requested but unavailable: ") + e.what() + ")";
-      spdlog::error("backend {}", reason_);
     }
     return;
   }
   reason_ = "gpu (" + std::string(options.backend == "auto" ? "auto: hardware EGL device" : "requested") +
             "; " + context_->info().Summary() + ")";
-  spdlog::info("backend {}", reason_);
 }
 
 Backend::~Backend() = default;

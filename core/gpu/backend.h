@@ -30,8 +30,9 @@ class Backend {
   /// cpu: the CPU. gpu: the headless context on the configured device, else
   /// the first that works, software renderers included unless
   /// require_hardware. auto: the GPU only on a hardware device, else the CPU.
-  /// A GPU that cannot be had is not an error: the cause is logged once and
-  /// the CPU is chosen; reason() says so. Throws InputError for a bad name.
+  /// A GPU that cannot be had is not an error: the CPU is chosen and
+  /// reason() says why (the caller shows it once: `query` on stderr, the
+  /// daemon in its log). Throws InputError for a bad name.
   explicit Backend(const BackendOptions& options);
   ~Backend();
 

@@ -144,12 +144,21 @@ int TextWidth(const std::string& text, int scale) {
   return text.empty() ? 0 : static_cast<int>(text.size()) * 6 * scale - scale;
 }
 
+namespace {
+
+// libpng's default handlers print to stderr; the caller reports one line.
+[[noreturn]] void PngError(png_structp png, png_const_charp) { png_longjmp(png, 1); }
+void PngWarning(png_structp, png_const_charp) {}
+
+}  // namespace
+
 void WritePngFile(const std::string& path, const RgbaImage& image) {
   FILE* file = std::fopen(path.c_str(), "wb");
   if (file == nullptr) {
     throw InputError(path + ": cannot write the picture (" + std::strerror(errno) + ")");
   }
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_structp png =
+      png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, PngError, PngWarning);
   png_infop info = png ? png_create_info_struct(png) : nullptr;
   std::vector<uint8_t> row(static_cast<size_t>(image.width) * 3);
   bool ok = png != nullptr && info != nullptr;

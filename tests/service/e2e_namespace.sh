@@ -14,6 +14,14 @@ url=$SWEPTCCD_URL
 status=0
 "$service" --lcm-url "$url" --env "$work/missing.ply" --client a=x.json 2> "$work/bad.log" || status=$?
 [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q missing.ply "$work/bad.log"
+# Flag values out of range are refused, not silently replaced by defaults.
+for flag in "--workers 0" "--status-period -1"; do
+  status=0
+  # shellcheck disable=SC2086
+  "$service" --lcm-url "$url" $flag --env "$src/data/morse_apartment.ply" --client a=x.json \
+    2> "$work/bad.log" || status=$?
+  [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q -- "${flag% *}" "$work/bad.log"
+done
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
 # The CPU backend, then the GPU backend (llvmpipe in CI): the same answers.

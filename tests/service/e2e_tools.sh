@@ -40,6 +40,9 @@ refused "bad.jsonl: line 2" "$sweptccd" simulate-tracker --lcm-url "$url" --pose
 refused "--drop" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --drop 1.5
 refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed -2
 refused "--clients" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --clients many
+refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed 1e-300
+refused "--seq-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --seq-start 9223372036854775807
+refused "--utime-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --utime-start 1e19
 refused missing.json "$sweptccd" monitor --lcm-url "$url" --skeleton "$work/missing.json" --timeout 1
 refused "--timeout" "$sweptccd" monitor --lcm-url "$url" --timeout -1
 

@@ -864,6 +864,43 @@ TEST_F(QueryCommandTest, ImportBvhRadiiFile) {
   ExpectRefusal(with(Path("missing.json")), {"missing.json"}, "missing file");
 }
 
+// Found by a day-one test of the tools: each of these once exited 0 with
+// corrupt or missing output.
+TEST_F(QueryCommandTest, OutputsNeverDestroyInputsAndPlacementIsChecked) {
+  const std::string poses = Write("poses.jsonl", TwoLinkPose(1, {0, 3, 0}) + "\n" +
+                                                     TwoLinkPose(2, {0, 3, 0}) + "\n");
+  const std::string before = ReadFile(poses);
+  ExpectRefusal(QueryArgs(poses, {"--output", poses}), {"--output", "--poses"}, "output = poses");
+  EXPECT_EQ(ReadFile(poses), before) << "the pose stream was truncated";
+  ExpectRefusal(QueryArgs(poses, {"--output", skeleton_}), {"--skeleton"}, "output = skeleton");
+
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string skel = Path("s.json"), out = Path("p.jsonl");
+  auto import = [&](std::initializer_list<std::string> extra) {
+    std::vector<std::string> args = {"import-bvh", "--bvh", bvh, "--skeleton-out", skel,
+                                     "--poses-out", out};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  };
+  ExpectRefusal(import({"--offset", "nan", "0", "0"}), {"--offset"}, "nan offset");
+  ExpectRefusal(import({"--offset", "1e300", "0", "0"}), {"--offset"}, "huge offset");
+  ExpectRefusal(import({"--utime-start", "1e19"}), {"--utime-start"}, "utime overflow");
+  ExpectRefusal({"import-bvh", "--bvh", bvh, "--skeleton-out", skel, "--poses-out", skel},
+                {"both name"}, "one file for both outputs");
+  EXPECT_FALSE(fs::exists(skel)) << "a refusal wrote the skeleton";
+  // A poses file that cannot be written: named, and no lone skeleton left.
+  ExpectRefusal({"import-bvh", "--bvh", bvh, "--skeleton-out", skel, "--poses-out", "/dev/full"},
+                {"/dev/full", "poses"}, "unwritable poses");
+  EXPECT_FALSE(fs::exists(skel)) << "the skeleton of a failed import was left behind";
+
+  ExpectRefusal({"bench", "--rate", "-5"}, {"--rate"}, "bench --rate -5");
+  ExpectRefusal({"bench", "--max-pairs", "0"}, {"--max-pairs"}, "bench --max-pairs 0");
+  // --log-level is accepted after the subcommand too.
+  const RunResult verbose = Run(QueryArgs(poses, {"--log-level", "info", "--backend", "cpu"}));
+  EXPECT_TRUE(verbose.exited && verbose.code == 0) << verbose.Describe();
+  EXPECT_NE(verbose.err.find("[info]"), std::string::npos) << verbose.err;
+}
+
 // --- Corrupted inputs ----------------------------------------------------------
 
 struct Corrupter {

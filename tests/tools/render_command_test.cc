@@ -295,6 +295,15 @@ TEST_F(RenderCommandTest, BadInputIsRefusedWithOneLine) {
                 "/proc/sweptccd_timeline.png", png);
   ExpectRefused(RenderArgs({}), "--out", png);
   ExpectRefused(RenderArgs({"--up", "w", "--out", png}), "--up", png);
+  // Found by a day-one test: -1 drew the default pair; one path for two
+  // pictures kept only the second; --out onto the pose stream destroyed it.
+  ExpectRefused(RenderArgs({"--pair", "-1", "--out", png}), "--pair", png);
+  ExpectRefused(RenderArgs({"--out", png, "--timeline", png}), "both name", png);
+  {
+    const std::string before = ReadFile(poses_);
+    ExpectRefused(RenderArgs({"--out", poses_}), "--poses", png);
+    EXPECT_EQ(ReadFile(poses_), before) << "the pose stream was touched";
+  }
   // A stream that never comes near the apartment: no contact to draw.
   std::ifstream in(poses_);
   std::ofstream far(Path("far.jsonl"));
