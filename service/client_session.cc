@@ -1,6 +1,8 @@
 #include "service/client_session.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include "core/errors.h"
@@ -106,6 +108,11 @@ std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_
   }
   ++poses_accepted_;
   if (last_) {
+    // msg.seq > last_->seq here; the difference fits in uint64 (saturated below).
+    const uint64_t missing =
+        static_cast<uint64_t>(msg.seq) - static_cast<uint64_t>(last_->seq) - 1;
+    const uint64_t room = static_cast<uint64_t>(INT64_MAX - seq_gaps_);
+    seq_gaps_ += static_cast<int64_t>(std::min(missing, room));
     if (pending_) {
       // Latest wins: (A, B) pending and C arrives -> (A, C); (A, B) and
       // (B, C) are answered as one, so one pair is skipped.

@@ -88,6 +88,9 @@ class ClientSession {
   int64_t pairs_taken() const { return pairs_taken_; }
   int64_t pairs_finished() const { return pairs_finished_; }
   int64_t pairs_skipped() const { return pairs_skipped_; }
+  /// seq numbers missing between consecutive accepted poses (lost or never
+  /// sent); the pair of those two poses is still answered.
+  int64_t seq_gaps() const { return seq_gaps_; }
 
  private:
   struct Accepted {
@@ -106,6 +109,7 @@ class ClientSession {
   int64_t pairs_taken_ = 0;
   int64_t pairs_finished_ = 0;
   int64_t pairs_skipped_ = 0;
+  int64_t seq_gaps_ = 0;
 };
 
 }  // namespace sweptccd

@@ -333,6 +333,7 @@ status_t CollisionService::Status() const {
     s.pairs_answered.push_back(cs.pairs_finished());
     s.pairs_skipped.push_back(cs.pairs_skipped());
     s.rejected.push_back(cs.rejected());
+    s.seq_gaps.push_back(cs.seq_gaps());
     std::vector<double> lat(c->latencies_us.begin(), c->latencies_us.end());
     s.latency_median_us.push_back(Quantile(lat, 0.5));
     s.latency_p99_us.push_back(Quantile(std::move(lat), 0.99));

@@ -303,15 +303,16 @@ class Monitor {
                   {"pairs_answered", s.pairs_answered[i]},
                   {"pairs_skipped", s.pairs_skipped[i]},
                   {"rejected", s.rejected[i]},
+                  {"seq_gaps", s.seq_gaps[i]},
                   {"latency_median_us", s.latency_median_us[i]},
                   {"latency_p99_us", s.latency_p99_us[i]},
                   {"utime", s.utime}});
       } else {
         Line(fmt::format(
-            "status {} poses {} answered {} skipped {} rejected {} latency median "
+            "status {} poses {} answered {} skipped {} rejected {} seq_missing {} latency median "
             "{:.0f} us p99 {:.0f} us",
             Name(s.client_id[i]), s.poses_received[i], s.pairs_answered[i], s.pairs_skipped[i],
-            s.rejected[i], s.latency_median_us[i], s.latency_p99_us[i]));
+            s.rejected[i], s.seq_gaps[i], s.latency_median_us[i], s.latency_p99_us[i]));
       }
     }
     if (o_.json) {

@@ -54,6 +54,35 @@ TEST_F(ClientSessionTest, FirstPoseMakesNoPairThenEveryPoseOne) {
   EXPECT_EQ(session_.poses_received(), 6);
 }
 
+// Poses the tracker numbered but the service never received (UDP loss) are
+// counted as seq gaps; the pair across the gap is still answered.
+TEST_F(ClientSessionTest, SeqGapsCountMissingSamples) {
+  for (int64_t seq : {0, 1, 5, 6, 10, 11}) {
+    ASSERT_FALSE(OfferSeq(seq));
+    if (session_.ready()) {
+      const PosePair p = session_.TakePair();
+      if (seq == 5) {
+        EXPECT_EQ(p.seq0, 1);
+        EXPECT_EQ(p.seq1, 5);
+      }
+      session_.FinishPair();
+    }
+  }
+  EXPECT_EQ(session_.seq_gaps(), 3 + 3);
+  EXPECT_EQ(session_.pairs_finished(), 5);
+  // A rejected (repeated) seq is not a gap.
+  EXPECT_TRUE(OfferSeq(11));
+  EXPECT_EQ(session_.seq_gaps(), 6);
+  // Extreme numbering saturates instead of overflowing.
+  ClientSession extreme("b", 2);
+  tracker_pose_t first = MakePose("b", 0, 1, test::Height(0)), last = MakePose("b", 1, 2, test::Height(1));
+  first.seq = INT64_MIN;
+  last.seq = INT64_MAX;
+  EXPECT_FALSE(extreme.OnPose(first, 1, SteadyClock::now()));
+  EXPECT_FALSE(extreme.OnPose(last, 2, SteadyClock::now()));
+  EXPECT_EQ(extreme.seq_gaps(), INT64_MAX);
+}
+
 TEST_F(ClientSessionTest, OnePairInFlightAtATime) {
   ASSERT_FALSE(OfferSeq(0));
   ASSERT_FALSE(OfferSeq(1));
