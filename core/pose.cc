@@ -115,6 +115,21 @@ std::string PoseToJsonLine(const Pose& pose) {
   return doc.dump();
 }
 
+std::optional<PairOutcome> PoseStreamReader::Next() {
+  std::string line;
+  while (std::getline(in_, line)) {
+    ++line_number_;
+    if (line.find_first_not_of(" \t\r\n\f\v") == std::string::npos) continue;  // Blank.
+    std::string error;
+    std::optional<Pose> pose = ParsePoseLine(line, num_links_, &error);
+    if (!pose) error = "line " + std::to_string(line_number_) + ": " + error;
+    std::optional<PairOutcome> outcome = pairer_.Feed(std::move(pose), error);
+    if (outcome) return outcome;
+    first_line_error_ = error;  // Only the first counted line yields no record.
+  }
+  return std::nullopt;
+}
+
 std::optional<PairOutcome> PosePairer::Feed(std::optional<Pose> pose, const std::string& error) {
   const int64_t k = lines_seen_++;
   if (k == 0) {

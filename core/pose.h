@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <istream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -64,6 +65,29 @@ class PosePairer {
  private:
   int64_t lines_seen_ = 0;
   std::optional<Pose> anchor_;
+};
+
+/// A SPEC pose stream file read line by line: blank lines are not counted,
+/// each counted line is parsed (ParsePoseLine) and paired (PosePairer). Holds
+/// a reference to the stream. Not thread-safe.
+class PoseStreamReader {
+ public:
+  PoseStreamReader(std::istream& in, int num_links) : in_(in), num_links_(num_links) {}
+
+  /// The next record, or nullopt at the end of the stream.
+  std::optional<PairOutcome> Next();
+  /// Why the first counted line (which yields no record) could not be
+  /// parsed, as "line N: ..."; empty when it could.
+  const std::string& first_line_error() const { return first_line_error_; }
+  /// True when reading failed (not at the end of the stream).
+  bool bad() const { return in_.bad(); }
+
+ private:
+  std::istream& in_;
+  int num_links_;
+  int64_t line_number_ = 0;
+  PosePairer pairer_;
+  std::string first_line_error_;
 };
 
 }  // namespace sweptccd

@@ -19,17 +19,6 @@
 
 namespace sweptccd {
 
-namespace {
-
-bool IsBlank(const std::string& line) {
-  for (char c : line) {
-    if (c != ' ' && c != '\t' && c != '\r' && c != '\n' && c != '\f' && c != '\v') return false;
-  }
-  return true;
-}
-
-}  // namespace
-
 int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
@@ -77,21 +66,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     gpu::Backend backend(backend_options);
     if (options.backend != "cpu") std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
     backend.Attach(&engine);
-    PosePairer pairer;
-    std::string line;
-    int64_t line_number = 0;
+    PoseStreamReader reader(poses, skeleton.num_links());
     int64_t pairs = 0, invalid = 0, contacts = 0;
-    while (std::getline(poses, line)) {
-      ++line_number;
-      if (IsBlank(line)) continue;
-      std::string error;
-      std::optional<Pose> pose = ParsePoseLine(line, skeleton.num_links(), &error);
-      if (!pose) error = "line " + std::to_string(line_number) + ": " + error;
-      std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
-      if (!outcome) {
-        if (!error.empty()) spdlog::warn("{}: {}", options.poses_path, error);
-        continue;
-      }
+    while (std::optional<PairOutcome> outcome = reader.Next()) {
       if (!outcome->valid) {
         ++invalid;
         *out << InvalidResultToJson(outcome->pair, outcome->utime0, outcome->utime1,
@@ -110,7 +87,10 @@ int RunQueryCommand(const QueryCommandOptions& options) {
                            options.query.per_link, elapsed_us)
            << '\n';
     }
-    if (poses.bad()) throw InputError(options.poses_path + ": error while reading");
+    if (reader.bad()) throw InputError(options.poses_path + ": error while reading");
+    if (!reader.first_line_error().empty()) {
+      spdlog::warn("{}: {}", options.poses_path, reader.first_line_error());
+    }
     out->flush();
     if (!*out) {
       throw InputError((options.output_path.empty() ? std::string("standard output")

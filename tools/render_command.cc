@@ -135,28 +135,14 @@ void Validate(const RenderCommandOptions& o) {
   CheckWritable(o.info_out, "the sidecar (--info-out)");
 }
 
-bool IsBlank(const std::string& line) {
-  return line.find_first_not_of(" \t\r\n\f\v") == std::string::npos;
-}
-
 // Every record of the stream under SPEC section 2's pairing rule.
 std::vector<PairOutcome> ReadPairs(const std::string& path, int num_links) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the pose stream file");
   std::vector<PairOutcome> pairs;
-  PosePairer pairer;
-  std::string line;
-  int64_t line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    if (IsBlank(line)) continue;
-    std::string error;
-    std::optional<Pose> pose = ParsePoseLine(line, num_links, &error);
-    if (!pose) error = "line " + std::to_string(line_number) + ": " + error;
-    std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
-    if (outcome) pairs.push_back(std::move(*outcome));
-  }
-  if (in.bad()) throw InputError(path + ": error while reading");
+  PoseStreamReader reader(in, num_links);
+  while (std::optional<PairOutcome> outcome = reader.Next()) pairs.push_back(std::move(*outcome));
+  if (reader.bad()) throw InputError(path + ": error while reading");
   return pairs;
 }
 

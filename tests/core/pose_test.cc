@@ -398,6 +398,60 @@ TEST(PosePairerTest, ParsedLinesFollowTheRule) {
   EXPECT_GT(records, 40000);
 }
 
+// The stream reader (used by `query` and `render`): blank and whitespace-only
+// lines are not counted, the rest is the pairing rule; a bad first line is
+// kept as first_line_error with its line number.
+TEST(PoseStreamReaderTest, SkipsBlankLinesAndPairsTheRest) {
+  std::mt19937_64 g(0x905e0005);
+  int64_t records = 0;
+  for (int c = 0; c < 300; ++c) {
+    const std::vector<LineSpec> lines = RandomSequence(g);
+    const std::vector<Expected> want = Twin(lines);
+    std::string text;
+    std::vector<int> line_of(lines.size());
+    int line_no = 0;
+    for (size_t k = 0; k < lines.size(); ++k) {
+      if (g() % 3 == 0) {
+        text += g() % 2 ? "\n" : " \t\r\n";
+        ++line_no;
+      }
+      const LineSpec& l = lines[k];
+      const std::string good = "[" + std::to_string(l.id) + ", 0, 0, 0.5, 0.5, 0.5, 0.5]";
+      text += (l.valid ? Line(std::to_string(l.utime), {good, kIdentity}) : "not json") + "\n";
+      line_of[k] = ++line_no;
+    }
+    std::istringstream in(text);
+    PoseStreamReader reader(in, 2);
+    size_t next = 0;
+    while (std::optional<PairOutcome> got = reader.Next()) {
+      ASSERT_LT(next, want.size());
+      const Expected& e = want[next];
+      EXPECT_EQ(got->pair, static_cast<int64_t>(next));
+      ASSERT_EQ(got->valid, e.valid) << "sequence " << c << " record " << next;
+      if (e.valid) {
+        EXPECT_EQ(got->pose0.links[0].p.x(), e.id0);
+        EXPECT_EQ(got->pose1.links[0].p.x(), e.id1);
+      } else if (!lines[next + 1].valid) {
+        EXPECT_EQ(got->error.rfind("invalid pose: line " + std::to_string(line_of[next + 1]) + ": ",
+                                   0),
+                  0u)
+            << got->error;
+      }
+      ++next;
+      ++records;
+    }
+    EXPECT_EQ(next, want.size());
+    EXPECT_FALSE(reader.bad());
+    if (lines[0].valid) {
+      EXPECT_EQ(reader.first_line_error(), "");
+    } else {
+      EXPECT_EQ(reader.first_line_error().rfind("line " + std::to_string(line_of[0]) + ": ", 0), 0u)
+          << reader.first_line_error();
+    }
+  }
+  EXPECT_GT(records, 3000);
+}
+
 // A few hand-written sequences, as named regressions of the rule.
 TEST(PosePairerTest, HandWrittenSequences) {
   auto run = [](const std::vector<std::pair<bool, int64_t>>& seq) {
