@@ -208,8 +208,13 @@ class QueryRun {
   // Sends the pending capsules in one round trip and records the answers.
   // Returns false (and drops the culler for this query) when it failed.
   bool FlushCull();
-  // 1: the culler cleared the interval; 0: it did not; -1: not asked yet.
-  int Culled(int link, double s0, double s1) const;
+  // The culler's answer for the interval, with its capsule (the one the
+  // descent would compute); nullptr when it was not asked.
+  struct CullAnswer {
+    bool cleared;
+    Capsule cap;
+  };
+  const CullAnswer* Culled(int link, double s0, double s1) const;
   // One round trip for `task` and, while the batch has room, the other
   // pending tasks the culler has not answered.
   void CullAhead(const Task& task);
@@ -236,7 +241,7 @@ class QueryRun {
   std::vector<CullCapsule> cull_batch_;
   std::vector<IntervalKey> cull_keys_;
   std::vector<uint8_t> cull_answer_;
-  std::unordered_map<IntervalKey, bool, IntervalKeyHash> cleared_;  // key -> cleared
+  std::unordered_map<IntervalKey, CullAnswer, IntervalKeyHash> cull_answers_;
   std::vector<bool> culled_link_;  // The culler cleared the link's whole pair.
 };
 
@@ -263,7 +268,10 @@ bool QueryRun::FlushCull() {
   if (ok) {
     ++result_.stats.cull_round_trips;
     result_.stats.cull_capsules += static_cast<int64_t>(cull_batch_.size());
-    for (size_t i = 0; i < cull_keys_.size(); ++i) cleared_[cull_keys_[i]] = cull_answer_[i] == 0;
+    for (size_t i = 0; i < cull_keys_.size(); ++i) {
+      const CullCapsule& c = cull_batch_[i];
+      cull_answers_[cull_keys_[i]] = CullAnswer{cull_answer_[i] == 0, Capsule{c.a, c.b, c.radius}};
+    }
   } else {
     culler_ = nullptr;  // Failed (logged by the culler): the CPU decides alone.
   }
@@ -272,9 +280,9 @@ bool QueryRun::FlushCull() {
   return ok;
 }
 
-int QueryRun::Culled(int link, double s0, double s1) const {
-  const auto it = cleared_.find(IntervalKey{link, s0, s1});
-  return it == cleared_.end() ? -1 : (it->second ? 1 : 0);
+const QueryRun::CullAnswer* QueryRun::Culled(int link, double s0, double s1) const {
+  const auto it = cull_answers_.find(IntervalKey{link, s0, s1});
+  return it == cull_answers_.end() ? nullptr : &it->second;
 }
 
 void QueryRun::CullAhead(const Task& task) {
@@ -282,7 +290,7 @@ void QueryRun::CullAhead(const Task& task) {
   const size_t per_task = cull_batch_.size();
   for (const Task& t : queue_.pending()) {
     if (cull_batch_.size() + per_task > kMaxCullBatch) break;
-    if (link_done_[t.link] || t.prefiltered || Culled(t.link, t.s0, t.s1) >= 0) continue;
+    if (link_done_[t.link] || t.prefiltered || Culled(t.link, t.s0, t.s1) != nullptr) continue;
     AppendSubtree(t.link, t.s0, t.s1, t.a0, t.b0, t.a1, t.b1, kCullLevels);
   }
   FlushCull();
@@ -515,7 +523,10 @@ QueryResult QueryRun::Run() {
       AppendSubtree(l, 0, 1, a0, b0, a1, b1, kCullLevels);
     }
     if (FlushCull()) {
-      for (int l = 0; l < n; ++l) culled_link_[l] = Culled(l, 0, 1) == 1;
+      for (int l = 0; l < n; ++l) {
+        const CullAnswer* root = Culled(l, 0, 1);
+        culled_link_[l] = root != nullptr && root->cleared;
+      }
     }
   }
   if (options_.per_link || result_.links.empty()) InitialCandidates();
@@ -548,17 +559,27 @@ QueryResult QueryRun::Run() {
     uint32_t begin = static_cast<uint32_t>(pool_.size());
     uint32_t count = 0;
     bool requery = false;
-    Capsule cap;
-    double growth;
-    motion_.SweptCapsuleFromEnds(task.link, task.s0, task.s1, task.a0, task.b0, task.a1, task.b1,
-                                 &cap.a, &cap.b, &growth);
-    cap.radius = skel_.link(task.link).radius + growth + tol_;
+    const CullAnswer* answer = nullptr;
     if (culler_ != nullptr && !task.prefiltered) {
-      if (Culled(task.link, task.s0, task.s1) < 0) CullAhead(task);
-      if (Culled(task.link, task.s0, task.s1) == 1) {
+      answer = Culled(task.link, task.s0, task.s1);
+      if (answer == nullptr) {
+        CullAhead(task);
+        answer = Culled(task.link, task.s0, task.s1);  // nullptr if the culler failed.
+      }
+      if (answer != nullptr && answer->cleared) {
         ++result_.stats.cull_cleared;
         continue;  // Certified free over [s0, s1] by the culler.
       }
+    }
+    // The swept capsule: already computed when the culler was asked.
+    Capsule cap;
+    if (answer != nullptr) {
+      cap = answer->cap;
+    } else {
+      double growth;
+      motion_.SweptCapsuleFromEnds(task.link, task.s0, task.s1, task.a0, task.b0, task.a1,
+                                   task.b1, &cap.a, &cap.b, &growth);
+      cap.radius = skel_.link(task.link).radius + growth + tol_;
     }
     if (task.prefiltered) {
       // The root interval: InitialCandidates already tested this capsule.
