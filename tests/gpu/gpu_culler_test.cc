@@ -35,6 +35,13 @@ struct Rng {
   Vector3d Dir() { return Box(1).normalized(); }
 };
 
+// One link from the origin of its frame to `b` (JSON array), radius 5 cm.
+Skeleton OneLinkSkeleton(const std::string& b) {
+  return ParseSkeletonJson(R"({"name": "one", "links": [{"name": "a", "parent": null,
+                               "a": [0, 0, 0], "b": )" + b + R"(, "radius": 0.05}]})",
+                           "test skeleton");
+}
+
 std::shared_ptr<GlContext> SharedContext() {
   static std::shared_ptr<GlContext> context = std::make_shared<GlContext>();
   return context;
@@ -227,10 +234,7 @@ TEST(GpuCullerTest, SliverTriangleContactIsNotMissed) {
     }
     Environment env;
     env.AddMesh(m, "sliver");
-    const Skeleton skeleton = ParseSkeletonJson(
-        R"({"name": "ball", "links": [{"name": "a", "parent": null, "a": [0, 0, 0],
-                                       "b": [0, 0, 0], "radius": 0.05}]})",
-        "test skeleton");
+    const Skeleton skeleton = OneLinkSkeleton("[0, 0, 0]");  // A ball.
     auto culler = std::make_shared<GpuCuller>(
         std::make_shared<const GpuEnvironment>(SharedContext(), env), CollisionFilter(1, 1), 1);
     CcdEngine gpu(skeleton, env), cpu(skeleton, env);
@@ -302,10 +306,7 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
   Rng rng(5);
   Environment env;
   env.AddMesh(Soup(rng, Vector3d::Zero(), 200, 1.0), "soup");
-  const Skeleton skeleton = ParseSkeletonJson(
-      R"({"name": "stick", "links": [{"name": "a", "parent": null, "a": [0, 0, 0],
-                                      "b": [0.4, 0, 0], "radius": 0.05}]})",
-      "test skeleton");
+  const Skeleton skeleton = OneLinkSkeleton("[0.4, 0, 0]");
   auto culler = std::make_shared<GpuCuller>(std::make_shared<const GpuEnvironment>(context, env),
                                             CollisionFilter(1, 1), 1);
   CcdEngine gpu(skeleton, env), cpu(skeleton, env);
@@ -369,10 +370,7 @@ TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
   options.backend = "gpu";
   Backend backend(options);
   ASSERT_TRUE(backend.gpu()) << backend.reason();
-  const Skeleton skeleton = ParseSkeletonJson(
-      R"({"name": "stick", "links": [{"name": "a", "parent": null, "a": [0, 0, 0],
-                                      "b": [0, 0.4, 0], "radius": 0.05}]})",
-      "test skeleton");
+  const Skeleton skeleton = OneLinkSkeleton("[0, 0.4, 0]");
   const void* first_address = nullptr;
   int same_address = 0;
   for (int k = 0; k < 4; ++k) {
