@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "core/pose.h"
+#include "core/avatar/pose.h"
 #include "sweptccd/tracker_pose_t.hpp"
 
 namespace sweptccd {

@@ -15,10 +15,10 @@
 #include <thread>
 #include <vector>
 
-#include "core/ccd_query.h"
-#include "core/collision_filter.h"
-#include "core/environment.h"
-#include "core/skeleton.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+#include "core/avatar/skeleton.h"
 #include "service/client_session.h"
 #include "service/publisher.h"
 #include "sweptccd/contact_event_t.hpp"

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "core/ccd_query.h"
+#include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
 
 namespace sweptccd {

@@ -14,11 +14,11 @@
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
 
-#include "core/collision_filter.h"
-#include "core/environment.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
-#include "core/skeleton.h"
+#include "core/avatar/skeleton.h"
 #include "service/collision_service.h"
 #include "service/lcm_transport.h"
 #include "service/service_config.h"

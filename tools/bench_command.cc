@@ -11,12 +11,12 @@
 #include <memory>
 #include <sstream>
 
-#include "core/ccd_query.h"
-#include "core/environment.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/environment.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
-#include "core/mesh.h"
-#include "core/mocap_import.h"
+#include "core/geometry/mesh.h"
+#include "mocap/mocap_import.h"
 
 namespace sweptccd {
 

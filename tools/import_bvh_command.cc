@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/errors.h"
-#include "core/pose.h"
+#include "core/avatar/pose.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {

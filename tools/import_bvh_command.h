@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "core/mocap_import.h"
+#include "mocap/mocap_import.h"
 
 namespace CLI {
 class App;

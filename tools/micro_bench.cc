@@ -5,13 +5,13 @@
 
 #include <random>
 
-#include "core/bvh.h"
-#include "core/ccd_query.h"
-#include "core/distance.h"
-#include "core/environment.h"
-#include "core/mesh.h"
-#include "core/mocap_import.h"
-#include "core/motion.h"
+#include "core/geometry/bvh.h"
+#include "core/query/ccd_query.h"
+#include "core/geometry/distance.h"
+#include "core/scene/environment.h"
+#include "core/geometry/mesh.h"
+#include "mocap/mocap_import.h"
+#include "core/avatar/motion.h"
 
 namespace sweptccd {
 namespace {

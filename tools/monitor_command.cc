@@ -20,7 +20,7 @@
 #include <vector>
 
 #include "core/errors.h"
-#include "core/skeleton.h"
+#include "core/avatar/skeleton.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"

@@ -8,13 +8,13 @@
 #include <iostream>
 #include <memory>
 
-#include "core/collision_filter.h"
-#include "core/environment.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
-#include "core/pose.h"
-#include "core/result_json.h"
-#include "core/skeleton.h"
+#include "core/avatar/pose.h"
+#include "core/query/result_json.h"
+#include "core/avatar/skeleton.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "core/ccd_query.h"
+#include "core/query/ccd_query.h"
 
 namespace sweptccd {
 

@@ -15,14 +15,14 @@
 #include <string>
 #include <vector>
 
-#include "core/environment.h"
+#include "core/scene/environment.h"
 #include "core/errors.h"
 #include "core/gpu/gl_context.h"
-#include "core/gpu/raster_image.h"
-#include "core/gpu/scene_renderer.h"
-#include "core/motion.h"
-#include "core/pose.h"
-#include "core/skeleton.h"
+#include "render/raster_image.h"
+#include "render/scene_renderer.h"
+#include "core/avatar/motion.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {

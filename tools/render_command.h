@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "core/ccd_query.h"
+#include "core/query/ccd_query.h"
 
 namespace CLI {
 class App;

@@ -15,8 +15,8 @@
 #include <set>
 
 #include "core/errors.h"
-#include "core/pose.h"
-#include "core/skeleton.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "tools/stop_signal.h"
 

@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "core/ccd_query.h"
+#include "core/query/ccd_query.h"
 #include "core/gpu/gl_context.h"
 
 namespace sweptccd::gpu {

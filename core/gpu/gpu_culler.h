@@ -7,9 +7,9 @@
 #include <memory>
 #include <vector>
 
-#include "core/capsule_culler.h"
-#include "core/collision_filter.h"
-#include "core/environment.h"
+#include "core/query/capsule_culler.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "core/gpu/gl_context.h"
 
 namespace sweptccd::gpu {

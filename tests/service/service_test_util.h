@@ -13,9 +13,9 @@
 #include <string>
 #include <vector>
 
-#include "core/ccd_query.h"
-#include "core/environment.h"
-#include "core/skeleton.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/environment.h"
+#include "core/avatar/skeleton.h"
 #include "service/client_session.h"
 #include "service/collision_service.h"
 #include "service/publisher.h"

@@ -1,0 +1,245 @@
+#include "core/avatar/motion.h"
+
+#include <cmath>
+
+#include "core/errors.h"
+#include "core/geometry/interval.h"
+
+namespace sweptccd {
+
+std::optional<MotionModel> ParseMotionModel(const std::string& text) {
+  if (text == "articulated") return MotionModel::kArticulated;
+  if (text == "independent") return MotionModel::kIndependent;
+  return std::nullopt;
+}
+
+const char* MotionModelName(MotionModel model) {
+  return model == MotionModel::kArticulated ? "articulated" : "independent";
+}
+
+namespace {
+
+// Below this 4D angle slerp falls back to normalised lerp; the difference
+// between the two is O(angle^3), far below a nanometre for links of metres.
+constexpr double kNlerpAngle = 1e-6;
+
+double QuatAngle4D(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1) {
+  // For unit vectors u, v: |u - v| = 2 sin(a/2), |u + v| = 2 cos(a/2). The
+  // atan2 form is accurate for all angles, unlike acos(dot).
+  return 2.0 * std::atan2((q1.coeffs() - q0.coeffs()).norm(), (q1.coeffs() + q0.coeffs()).norm());
+}
+
+Eigen::Quaterniond SlerpPrepared(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1,
+                                 double half_angle, double s) {
+  Eigen::Vector4d v;
+  if (half_angle < kNlerpAngle) {
+    v = (1 - s) * q0.coeffs() + s * q1.coeffs();
+  } else {
+    const double inv = 1.0 / std::sin(half_angle);
+    v = std::sin((1 - s) * half_angle) * inv * q0.coeffs() +
+        std::sin(s * half_angle) * inv * q1.coeffs();
+  }
+  Eigen::Quaterniond q;
+  q.coeffs() = v / v.norm();
+  return q;
+}
+
+Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1) {
+  if (q0.coeffs().dot(q1.coeffs()) < 0) {
+    Eigen::Quaterniond n;
+    n.coeffs() = -q1.coeffs();
+    return n;
+  }
+  return q1;
+}
+
+Interval Norm(const Eigen::Vector3d& v) {
+  return Sqrt(Sqr(Interval(v.x())) + Sqr(Interval(v.y())) + Sqr(Interval(v.z())));
+}
+
+}  // namespace
+
+Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
+  const Eigen::Quaterniond t = ShortestArcTarget(q0, q1);
+  return SlerpPrepared(q0, t, QuatAngle4D(q0, t), s);
+}
+
+double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1) {
+  return 2.0 * QuatAngle4D(q0, ShortestArcTarget(q0, q1));
+}
+
+PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
+                       MotionModel model)
+    : model_(model), order_(skeleton.topological_order()) {
+  const int n = skeleton.num_links();
+  SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
+  SWEPTCCD_CHECK(static_cast<int>(pose1.links.size()) == n);
+  links_.resize(n);
+  double scale = 0;
+  for (int i = 0; i < n; ++i) {
+    const Link& link = skeleton.link(i);
+    LinkMotion& m = links_[i];
+    m.a_L = link.a_L;
+    m.b_L = link.b_L;
+    m.extent = Interval::Hull(Norm(link.a_L), Norm(link.b_L)).hi();
+    const LinkPose& x0 = pose0.links[i];
+    const LinkPose& x1 = pose1.links[i];
+    if (model == MotionModel::kArticulated && link.parent >= 0) {
+      const LinkPose& k0 = pose0.links[link.parent];
+      const LinkPose& k1 = pose1.links[link.parent];
+      m.parent = link.parent;
+      m.p0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
+      m.p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
+      m.q0 = (k0.q.conjugate() * x0.q).normalized();
+      m.q1 = (k1.q.conjugate() * x1.q).normalized();
+    } else {
+      m.p0 = x0.p;
+      m.p1 = x1.p;
+      m.q0 = x0.q;
+      m.q1 = x1.q;
+    }
+    m.q1 = ShortestArcTarget(m.q0, m.q1);
+    m.half_angle = QuatAngle4D(m.q0, m.q1);
+    scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
+                      m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
+  }
+  // Speed bounds, parents first. Slerp turns at the constant rate
+  // 2 * half_angle; the nlerp fallback below kNlerpAngle turns at most
+  // (1 + 1e-12) times that. Composition adds angular velocities, and the
+  // position of a child p_k + R_k c moves at most |p_k'| + |w_k| |c| + |c'|.
+  for (int i : order_) {
+    LinkMotion& m = links_[i];
+    // 2 * half_angle, widened for the rounding of atan2 and the nlerp fallback.
+    const Interval own_angular = Interval(2.0) * Interval::Outward(m.half_angle, m.half_angle, 8) *
+                                 Interval(1.0, 1.0 + 1e-12);
+    const Interval own_speed = Norm(m.p1 - m.p0);
+    if (m.parent < 0) {
+      // Linear position, and slerp turns about a fixed world axis: no
+      // acceleration at all.
+      m.angular_bound = own_angular.hi();
+      m.speed_bound = own_speed.hi();
+      m.accel_bound = 0;
+      m.angular_accel_bound = 0;
+    } else {
+      const LinkMotion& k = links_[m.parent];
+      const Interval lever(Interval::Hull(Norm(m.p0), Norm(m.p1)).hi());
+      const Interval wk(k.angular_bound);
+      m.angular_bound = (wk + own_angular).hi();
+      m.speed_bound = (Interval(k.speed_bound) + wk * lever + own_speed).hi();
+      // The relative slerp turns at a constant rate about an axis fixed in the
+      // parent frame, so w_i = w_k + R_k u with |u| = own angle and
+      // w_i' = w_k' + w_k x (R_k u). For p_i = p_k + R_k c(s), c linear:
+      // p_i'' = p_k'' + w_k' x R_k c + w_k x (w_k x R_k c) + 2 w_k x R_k c'.
+      m.angular_accel_bound = (Interval(k.angular_accel_bound) + wk * own_angular).hi();
+      m.accel_bound = (Interval(k.accel_bound) + Interval(k.angular_accel_bound) * lever +
+                       wk * wk * lever + Interval(2.0) * wk * own_speed)
+                          .hi();
+    }
+  }
+  // Slack for the rounding of SegmentAt: each composition step loses a few
+  // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
+  // Chain depth, parents first (linear time).
+  std::vector<int> link_depth(n, 1);
+  int depth = 1;
+  for (int i : order_) {
+    if (links_[i].parent >= 0) link_depth[i] = link_depth[links_[i].parent] + 1;
+    depth = std::max(depth, link_depth[i]);
+  }
+  rounding_slack_ = 1e-10 * (1.0 + scale * depth);
+  coordinate_scale_ = scale;
+}
+
+Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) const {
+  return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
+}
+
+void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
+  X_WL->resize(links_.size());
+  for (int i : order_) {
+    const LinkMotion& m = links_[i];
+    const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
+    const Eigen::Quaterniond r = LocalRotation(m, s);
+    LinkPose& out = (*X_WL)[i];
+    if (m.parent < 0) {
+      out.p = c;
+      out.q = r;
+    } else {
+      const LinkPose& k = (*X_WL)[m.parent];
+      out.q = (k.q * r).normalized();
+      out.p = k.p + k.q * c;
+    }
+  }
+}
+
+LinkPose PairMotion::PoseAt(int link, double s) const {
+  // Compose from the root down along the ancestors, iteratively (chains may
+  // be deep). The same operations in the same order as PosesAt.
+  int chain[64];
+  int count = 0;
+  for (int k = link; k >= 0 && count < 64; k = links_[k].parent) chain[count++] = k;
+  LinkPose out;
+  int start = count - 1;
+  if (links_[chain[start]].parent >= 0) {
+    out = PoseAt(links_[chain[start]].parent, s);  // Deeper than 64: the rest first.
+  }
+  for (int j = start; j >= 0; --j) {
+    const LinkMotion& m = links_[chain[j]];
+    const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
+    const Eigen::Quaterniond r = LocalRotation(m, s);
+    if (m.parent < 0) {
+      out.p = c;
+      out.q = r;
+    } else {
+      const LinkPose k = out;  // The parent's pose.
+      out.q = (k.q * r).normalized();
+      out.p = k.p + k.q * c;
+    }
+  }
+  return out;
+}
+
+void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const {
+  const LinkPose X = PoseAt(link, s);
+  const Eigen::Matrix3d R = X.q.toRotationMatrix();
+  *p_WA = X.p + R * links_[link].a_L;
+  *p_WB = X.p + R * links_[link].b_L;
+}
+
+double PairMotion::SweepRadius(int link, double s0, double s1) const {
+  const LinkMotion& m = links_[link];
+  const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
+  const Interval speed =
+      Interval(m.speed_bound) + Interval(m.angular_bound) * Interval(m.extent);
+  return (speed * half_width + Interval(rounding_slack_)).hi();
+}
+
+void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
+                              Eigen::Vector3d* p_WB, double* growth) const {
+  Eigen::Vector3d a0, b0, a1, b1;
+  SegmentAt(link, s0, &a0, &b0);
+  SegmentAt(link, s1, &a1, &b1);
+  SweptCapsuleFromEnds(link, s0, s1, a0, b0, a1, b1, p_WA, p_WB, growth);
+}
+
+void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                                      const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                                      const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
+                                      Eigen::Vector3d* p_WB, double* growth) const {
+  const LinkMotion& m = links_[link];
+  const double mid = 0.5 * (s0 + s1);
+  SegmentAt(link, mid, p_WA, p_WB);
+  const double first_order = SweepRadius(link, s0, s1);
+  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
+  const Interval w(m.angular_bound);
+  const Interval acc =
+      Interval(m.accel_bound) + (Interval(m.angular_accel_bound) + w * w) * Interval(m.extent);
+  const Interval width = Interval(s1) - Interval(s0);
+  const Interval chord = Interval::Hull(Norm(a1 - a0), Norm(b1 - b0));
+  // Each of the three evaluated segments is off by at most rounding_slack_.
+  const Interval second_order = Interval(chord.hi()) * Interval(0.5) +
+                                Interval(0.25) * Sqr(width) * acc +
+                                Interval(4.0) * Interval(rounding_slack_);
+  *growth = std::min(first_order, second_order.hi());
+}
+
+}  // namespace sweptccd

@@ -1,0 +1,107 @@
+#pragma once
+// The motion between two poses (SPEC section 3) and bounds on how far each
+// link can travel over a time interval.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
+
+namespace sweptccd {
+
+enum class MotionModel { kArticulated, kIndependent };
+
+/// "articulated" or "independent"; nullopt for anything else.
+std::optional<MotionModel> ParseMotionModel(const std::string& text);
+const char* MotionModelName(MotionModel model);
+
+/// Shortest-arc spherical interpolation of unit quaternions (SPEC section 3):
+/// q1 is replaced by -q1 when dot(q0, q1) < 0. Returns a unit quaternion.
+Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s);
+
+/// Rotation angle (radians, in [0, pi]) of the shortest arc from q0 to q1: the
+/// constant angular speed of Slerp per unit of s.
+double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1);
+
+/// The interpolated motion of every link of a skeleton between two valid poses
+/// (normalised quaternions). Immutable after construction; const methods are
+/// safe to call from several threads.
+class PairMotion {
+ public:
+  /// Preconditions: both poses have skeleton.num_links() links with unit
+  /// quaternions and finite numbers (as ValidateAndNormalizePose leaves them).
+  PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model);
+
+  int num_links() const { return static_cast<int>(links_.size()); }
+  MotionModel model() const { return model_; }
+
+  /// World pose X_WL of every link at normalised time s in [0, 1].
+  void PosesAt(double s, std::vector<LinkPose>* X_WL) const;
+  /// World pose of one link at s (composes its ancestors for `articulated`).
+  LinkPose PoseAt(int link, double s) const;
+  /// World segment (A, B) of a link at s.
+  void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
+
+  /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
+  double origin_speed_bound(int link) const { return links_[link].speed_bound; }
+  /// Upper bound on the angular speed of the link frame (radians per unit s).
+  double angular_speed_bound(int link) const { return links_[link].angular_bound; }
+
+  /// Upper bound on how far any point of link i's segment can be, at any s in
+  /// [s0, s1], from where the same point of the link is at the midpoint
+  /// (s0 + s1) / 2. Outward rounded and including slack for the rounding of
+  /// SegmentAt, so that the swept volume of the link over [s0, s1] lies inside
+  /// the capsule around SegmentAt(midpoint) with radius radius + SweepRadius.
+  double SweepRadius(int link, double s0, double s1) const;
+
+  /// The swept bound used by queries: the segment at the midpoint of [s0, s1]
+  /// and a radius growth such that the link's swept volume over [s0, s1] lies
+  /// within the capsule (p_WA, p_WB, link radius + growth). The growth is the
+  /// smaller of SweepRadius and a second-order bound: for every link point,
+  /// |P(s) - P(mid)| <= |P(s1) - P(s0)| / 2 + (s1 - s0)^2 / 4 * max |P''|,
+  /// from the chord error bound (s - s0)(s1 - s) / 2 * max |P''|.
+  void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                    double* growth) const;
+  /// As SweptCapsule, given the segments at s0 (a0, b0) and s1 (a1, b1) as
+  /// SegmentAt computes them (time slicing reuses them from the parent).
+  void SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                            const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                            const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
+                            Eigen::Vector3d* p_WB, double* growth) const;
+
+  /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
+  double rounding_slack() const { return rounding_slack_; }
+  /// Largest absolute coordinate of the poses (world and relative) and link
+  /// extent: the magnitude rounding errors of geometry on this motion scale with.
+  double coordinate_scale() const { return coordinate_scale_; }
+
+ private:
+  struct LinkMotion {
+    int parent = -1;  // -1 for the root, or for every link with `independent`.
+    // For a link moving on its own: the world frame. For a child with
+    // `articulated`: c (position in the parent frame) and r (rotation relative
+    // to the parent).
+    Eigen::Vector3d p0, p1;
+    Eigen::Quaterniond q0, q1;  // q1 already sign-flipped to the shortest arc.
+    double half_angle = 0;      // Angle between q0 and q1 in R^4.
+    Eigen::Vector3d a_L, b_L;
+    double speed_bound = 0;
+    double angular_bound = 0;
+    double accel_bound = 0;
+    double angular_accel_bound = 0;
+    double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
+  };
+  Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
+
+  MotionModel model_;
+  std::vector<LinkMotion> links_;
+  std::vector<int> order_;
+  double rounding_slack_ = 0;
+  double coordinate_scale_ = 0;
+};
+
+}  // namespace sweptccd

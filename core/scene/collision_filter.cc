@@ -1,0 +1,124 @@
+#include "core/scene/collision_filter.h"
+
+#include <cctype>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/scene/environment.h"
+#include "core/errors.h"
+#include "core/avatar/skeleton.h"
+
+namespace sweptccd {
+
+CollisionFilter::CollisionFilter(int num_links, int num_objects)
+    : num_links_(num_links),
+      num_objects_(num_objects),
+      ignored_(static_cast<size_t>(num_links) * num_objects, false) {}
+
+void CollisionFilter::Ignore(int link, int object) {
+  for (int l = 0; l < num_links_; ++l) {
+    if (link != -1 && l != link) continue;
+    for (int o = 0; o < num_objects_; ++o) {
+      if (object != -1 && o != object) continue;
+      ignored_[static_cast<size_t>(l) * num_objects_ + o] = true;
+    }
+  }
+}
+
+bool CollisionFilter::IgnoresAll(int link) const {
+  // An empty filter (default constructed) ignores nothing.
+  if (ignored_.empty()) return false;
+  for (int o = 0; o < num_objects_; ++o) {
+    if (!Ignores(link, o)) return false;
+  }
+  return true;
+}
+
+namespace {
+
+bool ParseIndex(const std::string& s, int* out) {
+  if (s.empty() || s.size() > 9) return false;
+  for (char c : s) {
+    if (!std::isdigit(static_cast<unsigned char>(c))) return false;
+  }
+  *out = std::stoi(s);
+  return true;
+}
+
+int ResolveLink(const std::string& text, const Skeleton& skeleton, const std::string& where) {
+  if (text == "*") return -1;
+  int i = skeleton.FindLink(text);
+  if (i >= 0) return i;
+  if (ParseIndex(text, &i) && i < skeleton.num_links()) return i;
+  throw InputError(where + ": unknown link '" + text + "' (give a link name, an index below " +
+                   std::to_string(skeleton.num_links()) + ", or *)");
+}
+
+int ResolveObject(const std::string& text, const Environment& env, const std::string& where) {
+  if (text == "*") return -1;
+  int i;
+  if (ParseIndex(text, &i)) {
+    if (i < env.num_objects()) return i;
+    throw InputError(where + ": object index " + text + " is out of range (there are " +
+                     std::to_string(env.num_objects()) + " objects)");
+  }
+  i = env.FindObject(text);
+  if (i >= 0) return i;
+  throw InputError(where + ": unknown object '" + text + "' (give an index, a file as given, or *)");
+}
+
+std::string JsonToKey(const nlohmann::json& j, const std::string& where, const char* field) {
+  if (j.is_string()) return j.get<std::string>();
+  if (j.is_number_unsigned()) return std::to_string(j.get<uint64_t>());
+  throw InputError(where + ": '" + field + "' must be a name, an index or \"*\"");
+}
+
+}  // namespace
+
+CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::string& source,
+                                          const Skeleton& skeleton, const Environment& env) {
+  nlohmann::json doc;
+  try {
+    doc = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(source + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  if (!doc.is_object() || !doc.contains("ignore") || !doc["ignore"].is_array()) {
+    throw InputError(source + ": expected {\"ignore\": [{\"link\": ..., \"object\": ...}, ...]}");
+  }
+  CollisionFilter filter(skeleton.num_links(), env.num_objects());
+  const auto& rules = doc["ignore"];
+  for (size_t k = 0; k < rules.size(); ++k) {
+    const std::string where = source + ": ignore[" + std::to_string(k) + "]";
+    const auto& r = rules[k];
+    if (!r.is_object() || !r.contains("link") || !r.contains("object")) {
+      throw InputError(where + ": each rule needs \"link\" and \"object\"");
+    }
+    const int link = ResolveLink(JsonToKey(r["link"], where, "link"), skeleton, where);
+    const int object = ResolveObject(JsonToKey(r["object"], where, "object"), env, where);
+    filter.Ignore(link, object);
+  }
+  return filter;
+}
+
+CollisionFilter CollisionFilter::FromFile(const std::string& path, const Skeleton& skeleton,
+                                          const Environment& env) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the filter file");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return FromJson(buffer.str(), path, skeleton, env);
+}
+
+void CollisionFilter::AddRule(const std::string& rule, const Skeleton& skeleton,
+                              const Environment& env) {
+  if (ignored_.empty()) *this = CollisionFilter(skeleton.num_links(), env.num_objects());
+  const std::string where = "--ignore '" + rule + "'";
+  const size_t colon = rule.rfind(':');
+  if (colon == std::string::npos) throw InputError(where + ": expected LINK:OBJECT");
+  Ignore(ResolveLink(rule.substr(0, colon), skeleton, where),
+         ResolveObject(rule.substr(colon + 1), env, where));
+}
+
+}  // namespace sweptccd

@@ -1,0 +1,728 @@
+// Randomised tests for core/motion.h against brute-force twins written here
+// from SPEC section 3: slerp through the axis-angle form
+// q0 * exp(s * log(conj(q0) * q1')), the articulated model composed root-down
+// with rotation matrices, all in long double.
+
+#include "core/avatar/motion.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
+
+namespace sweptccd {
+namespace {
+
+using LD = long double;
+using Vec3L = Eigen::Matrix<LD, 3, 1>;
+using Mat3L = Eigen::Matrix<LD, 3, 3>;
+
+constexpr double kPi = 3.14159265358979323846;
+
+// ---------------------------------------------------------------------------
+// The twin: quaternions as (w, x, y, z) in long double, with our own product,
+// rotation matrix and slerp.
+
+struct QL {
+  LD w = 1, x = 0, y = 0, z = 0;
+};
+
+QL ToQL(const Eigen::Quaterniond& q) { return {q.w(), q.x(), q.y(), q.z()}; }
+LD Dot(const QL& a, const QL& b) { return a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z; }
+QL Neg(const QL& a) { return {-a.w, -a.x, -a.y, -a.z}; }
+QL Conj(const QL& a) { return {a.w, -a.x, -a.y, -a.z}; }
+QL Mul(const QL& a, const QL& b) {
+  return {
+      a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z, a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
+      a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x, a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w};
+}
+QL Normalised(const QL& a) {
+  const LD n = std::sqrt(Dot(a, a));
+  return {a.w / n, a.x / n, a.y / n, a.z / n};
+}
+
+Mat3L RotL(const QL& q) {
+  const LD w = q.w, x = q.x, y = q.y, z = q.z;
+  Mat3L r;
+  r << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),  //
+      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),   //
+      2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  return r;
+}
+
+// Shortest-arc slerp as q0 * exp(s * log(conj(q0) * q1')).
+QL TwinSlerp(const QL& q0, QL q1, LD s) {
+  if (Dot(q0, q1) < 0) q1 = Neg(q1);
+  const QL d = Mul(Conj(q0), q1);
+  const LD vn = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  if (vn == 0) return q0;
+  const LD half = std::atan2(vn, d.w);  // Half the rotation angle.
+  const LD c = std::cos(s * half), k = std::sin(s * half) / vn;
+  return Mul(q0, QL{c, k * d.x, k * d.y, k * d.z});
+}
+
+// Rotation angle (in [0, pi]) from q0 to q1.
+LD TwinAngle(const QL& q0, const QL& q1) {
+  const QL d = Mul(Conj(q0), q1);
+  const LD vn = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+  return 2 * std::atan2(vn, std::fabs(d.w));
+}
+
+Vec3L ToL(const Eigen::Vector3d& v) { return v.cast<LD>(); }
+
+LD MaxDiff(const Mat3L& a, const Mat3L& b) { return (a - b).cwiseAbs().maxCoeff(); }
+LD MaxDiff(const Vec3L& a, const Vec3L& b) { return (a - b).cwiseAbs().maxCoeff(); }
+
+// ---------------------------------------------------------------------------
+// Random quaternions, skeletons and poses.
+
+Eigen::Quaterniond RandomUnitQuat(std::mt19937_64& g) {
+  std::normal_distribution<double> n(0, 1);
+  Eigen::Quaterniond q(n(g), n(g), n(g), n(g));
+  return q.normalized();
+}
+
+Eigen::Vector3d RandomUnitVector(std::mt19937_64& g) {
+  std::normal_distribution<double> n(0, 1);
+  Eigen::Vector3d v(n(g), n(g), n(g));
+  return v.normalized();
+}
+
+double LogUniform(std::mt19937_64& g, double lo_exp, double hi_exp) {
+  return std::pow(10.0, std::uniform_real_distribution<double>(lo_exp, hi_exp)(g));
+}
+
+Eigen::Quaterniond AxisAngleQuat(const Eigen::Vector3d& axis, double angle) {
+  return Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis));
+}
+
+// A second orientation related to q0 in one of several ways: unrelated,
+// nearly the same, nearly 180 degrees away, exactly 180 degrees away about a
+// random axis, the same rotation with the opposite sign, or a random sign.
+// `min_offset` keeps |dot| away from 0 for twins whose sign decision must
+// agree with the core's.
+Eigen::Quaterniond RelatedQuat(std::mt19937_64& g, const Eigen::Quaterniond& q0,
+                               double min_offset_exp) {
+  std::uniform_int_distribution<int> kind(0, 5);
+  Eigen::Quaterniond q;
+  switch (kind(g)) {
+    case 0:
+      q = RandomUnitQuat(g);
+      break;
+    case 1:  // Nearly the same (angles from 1e-12 to 1e-2 rad: the nlerp fallback and beyond).
+      q = q0 * AxisAngleQuat(RandomUnitVector(g), LogUniform(g, -12, -2));
+      break;
+    case 2:  // Nearly 180 degrees apart: dot ~ 0.
+      q = q0 * AxisAngleQuat(RandomUnitVector(g), kPi - LogUniform(g, min_offset_exp, -1));
+      break;
+    case 3:  // Just over 180 degrees: the shortest arc goes the other way.
+      q = q0 * AxisAngleQuat(RandomUnitVector(g), kPi + LogUniform(g, min_offset_exp, -1));
+      break;
+    case 4:  // The same rotation, written with the opposite sign.
+      q.coeffs() = -q0.coeffs();
+      break;
+    default:
+      q = q0 *
+          AxisAngleQuat(RandomUnitVector(g), std::uniform_real_distribution<double>(0, 2 * kPi)(g));
+      break;
+  }
+  if (std::uniform_int_distribution<int>(0, 1)(g)) q.coeffs() = -q.coeffs();
+  return q.normalized();
+}
+
+enum class Shape { kRandomTree, kChain, kStar };
+
+struct Rig {
+  Skeleton skeleton;
+  Pose pose0, pose1;
+};
+
+// Parent indices of a random tree of n links, then relabelled by a random
+// permutation so that children may come before their parents.
+std::vector<int> RandomParents(std::mt19937_64& g, int n, Shape shape) {
+  std::vector<int> parent(n, -1);
+  for (int i = 1; i < n; ++i) {
+    switch (shape) {
+      case Shape::kChain:
+        parent[i] = i - 1;
+        break;
+      case Shape::kStar:
+        parent[i] = 0;
+        break;
+      default:
+        parent[i] = std::uniform_int_distribution<int>(0, i - 1)(g);
+        break;
+    }
+  }
+  std::vector<int> perm(n);  // perm[old] = new index.
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), g);
+  std::vector<int> out(n, -1);
+  for (int i = 0; i < n; ++i) out[perm[i]] = parent[i] < 0 ? -1 : perm[parent[i]];
+  return out;
+}
+
+Skeleton MakeSkeleton(std::mt19937_64& g, const std::vector<int>& parent, bool connected) {
+  std::uniform_real_distribution<double> coord(-0.5, 0.5), radius(0.01, 0.2);
+  std::vector<Link> links(parent.size());
+  for (size_t i = 0; i < parent.size(); ++i) {
+    links[i].name = "link" + std::to_string(i);
+    links[i].parent = parent[i];
+    links[i].a_L =
+        connected ? Eigen::Vector3d::Zero() : Eigen::Vector3d(coord(g), coord(g), coord(g));
+    links[i].b_L = Eigen::Vector3d(coord(g), coord(g), coord(g));
+    if (std::uniform_int_distribution<int>(0, 9)(g) == 0) links[i].b_L = links[i].a_L;  // A sphere.
+    links[i].radius = radius(g);
+  }
+  return Skeleton::FromLinks("random", std::move(links), "random skeleton");
+}
+
+// World poses by forward kinematics: each child's origin sits at its parent's
+// b end (when `connected`) or at a random offset in the parent frame.
+Pose FkPose(const Skeleton& skel, const std::vector<Eigen::Quaterniond>& rel,
+            const Eigen::Vector3d& root_p, const Eigen::Quaterniond& root_q,
+            const std::vector<Eigen::Vector3d>& offsets) {
+  Pose pose;
+  pose.links.resize(skel.num_links());
+  for (int i : skel.topological_order()) {
+    const int k = skel.link(i).parent;
+    if (k < 0) {
+      pose.links[i].p = root_p;
+      pose.links[i].q = root_q;
+    } else {
+      const LinkPose& X = pose.links[k];
+      pose.links[i].q = (X.q * rel[i]).normalized();
+      pose.links[i].p = X.p + X.q.toRotationMatrix() * offsets[i];
+    }
+  }
+  return pose;
+}
+
+// A random rig: skeleton of 1-30 links (chains up to depth 20), and two poses.
+// With `connected`, both poses are built by FK with the child origins at the
+// parent's b end. `min_offset_exp` bounds how close to 180 degrees related
+// rotations get (see RelatedQuat).
+Rig MakeRig(std::mt19937_64& g, bool connected, double min_offset_exp) {
+  std::uniform_int_distribution<int> shape_pick(0, 3);
+  const int shape_kind = shape_pick(g);
+  const Shape shape = shape_kind == 0   ? Shape::kChain
+                      : shape_kind == 1 ? Shape::kStar
+                                        : Shape::kRandomTree;
+  const int n = shape == Shape::kChain ? std::uniform_int_distribution<int>(1, 20)(g)
+                                       : std::uniform_int_distribution<int>(1, 30)(g);
+  Rig rig;
+  rig.skeleton = MakeSkeleton(g, RandomParents(g, n, shape), connected);
+  const Skeleton& skel = rig.skeleton;
+  // Translation scale: small, human, or large.
+  const double scale =
+      std::vector<double>{0.01, 1.0, 50.0, 1000.0}[std::uniform_int_distribution<int>(0, 3)(g)];
+  std::uniform_real_distribution<double> coord(-1, 1);
+  auto random_vec = [&](double sc) -> Eigen::Vector3d {
+    return Eigen::Vector3d(coord(g), coord(g), coord(g)) * sc;
+  };
+  const bool near_motion = std::uniform_int_distribution<int>(0, 2)(g) == 0;
+  const double travel = near_motion ? LogUniform(g, -9, -2) : scale;
+  if (connected) {
+    std::vector<Eigen::Vector3d> offsets(n);
+    std::vector<Eigen::Quaterniond> rel0(n), rel1(n);
+    for (int i = 0; i < n; ++i) {
+      const int k = skel.link(i).parent;
+      offsets[i] = k < 0 ? Eigen::Vector3d::Zero() : skel.link(k).b_L;
+      rel0[i] = RandomUnitQuat(g);
+      rel1[i] = RelatedQuat(g, rel0[i], min_offset_exp);
+    }
+    const Eigen::Vector3d p0 = random_vec(scale);
+    const Eigen::Quaterniond q0 = RandomUnitQuat(g);
+    rig.pose0 = FkPose(skel, rel0, p0, q0, offsets);
+    rig.pose1 =
+        FkPose(skel, rel1, p0 + random_vec(travel), RelatedQuat(g, q0, min_offset_exp), offsets);
+  } else {
+    rig.pose0.links.resize(n);
+    rig.pose1.links.resize(n);
+    for (int i = 0; i < n; ++i) {
+      rig.pose0.links[i].p = random_vec(scale);
+      rig.pose0.links[i].q = RandomUnitQuat(g);
+      rig.pose1.links[i].p = rig.pose0.links[i].p + random_vec(travel);
+      rig.pose1.links[i].q = RelatedQuat(g, rig.pose0.links[i].q, min_offset_exp);
+    }
+  }
+  rig.pose0.utime = 1000000;
+  rig.pose1.utime = 1011111;
+  EXPECT_EQ(ValidateAndNormalizePose(&rig.pose0, n), "");
+  EXPECT_EQ(ValidateAndNormalizePose(&rig.pose1, n), "");
+  return rig;
+}
+
+MotionModel RandomModel(std::mt19937_64& g) {
+  return std::uniform_int_distribution<int>(0, 1)(g) ? MotionModel::kArticulated
+                                                     : MotionModel::kIndependent;
+}
+
+// ---------------------------------------------------------------------------
+// The articulated and independent models, written from SPEC section 3.
+
+struct TwinPose {
+  Vec3L p;
+  QL q;
+};
+
+class TwinMotion {
+ public:
+  TwinMotion(const Skeleton& skel, const Pose& pose0, const Pose& pose1, MotionModel model)
+      : skel_(skel), pose0_(pose0), pose1_(pose1), model_(model) {}
+
+  // True when every slerp's sign decision is clear (|dot| well away from 0),
+  // so that the twin and the core (in double) take the same arc.
+  bool Unambiguous() const {
+    for (int i = 0; i < skel_.num_links(); ++i) {
+      QL a, b;
+      Ends(i, &a, &b);
+      if (std::fabs(Dot(a, b)) < 1e-9) return false;
+    }
+    return true;
+  }
+
+  std::vector<TwinPose> PosesAt(LD s) const {
+    std::vector<TwinPose> out(skel_.num_links());
+    std::vector<bool> done(skel_.num_links(), false);
+    for (int i = 0; i < skel_.num_links(); ++i) Compose(i, s, &out, &done);
+    return out;
+  }
+
+ private:
+  bool Articulated(int i) const {
+    return model_ == MotionModel::kArticulated && skel_.link(i).parent >= 0;
+  }
+  // Own rotations at the two ends: world for roots/independent, r_i otherwise.
+  void Ends(int i, QL* a, QL* b) const {
+    const QL q0 = ToQL(pose0_.links[i].q), q1 = ToQL(pose1_.links[i].q);
+    if (!Articulated(i)) {
+      *a = q0;
+      *b = q1;
+      return;
+    }
+    const int k = skel_.link(i).parent;
+    *a = Normalised(Mul(Conj(ToQL(pose0_.links[k].q)), q0));
+    *b = Normalised(Mul(Conj(ToQL(pose1_.links[k].q)), q1));
+  }
+  // Recursion from the root down (independent of the core's order).
+  void Compose(int i, LD s, std::vector<TwinPose>* out, std::vector<bool>* done) const {
+    if ((*done)[i]) return;
+    QL ra, rb;
+    Ends(i, &ra, &rb);
+    const QL r = TwinSlerp(ra, rb, s);
+    const Vec3L p0 = ToL(pose0_.links[i].p), p1 = ToL(pose1_.links[i].p);
+    if (!Articulated(i)) {
+      (*out)[i] = {(1 - s) * p0 + s * p1, r};
+    } else {
+      const int k = skel_.link(i).parent;
+      Compose(k, s, out, done);
+      const Vec3L c0 = RotL(ToQL(pose0_.links[k].q)).transpose() * (p0 - ToL(pose0_.links[k].p));
+      const Vec3L c1 = RotL(ToQL(pose1_.links[k].q)).transpose() * (p1 - ToL(pose1_.links[k].p));
+      const Vec3L c = (1 - s) * c0 + s * c1;
+      const TwinPose& K = (*out)[k];
+      (*out)[i] = {K.p + RotL(K.q) * c, Mul(K.q, r)};
+    }
+    (*done)[i] = true;
+  }
+
+  const Skeleton& skel_;
+  const Pose& pose0_;
+  const Pose& pose1_;
+  MotionModel model_;
+};
+
+Mat3L RotOf(const Eigen::Quaterniond& q) { return q.toRotationMatrix().cast<LD>(); }
+
+std::string RigSummary(const Rig& rig, MotionModel model) {
+  std::ostringstream s;
+  s << rig.skeleton.num_links() << " links, model " << MotionModelName(model);
+  return s.str();
+}
+
+// ---------------------------------------------------------------------------
+// Slerp and SlerpAngle.
+
+TEST(MotionTest, SlerpMatchesAxisAngleTwin) {
+  std::mt19937_64 g(0x40710001);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t compared = 0, skipped = 0;
+  for (int c = 0; c < 100000; ++c) {
+    const Eigen::Quaterniond q0 = RandomUnitQuat(g);
+    const Eigen::Quaterniond q1 = RelatedQuat(g, q0, -9);
+    const QL l0 = ToQL(q0), l1 = ToQL(q1);
+    if (std::fabs(Dot(l0, l1)) < 1e-12) {
+      ++skipped;  // The sign decision is a coin toss of rounding; see ExactHalfTurn.
+      continue;
+    }
+    const double angle = SlerpAngle(q0, q1);
+    ASSERT_NEAR(angle, static_cast<double>(TwinAngle(l0, l1)), 1e-12) << "case " << c;
+    ASSERT_GE(angle, 0.0);
+    ASSERT_LE(angle, kPi);
+    for (double s : {0.0, 1.0, u01(g), u01(g), 0.5}) {
+      const Eigen::Quaterniond q = Slerp(q0, q1, s);
+      const QL t = TwinSlerp(l0, l1, s);
+      ++compared;
+      ASSERT_NEAR(q.norm(), 1.0, 1e-14);
+      // Same sign too: both start at q0 and follow the shortest arc.
+      ASSERT_NEAR(q.w(), static_cast<double>(t.w), 1e-12) << "case " << c << " s=" << s;
+      ASSERT_NEAR(q.x(), static_cast<double>(t.x), 1e-12) << "case " << c << " s=" << s;
+      ASSERT_NEAR(q.y(), static_cast<double>(t.y), 1e-12) << "case " << c << " s=" << s;
+      ASSERT_NEAR(q.z(), static_cast<double>(t.z), 1e-12) << "case " << c << " s=" << s;
+    }
+    // Ends: q0 itself, and q1's rotation.
+    EXPECT_LT(MaxDiff(RotOf(Slerp(q0, q1, 0)), RotOf(q0)), 1e-12L);
+    EXPECT_LT(MaxDiff(RotOf(Slerp(q0, q1, 1)), RotOf(q1)), 1e-12L);
+  }
+  EXPECT_GT(compared, 400000);
+  EXPECT_LT(skipped, 100);
+}
+
+// q and -q are the same rotation: slerp between them stands still, and
+// negating either input does not change the rotations along the way.
+TEST(MotionTest, SlerpIgnoresQuaternionSigns) {
+  std::mt19937_64 g(0x40710002);
+  std::uniform_real_distribution<double> u01(0, 1);
+  for (int c = 0; c < 20000; ++c) {
+    const Eigen::Quaterniond q0 = RandomUnitQuat(g);
+    Eigen::Quaterniond m0;
+    m0.coeffs() = -q0.coeffs();
+    EXPECT_EQ(SlerpAngle(q0, m0), 0.0);
+    const double s = u01(g);
+    EXPECT_LT(MaxDiff(RotOf(Slerp(q0, m0, s)), RotOf(q0)), 1e-14L);
+    const Eigen::Quaterniond q1 = RelatedQuat(g, q0, -12);
+    if (q0.coeffs().dot(q1.coeffs()) == 0) continue;  // Exactly 180 degrees: see below.
+    Eigen::Quaterniond m1;
+    m1.coeffs() = -q1.coeffs();
+    const Mat3L R = RotOf(Slerp(q0, q1, s));
+    EXPECT_LT(MaxDiff(RotOf(Slerp(q0, m1, s)), R), 1e-12L) << "case " << c;
+    EXPECT_LT(MaxDiff(RotOf(Slerp(m0, q1, s)), R), 1e-12L) << "case " << c;
+    EXPECT_LT(MaxDiff(RotOf(Slerp(m0, m1, s)), R), 1e-12L) << "case " << c;
+    EXPECT_NEAR(SlerpAngle(q0, m1), SlerpAngle(q0, q1), 1e-12);
+  }
+}
+
+// dot(q0, q1) == 0 exactly: the SPEC's rule flips only when dot < 0, so the
+// slerp goes to q1 as given.
+TEST(MotionTest, ExactHalfTurn) {
+  const Eigen::Quaterniond q0(1, 0, 0, 0), q1(0, 1, 0, 0);
+  EXPECT_NEAR(SlerpAngle(q0, q1), kPi, 1e-15);
+  const Eigen::Quaterniond h = Slerp(q0, q1, 0.5);
+  const Eigen::Quaterniond want(Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitX()));
+  EXPECT_NEAR(h.w(), want.w(), 1e-15);
+  EXPECT_NEAR(h.x(), want.x(), 1e-15);
+  EXPECT_NEAR(h.y(), 0, 1e-15);
+  EXPECT_NEAR(h.z(), 0, 1e-15);
+  const Eigen::Quaterniond q2(0, -1, 0, 0);  // dot = -0.0: not < 0 either.
+  EXPECT_NEAR(Slerp(q0, q2, 0.5).x(), -want.x(), 1e-15);
+  // Just past 180 degrees the arc turns the other way.
+  const Eigen::Quaterniond q3(-1e-9, 1, 0, 0);
+  EXPECT_NEAR(Slerp(q0, q3.normalized(), 0.5).x(), -want.x(), 1e-8);
+  EXPECT_NEAR(SlerpAngle(q0, q3.normalized()), kPi - 2e-9, 1e-14);
+}
+
+TEST(MotionTest, ParseMotionModel) {
+  EXPECT_EQ(ParseMotionModel("articulated"), MotionModel::kArticulated);
+  EXPECT_EQ(ParseMotionModel("independent"), MotionModel::kIndependent);
+  EXPECT_FALSE(ParseMotionModel("Articulated").has_value());
+  EXPECT_FALSE(ParseMotionModel("").has_value());
+  EXPECT_STREQ(MotionModelName(MotionModel::kArticulated), "articulated");
+  EXPECT_STREQ(MotionModelName(MotionModel::kIndependent), "independent");
+}
+
+// ---------------------------------------------------------------------------
+// PairMotion.
+
+TEST(MotionTest, BothModelsReproduceTheGivenPoses) {
+  std::mt19937_64 g(0x40710003);
+  int64_t links_checked = 0;
+  for (int c = 0; c < 2000; ++c) {
+    const Rig rig = MakeRig(g, c % 2 == 0, -12);
+    for (MotionModel model : {MotionModel::kArticulated, MotionModel::kIndependent}) {
+      const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, model);
+      ASSERT_EQ(motion.num_links(), rig.skeleton.num_links());
+      EXPECT_EQ(motion.model(), model);
+      std::vector<LinkPose> at0, at1;
+      motion.PosesAt(0.0, &at0);
+      motion.PosesAt(1.0, &at1);
+      for (int i = 0; i < motion.num_links(); ++i) {
+        ++links_checked;
+        const Pose* given[2] = {&rig.pose0, &rig.pose1};
+        const std::vector<LinkPose>* got[2] = {&at0, &at1};
+        for (int e = 0; e < 2; ++e) {
+          const LinkPose& want = given[e]->links[i];
+          const LinkPose one = motion.PoseAt(i, e);
+          for (const LinkPose* x : {&(*got[e])[i], &one}) {
+            EXPECT_LT(MaxDiff(ToL(x->p), ToL(want.p)), 1e-9L)
+                << RigSummary(rig, model) << " link " << i << " s=" << e;
+            EXPECT_LT(MaxDiff(RotOf(x->q), RotOf(want.q)), 1e-9L)
+                << RigSummary(rig, model) << " link " << i << " s=" << e;
+          }
+        }
+      }
+    }
+  }
+  RecordProperty("links_checked", std::to_string(links_checked));
+  EXPECT_GT(links_checked, 20000);
+}
+
+TEST(MotionTest, ArticulatedConnectedSkeletonStaysConnected) {
+  std::mt19937_64 g(0x40710004);
+  int64_t joints_checked = 0;
+  for (int c = 0; c < 600; ++c) {
+    const Rig rig = MakeRig(g, /*connected=*/true, -12);
+    const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, MotionModel::kArticulated);
+    for (int j = 0; j <= 99; ++j) {
+      const double s = j / 99.0;
+      for (int i = 0; i < motion.num_links(); ++i) {
+        const int k = rig.skeleton.link(i).parent;
+        if (k < 0) continue;
+        Eigen::Vector3d child_a, child_b, parent_a, parent_b;
+        motion.SegmentAt(i, s, &child_a, &child_b);
+        motion.SegmentAt(k, s, &parent_a, &parent_b);
+        ++joints_checked;
+        ASSERT_LT((child_a - parent_b).cwiseAbs().maxCoeff(), 1e-9)
+            << RigSummary(rig, MotionModel::kArticulated) << " link " << i << " parent " << k
+            << " s=" << s;
+      }
+    }
+    // The bones do separate in the independent model (so the check above
+    // could fail), unless nothing moves.
+  }
+  RecordProperty("joints_checked", std::to_string(joints_checked));
+  EXPECT_GT(joints_checked, 500000);
+}
+
+TEST(MotionTest, IndependentLinksMoveOnTheirOwn) {
+  std::mt19937_64 g(0x40710005);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t compared = 0;
+  for (int c = 0; c < 1000; ++c) {
+    const Rig rig = MakeRig(g, c % 2 == 0, -9);
+    const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, MotionModel::kIndependent);
+    std::vector<LinkPose> all;
+    for (int j = 0; j < 10; ++j) {
+      const double s = u01(g);
+      motion.PosesAt(s, &all);
+      for (int i = 0; i < motion.num_links(); ++i) {
+        const LinkPose& X0 = rig.pose0.links[i];
+        const LinkPose& X1 = rig.pose1.links[i];
+        const QL q0 = ToQL(X0.q), q1 = ToQL(X1.q);
+        if (std::fabs(Dot(q0, q1)) < 1e-9) continue;
+        const Vec3L p = (1 - LD(s)) * ToL(X0.p) + LD(s) * ToL(X1.p);
+        const Mat3L R = RotL(TwinSlerp(q0, q1, s));
+        const LinkPose one = motion.PoseAt(i, s);
+        ++compared;
+        EXPECT_LT(MaxDiff(ToL(all[i].p), p), 1e-9L) << "link " << i << " s=" << s;
+        EXPECT_LT(MaxDiff(RotOf(all[i].q), R), 1e-9L) << "link " << i << " s=" << s;
+        EXPECT_LT(MaxDiff(ToL(one.p), p), 1e-9L) << "link " << i << " s=" << s;
+        EXPECT_LT(MaxDiff(RotOf(one.q), R), 1e-9L) << "link " << i << " s=" << s;
+      }
+    }
+  }
+  EXPECT_GT(compared, 50000);
+}
+
+TEST(MotionTest, ArticulatedMatchesSpecTwin) {
+  std::mt19937_64 g(0x40710006);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t compared = 0, rigs_skipped = 0;
+  for (int c = 0; c < 1500; ++c) {
+    const Rig rig = MakeRig(g, c % 3 == 0, -7);
+    for (MotionModel model : {MotionModel::kArticulated, MotionModel::kIndependent}) {
+      const TwinMotion twin(rig.skeleton, rig.pose0, rig.pose1, model);
+      if (!twin.Unambiguous()) {
+        ++rigs_skipped;
+        continue;
+      }
+      const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, model);
+      std::vector<LinkPose> all;
+      for (double s : {0.0, 1.0, u01(g), u01(g), u01(g), u01(g), u01(g)}) {
+        const std::vector<TwinPose> want = twin.PosesAt(s);
+        motion.PosesAt(s, &all);
+        for (int i = 0; i < motion.num_links(); ++i) {
+          const Mat3L R = RotL(want[i].q);
+          const LinkPose one = motion.PoseAt(i, s);
+          Eigen::Vector3d A, B;
+          motion.SegmentAt(i, s, &A, &B);
+          const Vec3L want_a = want[i].p + R * ToL(rig.skeleton.link(i).a_L);
+          const Vec3L want_b = want[i].p + R * ToL(rig.skeleton.link(i).b_L);
+          ++compared;
+          const std::string where =
+              RigSummary(rig, model) + " link " + std::to_string(i) + " s=" + std::to_string(s);
+          ASSERT_LT(MaxDiff(ToL(all[i].p), want[i].p), 1e-9L) << where;
+          ASSERT_LT(MaxDiff(RotOf(all[i].q), R), 1e-9L) << where;
+          ASSERT_LT(MaxDiff(ToL(one.p), want[i].p), 1e-9L) << where;
+          ASSERT_LT(MaxDiff(RotOf(one.q), R), 1e-9L) << where;
+          ASSERT_LT(MaxDiff(ToL(A), want_a), 1e-9L) << where;
+          ASSERT_LT(MaxDiff(ToL(B), want_b), 1e-9L) << where;
+        }
+      }
+    }
+  }
+  RecordProperty("compared", std::to_string(compared));
+  RecordProperty("rigs_skipped", std::to_string(rigs_skipped));
+  EXPECT_GT(compared, 100000);
+  EXPECT_LT(rigs_skipped, 30);
+}
+
+TEST(MotionTest, NegatedQuaternionsGiveTheSameSegments) {
+  std::mt19937_64 g(0x40710007);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t compared = 0;
+  for (int c = 0; c < 1000; ++c) {
+    const Rig rig = MakeRig(g, c % 2 == 0, -12);
+    Pose n0 = rig.pose0, n1 = rig.pose1;
+    int negated = 0;
+    for (Pose* p : {&n0, &n1}) {
+      for (LinkPose& x : p->links) {
+        if (u01(g) < 0.5) {
+          x.q.coeffs() = -x.q.coeffs();
+          ++negated;
+        }
+      }
+    }
+    for (MotionModel model : {MotionModel::kArticulated, MotionModel::kIndependent}) {
+      const PairMotion a(rig.skeleton, rig.pose0, rig.pose1, model);
+      const PairMotion b(rig.skeleton, n0, n1, model);
+      for (int j = 0; j < 12; ++j) {
+        const double s = j < 2 ? j : u01(g);
+        for (int i = 0; i < a.num_links(); ++i) {
+          Eigen::Vector3d a_a, a_b, b_a, b_b;
+          a.SegmentAt(i, s, &a_a, &a_b);
+          b.SegmentAt(i, s, &b_a, &b_b);
+          ++compared;
+          ASSERT_LT((a_a - b_a).cwiseAbs().maxCoeff(), 1e-9)
+              << RigSummary(rig, model) << " negated " << negated << " link " << i << " s=" << s;
+          ASSERT_LT((a_b - b_b).cwiseAbs().maxCoeff(), 1e-9)
+              << RigSummary(rig, model) << " negated " << negated << " link " << i << " s=" << s;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 100000);
+}
+
+// Every point of the segment stays within SweepRadius of where it is at the
+// midpoint of the sub-interval.
+TEST(MotionTest, SweepRadiusEnclosesTheMotion) {
+  std::mt19937_64 g(0x40710008);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t sub_intervals = 0, violations = 0, samples = 0;
+  std::string first;
+  for (int c = 0; c < 400; ++c) {
+    const Rig rig = MakeRig(g, c % 2 == 0, -12);
+    const MotionModel model = RandomModel(g);
+    const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, model);
+    for (int k = 0; k < 12; ++k) {
+      double s0, s1;
+      switch (k % 4) {
+        case 0:
+          s0 = 0;
+          s1 = 1;
+          break;
+        case 1: {  // Tiny.
+          s0 = u01(g);
+          s1 = std::min(1.0, s0 + LogUniform(g, -12, -5));
+          break;
+        }
+        case 2: {  // Medium.
+          s0 = u01(g) * 0.9;
+          s1 = std::min(1.0, s0 + LogUniform(g, -3, -1));
+          break;
+        }
+        default:
+          s0 = u01(g);
+          s1 = u01(g);
+          if (s0 > s1) std::swap(s0, s1);
+          break;
+      }
+      const double mid = 0.5 * (s0 + s1);
+      for (int i = 0; i < motion.num_links(); ++i) {
+        const double bound = motion.SweepRadius(i, s0, s1);
+        Eigen::Vector3d ma, mb;
+        motion.SegmentAt(i, mid, &ma, &mb);
+        ++sub_intervals;
+        double worst = 0;
+        for (int j = 0; j <= 16; ++j) {
+          const double s = j == 16 ? s1 : s0 + (s1 - s0) * (j / 16.0);
+          Eigen::Vector3d a, b;
+          motion.SegmentAt(i, s, &a, &b);
+          for (double u : {0.0, 1.0, u01(g), u01(g), 0.5}) {
+            ++samples;
+            const Eigen::Vector3d p = (1 - u) * a + u * b;
+            const Eigen::Vector3d pm = (1 - u) * ma + u * mb;
+            worst = std::max(worst, (p - pm).norm());
+          }
+        }
+        if (!(worst <= bound)) {
+          ++violations;
+          if (violations <= 5) {
+            std::ostringstream s;
+            s.precision(17);
+            s << RigSummary(rig, model) << " link " << i << " [" << s0 << ", " << s1 << "]: moved "
+              << worst << " > SweepRadius " << bound << "\n";
+            first += s.str();
+          }
+        }
+      }
+    }
+  }
+  RecordProperty("sub_intervals", std::to_string(sub_intervals));
+  RecordProperty("samples", std::to_string(samples));
+  EXPECT_EQ(violations, 0) << first;
+  EXPECT_GE(sub_intervals, 20000);
+  EXPECT_GT(samples, 1000000);
+}
+
+// The speed bounds really bound finite differences of the link origin and
+// of the orientation, and are tight for a root (nothing to compose).
+TEST(MotionTest, SpeedBoundsBoundFiniteDifferences) {
+  std::mt19937_64 g(0x40710009);
+  std::uniform_real_distribution<double> u01(0, 1);
+  int64_t steps = 0;
+  for (int c = 0; c < 600; ++c) {
+    const Rig rig = MakeRig(g, c % 2 == 0, -12);
+    const MotionModel model = RandomModel(g);
+    const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, model);
+    constexpr double h = 1e-3;
+    for (int i = 0; i < motion.num_links(); ++i) {
+      const double v = motion.origin_speed_bound(i), w = motion.angular_speed_bound(i);
+      ASSERT_TRUE(std::isfinite(v) && v >= 0);
+      ASSERT_TRUE(std::isfinite(w) && w >= 0);
+      for (int j = 0; j < 20; ++j) {
+        const double s = u01(g) * (1 - h);
+        const LinkPose x0 = motion.PoseAt(i, s), x1 = motion.PoseAt(i, s + h);
+        const double dp = (x1.p - x0.p).norm() / h;
+        const double dq = static_cast<double>(TwinAngle(ToQL(x0.q), ToQL(x1.q))) / h;
+        // Rounding of positions of up to ~1e3 m: 1e-12 / h.
+        ++steps;
+        ASSERT_LE(dp, v * (1 + 1e-9) + 1e-8)
+            << RigSummary(rig, model) << " link " << i << " s=" << s;
+        ASSERT_LE(dq, w * (1 + 1e-9) + 1e-8)
+            << RigSummary(rig, model) << " link " << i << " s=" << s;
+      }
+      const bool own = model == MotionModel::kIndependent || rig.skeleton.link(i).parent < 0;
+      if (own) {
+        const LinkPose& X0 = rig.pose0.links[i];
+        const LinkPose& X1 = rig.pose1.links[i];
+        EXPECT_NEAR(v, (X1.p - X0.p).norm(), 1e-12 * (1 + v));
+        EXPECT_NEAR(w, SlerpAngle(X0.q, X1.q), 1e-9 * (1 + w));
+      }
+    }
+  }
+  RecordProperty("steps", std::to_string(steps));
+  EXPECT_GT(steps, 100000);
+}
+
+}  // namespace
+}  // namespace sweptccd

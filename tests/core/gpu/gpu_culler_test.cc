@@ -1,0 +1,408 @@
+// The GPU swept-volume test against its brute-force twin: the exact
+// double-precision segment-triangle distance over every unfiltered triangle
+// (core/distance.h, itself checked against golden-section search in
+// distance_test.cc). The culler may keep a capsule that is clear (that only
+// costs CPU time) but must never clear one that touches; and it should clear
+// nearly everything that is clear by a visible margin.
+
+#include "core/gpu/gpu_culler.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <thread>
+
+#include "core/query/ccd_query.h"
+#include "core/gpu/backend.h"
+#include "core/geometry/distance.h"
+#include "core/gpu/gl_api.h"
+#include "core/gpu/gl_context.h"
+
+namespace sweptccd::gpu {
+namespace {
+
+using Eigen::Vector3d;
+
+struct Rng {
+  explicit Rng(uint64_t seed) : g(seed) {}
+  std::mt19937_64 g;
+  double U(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(g); }
+  int I(int n) { return static_cast<int>(g() % static_cast<uint64_t>(n)); }
+  Vector3d Box(double h) { return Vector3d(U(-h, h), U(-h, h), U(-h, h)); }
+  Vector3d Dir() { return Box(1).normalized(); }
+};
+
+// One link from the origin of its frame to `b` (JSON array), radius 5 cm.
+Skeleton OneLinkSkeleton(const std::string& b) {
+  return ParseSkeletonJson(R"({"name": "one", "links": [{"name": "a", "parent": null,
+                               "a": [0, 0, 0], "b": )" + b + R"(, "radius": 0.05}]})",
+                           "test skeleton");
+}
+
+std::shared_ptr<GlContext> SharedContext() {
+  static std::shared_ptr<GlContext> context = std::make_shared<GlContext>();
+  return context;
+}
+
+// A soup of random triangles (some slivers, some degenerate) around `centre`.
+TriangleMesh Soup(Rng& rng, const Vector3d& centre, int count, double half) {
+  TriangleMesh m;
+  for (int t = 0; t < count; ++t) {
+    const Vector3d a = centre + rng.Box(half);
+    Vector3d b = a + rng.Box(0.3), c = a + rng.Box(0.3);
+    const int kind = rng.I(12);
+    if (kind == 0) c = a + 0.5 * (b - a);                        // Collinear (degenerate).
+    if (kind == 1) c = b;                                         // Two equal vertices.
+    if (kind == 2) c = a + 0.5 * (b - a) + 1e-7 * rng.Dir();      // Sliver.
+    // Slivers whose cross product underflows in float (regression: the
+    // certificate's r |n| vanished and everything was cleared).
+    if (kind == 3) c = a + 0.5 * (b - a) + std::pow(10.0, -rng.U(15, 40)) * rng.Dir();
+    if (kind == 4) {  // Micrometre-sized triangle.
+      b = a + 1e-6 * rng.Dir();
+      c = a + 1e-6 * rng.Dir();
+    }
+    for (const Vector3d& v : {a, b, c}) {
+      m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));
+      m.vertices.push_back(v.cast<float>());
+    }
+  }
+  return m;
+}
+
+struct Fixture {
+  Environment env;
+  CollisionFilter filter;
+  int num_links = 4;
+  // Exact separation (distance - radius) of a capsule from the unfiltered triangles.
+  double Separation(const CullCapsule& c, uint32_t* tests = nullptr) const {
+    double best = 1e300;
+    for (int o = 0; o < env.num_objects(); ++o) {
+      if (filter.Ignores(c.link, o)) continue;
+      const TriangleBvh& bvh = env.object(o).bvh;
+      Vector3d ta, tb, tc;
+      for (uint32_t s = 0; s < bvh.num_triangles(); ++s) {
+        bvh.Triangle(s, &ta, &tb, &tc);
+        best = std::min(best, SegmentTriangleDistance(c.a, c.b, ta, tb, tc).distance - c.radius);
+      }
+    }
+    return best;
+  }
+};
+
+void CheckBatch(const Fixture& f, const GpuCuller& culler, const std::vector<CullCapsule>& caps,
+                const char* what, double scale, int64_t* clear, int64_t* cleared) {
+  std::vector<uint8_t> may_touch;
+  ASSERT_TRUE(culler.Cull(caps, &may_touch));
+  ASSERT_EQ(may_touch.size(), caps.size());
+  int misses = 0;
+  for (size_t i = 0; i < caps.size(); ++i) {
+    const double sep = f.Separation(caps[i]);
+    if (sep <= 0 && may_touch[i] == 0 && ++misses <= 5) {
+      const CullCapsule& c = caps[i];
+      ADD_FAILURE() << what << ": capsule " << i << " touches (separation " << sep
+                    << ") but was cleared: a [" << c.a.transpose() << "] b [" << c.b.transpose()
+                    << "] radius " << c.radius << " link " << c.link;
+    }
+    if (sep > 1e-5 * scale) {
+      ++*clear;
+      *cleared += may_touch[i] == 0;
+    }
+  }
+  EXPECT_EQ(misses, 0) << what;
+}
+
+// Random scenes at the origin and 1 km away (relative rounding), random and
+// exactly tangent capsules, filters on some (link, object) pairs.
+TEST(GpuCullerTest, NeverClearsATouchingCapsuleRandomized) {
+  int64_t clear = 0, cleared = 0, tangent = 0;
+  for (uint64_t seed = 1; seed <= 6; ++seed) {
+    Rng rng(seed * 7919);
+    const Vector3d centre = seed % 2 == 0 ? Vector3d(1000.0, -750.0, 500.0) : Vector3d::Zero();
+    const double scale = 1.0 + centre.norm();
+    Fixture f;
+    for (int o = 0; o < 3; ++o) {
+      f.env.AddMesh(Soup(rng, centre, 120 + 40 * o, 1.5), "soup" + std::to_string(o));
+    }
+    f.filter = CollisionFilter(f.num_links, f.env.num_objects());
+    f.filter.Ignore(1, 0);
+    f.filter.Ignore(3, 2);
+    if (seed == 3) f.filter.Ignore(2, -1);  // Link 2 ignores everything.
+    auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env);
+    const GpuCuller culler(gpu_env, f.filter, f.num_links);
+
+    std::vector<CullCapsule> caps;
+    for (int i = 0; i < 1500; ++i) {
+      CullCapsule c;
+      c.a = centre + rng.Box(2.0);
+      c.b = rng.I(8) == 0 ? c.a : c.a + rng.Box(0.6);  // Some zero-length segments.
+      c.radius = rng.I(6) == 0 ? 0.0 : rng.U(0.001, 0.2);
+      c.link = rng.I(f.num_links);
+      caps.push_back(c);
+    }
+    // Tangent capsules: the radius set to the exact distance (touching at
+    // exactly zero separation), or a hair below or above it.
+    for (int i = 0; i < 1500; ++i) {
+      CullCapsule c;
+      c.a = centre + rng.Box(2.0);
+      c.b = c.a + rng.Box(0.4);
+      c.link = rng.I(f.num_links);
+      c.radius = 0;
+      const double d = f.Separation(c);
+      if (d > 1e200) continue;
+      const int kind = rng.I(3);
+      c.radius = kind == 0 ? d : kind == 1 ? std::nextafter(d, 2 * d + 1) : d * (1 - 1e-7);
+      tangent += kind != 2;
+      caps.push_back(c);
+    }
+    CheckBatch(f, culler, caps, centre.norm() > 0 ? "far from the origin" : "at the origin", scale,
+               &clear, &cleared);
+  }
+  std::printf("clear by > 1e-5 of the scale: %lld, cleared by the GPU: %lld (%.2f%%); "
+              "tangent capsules: %lld\n",
+              static_cast<long long>(clear), static_cast<long long>(cleared),
+              100.0 * cleared / std::max<int64_t>(1, clear), static_cast<long long>(tangent));
+  EXPECT_GT(tangent, 3000);
+  // Nearly tight: the certificate loses only rounding margins.
+  EXPECT_GE(cleared, clear * 995 / 1000);
+}
+
+// Hand-made cases: a segment through a triangle, lying in its plane, parallel
+// just above it, touching a vertex and an edge, and a degenerate triangle.
+TEST(GpuCullerTest, HandCases) {
+  Fixture f;
+  TriangleMesh m;
+  auto add = [&](Vector3d a, Vector3d b, Vector3d c) {
+    for (const Vector3d& v : {a, b, c}) {
+      m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));
+      m.vertices.push_back(v.cast<float>());
+    }
+  };
+  add({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
+  add({5, 0, 0}, {6, 0, 0}, {7, 0, 0});  // Degenerate: a segment on the x axis.
+  add({0, 20, 0}, {1, 20, 0}, {0.5, 20 + 1e-24, 0});  // Slivers (y rounds to 20 in float;
+  add({0, 21, 0}, {1, 21, 0}, {0.5, 21, 1e-20});      // z keeps 1e-20).
+  add({0.5, 19, 0}, {0.5 + 1e-12, 19, 0}, {0.5, 19 + 1e-12, 0});  // A 1e-12 m triangle.
+  f.env.AddMesh(m, "hand");
+  f.filter = CollisionFilter(f.num_links, 1);
+  const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
+                         f.num_links);
+  struct Case {
+    Vector3d a, b;
+    double radius;
+    bool touches;
+    const char* name;
+  };
+  const std::vector<Case> cases = {
+      {{0.2, 0.2, -1}, {0.2, 0.2, 1}, 0.0, true, "through the face"},
+      // Coplanar: the double distance is ~6e-17 (rounding), hence the 1e-12 radius.
+      {{-1, 0.3, 0}, {2, 0.3, 0}, 1e-12, true, "in the plane across it"},
+      {{0, 0, 0.1}, {1, 0, 0.1}, 0.1, true, "parallel, tangent"},
+      {{0, 0, 0.1}, {1, 0, 0.1}, 0.099, false, "parallel, 1 mm above"},
+      {{1.5, 0, 0}, {1.5, 0, 0}, 0.5, true, "point touching a vertex"},
+      {{1.5, 0, 0}, {1.5, 0, 0}, 0.49, false, "point 1 cm from a vertex"},
+      {{0.5, 0.5, 0}, {1, 1, 0}, 0.0, true, "from the hypotenuse outwards"},
+      {{6, -1, 0}, {6, 1, 0}, 0.0, true, "through the degenerate triangle"},
+      {{6, 0.01, -1}, {6, 0.01, 1}, 0.0099, false, "beside the degenerate triangle"},
+      {{3, 3, 3}, {4, 4, 4}, 1.0, false, "far away"},
+      // Regression (review): tiny-area triangles, whose normal underflows.
+      {{0.5, 20, 0.005}, {0.5, 20, 0.005}, 0.01, true, "above a 1e-24 sliver"},
+      {{0.5, 21, 0.005}, {0.5, 21, 0.005}, 0.01, true, "above a 1e-20 sliver"},
+      {{0.5, 19, -1}, {0.5, 19, 1}, 0.0, true, "through a 1e-12 m triangle"},
+      {{0.5, 20, 0.02}, {0.5, 20, 0.02}, 0.01, false, "1 cm above a 1e-24 sliver"},
+  };
+  std::vector<CullCapsule> caps;
+  for (const Case& c : cases) caps.push_back(CullCapsule{c.a, c.b, c.radius, 0});
+  std::vector<uint8_t> may_touch;
+  ASSERT_TRUE(culler.Cull(caps, &may_touch));
+  for (size_t i = 0; i < cases.size(); ++i) {
+    EXPECT_EQ(may_touch[i] != 0, cases[i].touches) << cases[i].name;
+    EXPECT_EQ(f.Separation(caps[i]) <= 0, cases[i].touches) << "brute force: " << cases[i].name;
+  }
+}
+
+// A link moving over a sliver whose float normal underflows: the GPU
+// backend must find the contact the CPU finds (it once answered free).
+TEST(GpuCullerTest, SliverTriangleContactIsNotMissed) {
+  for (const double tiny : {1e-24, 1e-20, 1e-30}) {
+    TriangleMesh m;
+    for (const Vector3d& v : {Vector3d(0, 0, 0), Vector3d(1, 0, 0), Vector3d(0.5, 0, tiny)}) {
+      m.indices.push_back(static_cast<uint32_t>(m.vertices.size()));
+      m.vertices.push_back(v.cast<float>());
+    }
+    Environment env;
+    env.AddMesh(m, "sliver");
+    const Skeleton skeleton = OneLinkSkeleton("[0, 0, 0]");  // A ball.
+    auto culler = std::make_shared<GpuCuller>(
+        std::make_shared<const GpuEnvironment>(SharedContext(), env), CollisionFilter(1, 1), 1);
+    CcdEngine gpu(skeleton, env), cpu(skeleton, env);
+    gpu.SetCuller(culler);
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 33333;
+    p0.links = {LinkPose{Vector3d(0.5, -1, 0.02), Eigen::Quaterniond::Identity()}};
+    p1.links = {LinkPose{Vector3d(0.5, 1, 0.02), Eigen::Quaterniond::Identity()}};
+    const QueryResult c = cpu.Query(p0, p1, QueryOptions());
+    const QueryResult g = gpu.Query(p0, p1, QueryOptions());
+    ASSERT_TRUE(c.contact) << tiny;
+    EXPECT_TRUE(g.contact) << "sliver " << tiny << ": the GPU backend missed the contact";
+    EXPECT_EQ(g.s_lo, c.s_lo) << tiny;
+    EXPECT_GT(g.stats.cull_round_trips, 0) << tiny;
+  }
+}
+
+// Capsules a float cannot hold are never cleared (they go to the CPU).
+TEST(GpuCullerTest, NonFiniteAndHugeCapsulesAreKept) {
+  Rng rng(3);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 50, 1.0), "soup");
+  f.filter = CollisionFilter(f.num_links, 1);
+  const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
+                         f.num_links);
+  const double nan = std::nan(""), inf = HUGE_VAL;
+  const std::vector<CullCapsule> caps = {
+      CullCapsule{Vector3d(nan, 0, 0), Vector3d(0, 0, 0), 0.1, 0},
+      CullCapsule{Vector3d(0, 0, 0), Vector3d(0, inf, 0), 0.1, 0},
+      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), nan, 0},
+      CullCapsule{Vector3d(1e35, 0, 0), Vector3d(1e35, 0, 0), 0.1, 0},
+      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1, 0},  // Clear: cleared.
+  };
+  std::vector<uint8_t> may_touch;
+  ASSERT_TRUE(culler.Cull(caps, &may_touch));
+  EXPECT_EQ(may_touch, (std::vector<uint8_t>{1, 1, 1, 1, 0}));
+}
+
+TEST(GpuCullerTest, ConcurrentCallersGetTheSerialAnswers) {
+  Rng rng(42);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 400, 1.5), "soup");
+  f.filter = CollisionFilter(f.num_links, 1);
+  const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
+                         f.num_links);
+  std::vector<CullCapsule> caps;
+  for (int i = 0; i < 500; ++i) {
+    caps.push_back(CullCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), rng.I(f.num_links)});
+  }
+  std::vector<uint8_t> serial;
+  ASSERT_TRUE(culler.Cull(caps, &serial));
+  std::vector<std::vector<uint8_t>> answers(4);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      for (int k = 0; k < 10; ++k) culler.Cull(caps, &answers[t]);
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (const auto& a : answers) EXPECT_EQ(a, serial);
+  EXPECT_EQ(culler.round_trips(), 41);
+}
+
+// A lost context: the culler logs once and answers false; queries continue on
+// the CPU with the CPU's answers.
+TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
+  auto context = std::make_shared<GlContext>();
+  Rng rng(5);
+  Environment env;
+  env.AddMesh(Soup(rng, Vector3d::Zero(), 200, 1.0), "soup");
+  const Skeleton skeleton = OneLinkSkeleton("[0.4, 0, 0]");
+  auto culler = std::make_shared<GpuCuller>(std::make_shared<const GpuEnvironment>(context, env),
+                                            CollisionFilter(1, 1), 1);
+  CcdEngine gpu(skeleton, env), cpu(skeleton, env);
+  gpu.SetCuller(culler);
+  QueryOptions options;
+  int contacts = 0, lost_queries = 0;
+  for (int i = 0; i < 40; ++i) {
+    if (i == 20) {
+      EXPECT_THROW(context->Run([] {
+        eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+      }),
+                   GpuError);
+    }
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 33333;
+    p0.links = {LinkPose{rng.Box(1.2), Eigen::Quaterniond::UnitRandom()}};
+    p1.links = {LinkPose{p0.links[0].p + rng.Box(0.3), Eigen::Quaterniond::UnitRandom()}};
+    const QueryResult g = gpu.Query(p0, p1, options), c = cpu.Query(p0, p1, options);
+    EXPECT_EQ(g.contact, c.contact) << i;
+    EXPECT_EQ(g.s_lo, c.s_lo) << i;
+    EXPECT_EQ(g.s_hi, c.s_hi) << i;
+    contacts += c.contact;
+    if (i >= 20) {
+      EXPECT_EQ(g.stats.cull_round_trips, 0) << "query " << i << " used a lost context";
+      ++lost_queries;
+    }
+  }
+  EXPECT_GT(contacts, 0);
+  EXPECT_EQ(lost_queries, 20);
+  std::vector<uint8_t> may_touch;
+  EXPECT_FALSE(culler->Cull({CullCapsule{}}, &may_touch));
+  EXPECT_EQ(may_touch, std::vector<uint8_t>{1});
+}
+
+// The Backend says what answers now: "gpu", then "cpu (gpu failed: ...)" once
+// its context is lost (the daemon reports this in status_t).
+TEST(GpuBackendTest, StateReportsALostContext) {
+  BackendOptions options;
+  options.backend = "gpu";
+  Backend backend(options);
+  ASSERT_TRUE(backend.gpu());
+  EXPECT_EQ(backend.State(), "gpu");
+  EXPECT_THROW(backend.context()->Run([] {
+    eglMakeCurrent(eglGetCurrentDisplay(), EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  }),
+               GpuError);
+  EXPECT_EQ(backend.State(), "cpu (gpu failed: the OpenGL context was lost)");
+  EXPECT_STREQ(backend.name(), "gpu");  // What was chosen at start.
+  BackendOptions cpu_options;
+  cpu_options.backend = "cpu";
+  EXPECT_EQ(Backend(cpu_options).State(), "cpu");
+}
+
+// Regression: the Backend once cached uploads by the Environment's address;
+// a later environment at the same address (a loop's local) was then tested
+// against the earlier one's triangles and contacts were missed (found by the
+// benchmark, which builds one environment per scene).
+TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
+  BackendOptions options;
+  options.backend = "gpu";
+  Backend backend(options);
+  ASSERT_TRUE(backend.gpu()) << backend.reason();
+  const Skeleton skeleton = OneLinkSkeleton("[0, 0.4, 0]");
+  const void* first_address = nullptr;
+  int same_address = 0;
+  for (int k = 0; k < 4; ++k) {
+    // A wall at x = k, 1 m wide; the stick moves from x = k - 0.5 to k + 0.5
+    // and must hit it at s = 0.45 whatever the earlier walls were.
+    TriangleMesh wall;
+    for (const Vector3d& v : {Vector3d(k, -1, -1), Vector3d(k, 2, -1), Vector3d(k, 2, 1),
+                              Vector3d(k, -1, 1)}) {
+      wall.vertices.push_back(v.cast<float>());
+    }
+    wall.indices = {0, 1, 2, 0, 2, 3};
+    Environment env;
+    env.AddMesh(wall, "wall");
+    if (k == 0) first_address = &env;
+    same_address += &env == first_address;
+    CcdEngine gpu_engine(skeleton, env), cpu_engine(skeleton, env);
+    backend.Attach(&gpu_engine);
+    ASSERT_NE(gpu_engine.culler(), nullptr);
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 33333;
+    p0.links = {LinkPose{Vector3d(k - 0.5, 0, 0), Eigen::Quaterniond::Identity()}};
+    p1.links = {LinkPose{Vector3d(k + 0.5, 0, 0), Eigen::Quaterniond::Identity()}};
+    const QueryResult g = gpu_engine.Query(p0, p1, QueryOptions());
+    const QueryResult c = cpu_engine.Query(p0, p1, QueryOptions());
+    ASSERT_TRUE(c.contact) << k;
+    EXPECT_TRUE(g.contact) << "wall " << k;
+    EXPECT_EQ(g.s_lo, c.s_lo) << k;
+    EXPECT_NEAR(c.s_lo, 0.45, 1e-3) << k;
+  }
+  std::printf("environments at the first one's address: %d of 4\n", same_address);
+}
+
+}  // namespace
+}  // namespace sweptccd::gpu
