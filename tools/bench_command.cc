@@ -7,21 +7,24 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
 
+#include "core/errors.h"
+#include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
-#include "core/errors.h"
-#include "core/gpu/backend.h"
-#include "core/geometry/mesh.h"
 #include "mocap/mocap_import.h"
 
 namespace sweptccd {
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
-  app->add_option("--data", o->data_dir, "Folder with env/ and mocap/ (default: ../shared/data)");
+  app->add_option("--data", o->data_dir,
+                  "Folder with env/ and mocap/ (default: the project's data/, " SWEPTCCD_DATA_DIR
+                  ")");
   app->add_option("--clip", o->clips, "BVH clips in mocap/ to replay");
   app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip")
       ->check(CLI::Range(1, 100000000));
@@ -86,8 +89,15 @@ struct SceneSpec {
   Eigen::Vector2d centre{0, 0};      // Horizontal centre of the walk.
 };
 
+// A data file by its plain name: as named when present, else its gzip
+// (data/ ships NAME.gz; a larger folder may hold either).
+std::string DataFile(const std::string& path) {
+  std::error_code ec;
+  return std::filesystem::exists(path, ec) ? path : path + ".gz";
+}
+
 TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m) {
-  TriangleMesh mesh = LoadMeshFile(dir + "/env/" + m.file);
+  TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file));
   for (Eigen::Vector3f& v : mesh.vertices) {
     v = (v.cast<double>() * m.scale + m.offset).cast<float>();
   }
@@ -247,7 +257,7 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
 
 int RunBenchCommand(const BenchCommandOptions& options) {
   try {
-    const std::string dir = options.data_dir.empty() ? SWEPTCCD_SHARED_DATA : options.data_dir;
+    const std::string dir = options.data_dir.empty() ? SWEPTCCD_DATA_DIR : options.data_dir;
     // Placements chosen by looking at the scenes: the floor heights are the
     // large flat areas; the walk is centred on the furnished part.
     const std::vector<SceneSpec> scenes = {
@@ -289,7 +299,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
-        MocapClip clip = ImportBvhFile(dir + "/mocap/" + clip_name, mo);
+        MocapClip clip = ImportBvhFile(DataFile(dir + "/mocap/" + clip_name), mo);
         // Resample to the tracker rate by frame skipping.
         const int step = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s *
                                                                           options.rate_hz))));

@@ -11,7 +11,7 @@ class App;
 namespace sweptccd {
 
 struct BenchCommandOptions {
-  std::string data_dir;  // Folder with env/ and mocap/ (default: ../shared/data beside the source).
+  std::string data_dir;  // Folder with env/ and mocap/ (default: the project's data/).
   std::vector<std::string> clips = {"cmu_02_01_walk.bvh",
                                     "cmu_02_03_run_jog.bvh",
                                     "cmu_13_41_jump.bvh",

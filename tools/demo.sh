@@ -18,13 +18,13 @@ out=${DEMO_OUT:-$build/demo}
 mkdir -p "$out"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-scene=data/morse_apartment.ply
+scene=data/env/morse_apartment.ply.gz
 
 # The apartment is Z-up; walk 1 m off the clip's origin, where it meets a
 # table, and 2 cm up (the clip's soles otherwise dip 3 mm into the floor, and
 # the first contact would be a foot on the floor at the start).
-"$bin/sweptccd" import-bvh --bvh data/demo/cmu_02_01_walk.bvh --up z --rate 30 --offset 0 -1 0.02 \
-  --utime-start 1000000 --skeleton-out "$out/walk_skeleton.json" \
+"$bin/sweptccd" import-bvh --bvh data/mocap/cmu_02_01_walk.bvh.gz --up z --rate 30 \
+  --offset 0 -1 0.02 --utime-start 1000000 --skeleton-out "$out/walk_skeleton.json" \
   --poses-out "$out/walk_poses.jsonl" 2> "$out/import.log"
 
 "$bin/sweptccd-service" --lcm-url "$url" --env "$scene" --backend auto \

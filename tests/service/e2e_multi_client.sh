@@ -12,7 +12,7 @@ sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
+env_ply="$src/data/env/morse_apartment.ply.gz"
 import_walk "$sweptccd" "$src" 90 "$work"
 query_walk "$sweptccd" "$env_ply" "$work"
 ids=(c0 c1 c2 c3 c4 c5 c6 c7)

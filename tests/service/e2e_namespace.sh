@@ -18,15 +18,15 @@ status=0
 for flag in "--workers 0" "--status-period -1"; do
   status=0
   # shellcheck disable=SC2086
-  "$service" --lcm-url "$url" $flag --env "$src/data/morse_apartment.ply" --client a=x.json \
+  "$service" --lcm-url "$url" $flag --env "$src/data/env/morse_apartment.ply.gz" --client a=x.json \
     2> "$work/bad.log" || status=$?
   [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q -- "${flag% *}" "$work/bad.log"
 done
 import_walk "$sweptccd" "$src" 30 "$work"
-query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
+query_walk "$sweptccd" "$src/data/env/morse_apartment.ply.gz" "$work"
 # The CPU backend, then the GPU backend (llvmpipe in CI): the same answers.
 for backend in cpu gpu; do
-  "$service" --lcm-url "$url" --env "$src/data/morse_apartment.ply" --backend $backend \
+  "$service" --lcm-url "$url" --env "$src/data/env/morse_apartment.ply.gz" --backend $backend \
     --client "alice=$work/skeleton.json" --log-level info 2> "$work/daemon_$backend.log" &
   daemon=$!
   trap 'kill -KILL $daemon 2>/dev/null || true' EXIT

@@ -19,8 +19,8 @@ sweptccd=$1 service=$2 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
-bvh="$src/data/demo/cmu_02_01_walk.bvh"
+env_ply="$src/data/env/morse_apartment.ply.gz"
+bvh="$src/data/mocap/cmu_02_01_walk.bvh.gz"
 fail() { echo "e2e_tools: FAILED: $*" >&2; exit 1; }
 
 # refused EXPECTED_TEXT COMMAND...: exit status 2 and exactly one line on

@@ -829,7 +829,7 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
 // import-bvh --radii: a small JSON file overrides the default capsule radii;
 // a bad file is refused with one line naming it.
 TEST_F(QueryCommandTest, ImportBvhRadiiFile) {
-  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/mocap/cmu_02_01_walk.bvh.gz";
   const std::string radii = Write("radii.json", R"({"hand_l": 0.071, "head": 0.123})");
   const std::string skel = Path("walk_skeleton.json"), poses = Path("walk_poses.jsonl");
   const RunResult r = Run({"import-bvh", "--bvh", bvh, "--radii", radii, "--skeleton-out", skel,
@@ -874,7 +874,7 @@ TEST_F(QueryCommandTest, OutputsNeverDestroyInputsAndPlacementIsChecked) {
   EXPECT_EQ(ReadFile(poses), before) << "the pose stream was truncated";
   ExpectRefusal(QueryArgs(poses, {"--output", skeleton_}), {"--skeleton"}, "output = skeleton");
 
-  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/mocap/cmu_02_01_walk.bvh.gz";
   const std::string skel = Path("s.json"), out = Path("p.jsonl");
   auto import = [&](std::initializer_list<std::string> extra) {
     std::vector<std::string> args = {"import-bvh", "--bvh", bvh, "--skeleton-out", skel,

@@ -17,7 +17,7 @@ echo "|---:|---:|---:|---:|---:|---:|---:|"
 for n in 1 8 32; do
   args=()
   for c in $(seq 0 $((n - 1))); do args+=(--client "client$c=$work/skeleton.json"); done
-  "$build/bin/sweptccd-service" --lcm-url "$url" --env data/morse_apartment.ply --workers 2 \
+  "$build/bin/sweptccd-service" --lcm-url "$url" --env data/env/morse_apartment.ply.gz --workers 2 \
     --log-level warn "${args[@]}" 2> "$work/daemon_$n.log" &
   daemon=$!
   sleep 1

@@ -41,7 +41,7 @@ namespace {
 using Eigen::Vector3d;
 using Eigen::Vector3f;
 
-const std::string kData = SWEPTCCD_SHARED_DATA;
+const std::string kData = SWEPTCCD_DATA_DIR;
 
 // --- Random soups ----------------------------------------------------------
 
@@ -532,10 +532,10 @@ TEST_P(RealMeshBvhTest, StructureAndNoMissedTriangle) {
   EXPECT_GT(within, 0u);
 }
 
-INSTANTIATE_TEST_SUITE_P(SharedData, RealMeshBvhTest,
-                         ::testing::Values(RealMesh{"stanford_bunny.obj", 200},
-                                           RealMesh{"stanford_dragon_vrip_res4.ply", 400},
-                                           RealMesh{"morse_apartment.ply", 400}),
+INSTANTIATE_TEST_SUITE_P(RealData, RealMeshBvhTest,
+                         ::testing::Values(RealMesh{"stanford_bunny.obj.gz", 200},
+                                           RealMesh{"stanford_dragon_vrip_res4.ply.gz", 400},
+                                           RealMesh{"morse_apartment.ply.gz", 400}),
                          [](const ::testing::TestParamInfo<RealMesh>& info) {
                            std::string name = info.param.file;
                            for (char& ch : name) {
@@ -611,7 +611,7 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
   std::mt19937_64 rng(31337);
   Environment env;
   env.AddMesh(MixedSoup(rng, 700, 1.5), "soup");
-  TriangleMesh dragon = LoadMeshFile(kData + "/env/stanford_dragon_vrip_res4.ply");
+  TriangleMesh dragon = LoadMeshFile(kData + "/env/stanford_dragon_vrip_res4.ply.gz");
   for (Vector3f& v : dragon.vertices) v = v * 6.0f + Vector3f(0.5f, -0.6f, 0.2f);
   env.AddMesh(dragon, "dragon");
   env.AddMesh(FlatSoup(rng, 200), "flat");
@@ -701,7 +701,7 @@ double EarliestTouchingSample(const Environment& env, const CollisionFilter& fil
 TEST(BvhTest, QueryNeverCullsATouchingLink) {
   MocapImportOptions options;
   options.frame_step = 4;  // 30 Hz.
-  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh", options);
+  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh.gz", options);
   ASSERT_EQ(clip.skeleton.num_links(), 16);
   ASSERT_GT(clip.poses.size(), 40u);
   const Skeleton& skel = clip.skeleton;

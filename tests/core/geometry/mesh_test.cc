@@ -2,7 +2,7 @@
 // binary), each optionally gzip-compressed, with or without a `.gz` suffix;
 // polygons split as a fan from their first vertex in file order; degenerate
 // triangles kept; bad files refused with a message naming the path and the
-// problem. Also loads every real scene of the shared data with the triangle
+// problem. Also loads every real scene of data/ (SWEPTCCD_DATA_DIR) with the triangle
 // count of its manifest.
 
 #include "core/geometry/mesh.h"
@@ -524,7 +524,7 @@ TEST_F(MeshTest, BinaryStlWhoseHeaderStartsWithSolid) {
 // --- Real data ------------------------------------------------------------
 
 TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
-  const std::string root = SWEPTCCD_SHARED_DATA;
+  const std::string root = SWEPTCCD_DATA_DIR;
   std::ifstream in(root + "/manifest.json");
   ASSERT_TRUE(in.good()) << root << "/manifest.json is missing";
   const nlohmann::json manifest = nlohmann::json::parse(in);
@@ -535,7 +535,7 @@ TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
     ASSERT_TRUE(entry.contains("triangles")) << key;
     const std::string path = root + "/" + entry.value("path", key);
     SCOPED_TRACE(path);
-    ASSERT_TRUE(fs::exists(path)) << "missing shared file";
+    ASSERT_TRUE(fs::exists(path)) << "missing data file";
     const TriangleMesh mesh = LoadMeshFile(path);
     EXPECT_EQ(mesh.num_triangles(), entry["triangles"].get<size_t>());
     // The manifest's checker counts near-zero areas too (its threshold is not
@@ -563,12 +563,14 @@ TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
   EXPECT_GE(checked, 7);
 }
 
+// The shipped bunny is gzip; its gunzipped text, written plain, loads alike.
 TEST_F(MeshTest, RealObjLoadsGzippedToo) {
-  const std::string src = std::string(SWEPTCCD_SHARED_DATA) + "/env/stanford_bunny.obj";
-  const std::string text = ReadBytes(src);
+  const std::string src = std::string(SWEPTCCD_DATA_DIR) + "/env/stanford_bunny.obj.gz";
+  const std::string text = ReadFileMaybeGzip(src);
   ASSERT_FALSE(text.empty()) << src;
-  const TriangleMesh plain = LoadMeshFile(src);
-  const TriangleMesh gz = LoadMeshFile(WriteGz("bunny.obj.gz", text));
+  ASSERT_NE(text, ReadBytes(src)) << src << " is not gzip-compressed";
+  const TriangleMesh plain = LoadMeshFile(Write("bunny.obj", text));
+  const TriangleMesh gz = LoadMeshFile(src);
   ASSERT_EQ(plain.num_triangles(), gz.num_triangles());
   for (size_t t = 0; t < plain.num_triangles(); t += 97) {
     EXPECT_TRUE(TriangleOf(plain, t) == TriangleOf(gz, t)) << t;
