@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The whole project and its test suite under AddressSanitizer (with
+# LeakSanitizer) and UndefinedBehaviorSanitizer: builds into build-asan/
+# (-O1 -g, -fno-sanitize-recover=undefined, so any UB fails the test that hit
+# it) and runs ctest there. Exit status: ctest's (non-zero on any finding).
+#   tools/sanitize.sh [extra ctest arguments]
+# Environment: SWEPTCCD_ASAN_BUILD (build folder, default build-asan),
+# CC/CXX (default: the system gcc), JOBS (default 2).
+#
+# Nothing is excluded: every ctest test runs, the GPU ones on Mesa's llvmpipe
+# and the end-to-end ones inside their private network namespaces (the
+# sanitizer options below are inherited by the daemon and tools they start).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+src=$PWD
+build=${SWEPTCCD_ASAN_BUILD:-build-asan}
+jobs=${JOBS:-2}
+launcher=()
+if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache); fi
+
+cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Sanitize -DSWEPTCCD_SANITIZE=ON \
+  -DCMAKE_CXX_FLAGS_SANITIZE="-O1 -g" -DCMAKE_C_FLAGS_SANITIZE="-O1 -g" \
+  "${launcher[@]}" >/dev/null
+cmake --build "$build" -j"$jobs"
+
+# halt_on_error/abort: the first finding ends the process with a report;
+# detect_leaks: LSan at exit. The suppressions file lists third-party
+# libraries only (Mesa's drivers and LLVM, GLVND): never our code.
+export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:detect_stack_use_after_return=0:strict_string_checks=1:check_initialization_order=1:detect_odr_violation=1"
+export LSAN_OPTIONS="suppressions=$src/tools/lsan_suppressions.txt:print_suppressions=0"
+export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
+ctest --test-dir "$build" --output-on-failure -j"$jobs" "$@"
