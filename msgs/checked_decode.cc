@@ -21,7 +21,7 @@ class WireReader {
   void Fingerprint(int64_t hash) {
     if (!Need(8, "fingerprint")) return;
     if (static_cast<uint64_t>(ReadBig(8)) != static_cast<uint64_t>(hash)) {
-      Fail("fingerprint", "is not this type's (another type or another version of msgs/)");
+      Fail("fingerprint", 0, "is not this type's (another type or another version of msgs/)");
     }
   }
   void Fixed(const char* field, size_t bytes) {
@@ -33,27 +33,33 @@ class WireReader {
   }
   // An LCM string: int32 length counting the NUL, the bytes, the NUL.
   void String(const char* field, int32_t limit) {
+    const size_t at = pos_;
     const int32_t n = Int32(field);
     if (failed()) return;
-    if (n < 1) return Fail(field, "has string length " + std::to_string(n) + " (must be >= 1)");
+    if (n < 1) return Fail(field, at, "has string length " + std::to_string(n) + " (must be >= 1)");
     if (n - 1 > limit) {
-      return Fail(field, "is " + std::to_string(n - 1) + " bytes long, over the limit of " +
+      return Fail(field, at, "is " + std::to_string(n - 1) + " bytes long, over the limit of " +
                              std::to_string(limit));
     }
     if (!Need(static_cast<size_t>(n), field)) return;
-    if (data_[pos_ + n - 1] != 0) return Fail(field, "is not NUL-terminated");
+    if (data_[pos_ + n - 1] != 0) return Fail(field, at, "is not NUL-terminated");
+    // An LCM string is a C string: an inner NUL is no encoder's output.
+    if (std::memchr(data_ + pos_, 0, static_cast<size_t>(n - 1)) != nullptr) {
+      return Fail(field, at, "holds a NUL byte before its end");
+    }
     pos_ += static_cast<size_t>(n);
   }
   // An array count: >= 0, <= limit, and `min_element_bytes` each must fit.
   int32_t Count(const char* field, int32_t limit, size_t min_element_bytes) {
+    const size_t at = pos_;
     const int32_t n = Int32(field);
     if (failed()) return 0;
     if (n < 0 || n > limit) {
-      Fail(field, "is " + std::to_string(n) + ", outside [0, " + std::to_string(limit) + "]");
+      Fail(field, at, "is " + std::to_string(n) + ", outside [0, " + std::to_string(limit) + "]");
       return 0;
     }
     if (static_cast<size_t>(n) * min_element_bytes > size_ - pos_) {
-      Fail(field, "is " + std::to_string(n) + " but only " + std::to_string(size_ - pos_) +
+      Fail(field, at, "is " + std::to_string(n) + " but only " + std::to_string(size_ - pos_) +
                       " bytes follow");
       return 0;
     }
@@ -62,7 +68,7 @@ class WireReader {
   // Call last: the message must end exactly at `size`.
   std::string Finish() {
     if (!failed() && pos_ != size_) {
-      Fail("end", std::to_string(size_ - pos_) + " bytes follow the message");
+      Fail("end", pos_, std::to_string(size_ - pos_) + " bytes follow the message");
     }
     return problem_;
   }
@@ -73,7 +79,7 @@ class WireReader {
   bool Need(size_t bytes, const char* field) {
     if (failed()) return false;
     if (bytes > size_ - pos_) {
-      Fail(field, "needs " + std::to_string(bytes) + " bytes but " +
+      Fail(field, pos_, "needs " + std::to_string(bytes) + " bytes but " +
                       std::to_string(size_ - pos_) + " are left (truncated)");
       return false;
     }
@@ -85,8 +91,8 @@ class WireReader {
     pos_ += bytes;
     return v;
   }
-  void Fail(const char* field, const std::string& what) {
-    problem_ = std::string(field) + " at byte " + std::to_string(pos_) + " " + what;
+  void Fail(const char* field, size_t at, const std::string& what) {
+    problem_ = std::string(field) + " at byte " + std::to_string(at) + " " + what;
   }
 
   const uint8_t* data_;
