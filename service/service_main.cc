@@ -143,6 +143,7 @@ int main(int argc, char** argv) {
       config.security.client_keys[id] = path;
     }
     ValidateServiceConfig(config);
+    TransportSecurity security = LoadTransportSecurity(config.security);
     const auto level = spdlog::level::from_str(config.log_level);
     if (level == spdlog::level::off && config.log_level != "off") {
       throw InputError("configuration: unknown log_level '" + config.log_level + "'");
@@ -182,7 +183,6 @@ int main(int argc, char** argv) {
 
     lcm::LCM lcm(config.lcm_url);
     if (!lcm.good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
-    TransportSecurity security = LoadTransportSecurity(config.security);
     if (!security.signed_mode) {
       spdlog::warn("UNSIGNED MODE: poses are not authenticated and what this service publishes is "
                    "not signed; anyone on the network can forge or replay them. Lab bench only.");

@@ -25,13 +25,23 @@ done
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
 # The CPU backend, then the GPU backend (llvmpipe in CI): the same answers.
+rm -f "$work/room.key" "$work/open.key"
+"$sweptccd" keygen --out "$work/room.key"
+# A key file others can read is refused with one line naming the fix.
+"$sweptccd" keygen --out "$work/open.key"
+chmod 644 "$work/open.key"
+status=0
+"$service" --lcm-url "$url" --env "$src/data/morse_apartment.ply" --client "alice=$work/skeleton.json" \
+  --room-key "$work/open.key" 2> "$work/bad.log" || status=$?
+[ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q "chmod 600" "$work/bad.log"
 for backend in cpu gpu; do
   "$service" --lcm-url "$url" --env "$src/data/morse_apartment.ply" --backend $backend \
-    --client "alice=$work/skeleton.json" --log-level info 2> "$work/daemon_$backend.log" &
+    --client "alice=$work/skeleton.json" --room-key "$work/room.key" --log-level info \
+    2> "$work/daemon_$backend.log" &
   daemon=$!
   trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
   wait_for "$work/daemon_$backend.log" ready
-  "$tool" lockstep "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
+  "$tool" --key "$work/room.key" lockstep "$url" alice "$work/poses.jsonl" "$work/expected.jsonl"
   kill -TERM $daemon
   wait $daemon
   grep -q stopped "$work/daemon_$backend.log"

@@ -43,6 +43,13 @@ refused "--clients" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" -
 refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed 1e-300
 refused "--seq-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --seq-start 9223372036854775807
 refused "--utime-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --utime-start 1e19
+"$sweptccd" keygen --out "$work/room.key"
+key=(--key "$work/room.key")
+"$sweptccd" keygen --out "$work/open.key"
+chmod 640 "$work/open.key"
+refused "chmod 600" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --key "$work/open.key"
+refused "chmod 600" "$sweptccd" monitor --lcm-url "$url" --key "$work/open.key" --timeout 1
+refused "never overwritten" "$sweptccd" keygen --out "$work/room.key"
 refused missing.json "$sweptccd" monitor --lcm-url "$url" --skeleton "$work/missing.json" --timeout 1
 refused "--timeout" "$sweptccd" monitor --lcm-url "$url" --timeout -1
 
@@ -64,12 +71,12 @@ echo "query: $pairs pairs; contacts: client0 $want0, client1 $want1"
 "$service" --lcm-url "$url" --env "$env_ply" --status-period 0.2 \
   --client "client0=$work/skeleton.json" --client "client1=$work/skeleton.json" \
   --client "lossy0=$work/skeleton.json" --client "lossy1=$work/skeleton.json" \
-  --log-level info 2> "$work/daemon.log" &
+  --room-key "$work/room.key" --log-level info 2> "$work/daemon.log" &
 daemon=$!
 monitor= monitor_json=
 trap 'kill -KILL $daemon $monitor $monitor_json 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
-"$sweptccd" monitor --lcm-url "$url" --skeleton "$work/skeleton.json" --all --timeout 50 \
+"$sweptccd" monitor --lcm-url "$url" "${key[@]}" --skeleton "$work/skeleton.json" --all --timeout 50 \
   > "$work/monitor.out" 2> "$work/monitor.err" &
 monitor=$!
 wait_for "$work/monitor.out" "^monitor: listening"
@@ -115,7 +122,7 @@ check_client() {
 
 # Run 1: two clients, no loss, 4x real time.
 declare -A events_of
-"$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --up z --rate 30 \
+"$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
   --offset 0 -1 0 --utime-start 1000000 --clients 2 --spacing 0 2 0 --speed 4 \
   | tee "$work/sim1.out"
 grep -q "^simulate-tracker: sent $((2 * poses)), dropped 0, late 0 " "$work/sim1.out" \
@@ -141,10 +148,10 @@ done
 
 # Run 2: the same walk, lossy. A second monitor in --json mode must stop by
 # itself after 3 contact events.
-"$sweptccd" monitor --lcm-url "$url" --json --count 3 --timeout 30 > "$work/monitor.jsonl" &
+"$sweptccd" monitor --lcm-url "$url" "${key[@]}" --json --count 3 --timeout 30 > "$work/monitor.jsonl" &
 monitor_json=$!
 wait_for "$work/monitor.jsonl" '"type":"listening"'
-"$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --up z --rate 30 \
+"$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
   --offset 0 -1 0 --utime-start 1000000 --clients 2 --client-prefix lossy --spacing 0 2 0 \
   --speed 4 --drop 0.1 --late 0.1 --jitter-us 3000 --seed 7 | tee "$work/sim2.out"
 read -r sent dropped late < <(sed -n 's/^simulate-tracker: sent \([0-9]*\), dropped \([0-9]*\), late \([0-9]*\) .*/\1 \2 \3/p' "$work/sim2.out")
@@ -155,6 +162,10 @@ monitor_json=
 [ "$(grep -c '^{"type":"contact","client":"' "$work/monitor.jsonl")" = 3 ] \
   || { cat "$work/monitor.jsonl" >&2; fail "monitor --json --count 3 printed other than 3 contacts"; }
 grep -q '^{"type":"total",' "$work/monitor.jsonl" || fail "monitor --json printed no total"
+! grep -q '"verified":false' "$work/monitor.jsonl" || fail "monitor --key: a message did not verify"
+grep -q "^status service backend [a-z]* security signed " "$work/monitor.out" \
+  || fail "monitor shows no signed service"
+! grep -q "^UNVERIFIED" "$work/monitor.out" || fail "monitor --key marked a message UNVERIFIED"
 wait_settled "$sent" lossy0 lossy1
 rejections=$(grep -c "^reject lossy[01] seq [0-9]* non_increasing_seq: " "$work/monitor.out" || true)
 all_rejections=$(grep -c "^reject " "$work/monitor.out" || true)
@@ -192,7 +203,10 @@ done
 grep -q "^monitor: [0-9]* events " "$work/monitor.out" || fail "no total line"
 ! grep -q " gaps [1-9]" "$work/monitor.out" || fail "the monitor missed events"
 # --timeout alone ends the monitor (nothing published now).
-timeout 10 "$sweptccd" monitor --lcm-url "$url" --timeout 0.3 > "$work/monitor_timeout.out"
+# Without --key nothing is verified, and the monitor says so.
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --timeout 0.3 > "$work/monitor_timeout.out" \
+  2> "$work/monitor_timeout.err"
+grep -q "nothing is verified" "$work/monitor_timeout.err" || fail "monitor without --key is silent"
 grep -q "^monitor: 0 events" "$work/monitor_timeout.out" || fail "monitor --timeout"
 
 kill -TERM $daemon
