@@ -11,22 +11,23 @@ mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
 # A bad configuration is refused with one line naming the file, status 2.
+rm -f "$work/room.key" "$work/open.key"
+"$sweptccd" keygen --out "$work/room.key"
 status=0
-"$service" --lcm-url "$url" --env "$work/missing.ply" --client a=x.json 2> "$work/bad.log" || status=$?
+"$service" --lcm-url "$url" --env "$work/missing.ply" --client a=x.json --room-key "$work/room.key" \
+  2> "$work/bad.log" || status=$?
 [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q missing.ply "$work/bad.log"
 # Flag values out of range are refused, not silently replaced by defaults.
 for flag in "--workers 0" "--status-period -1"; do
   status=0
   # shellcheck disable=SC2086
   "$service" --lcm-url "$url" $flag --env "$src/data/morse_apartment.ply" --client a=x.json \
-    2> "$work/bad.log" || status=$?
+    --room-key "$work/room.key" 2> "$work/bad.log" || status=$?
   [ "$status" = 2 ] && [ "$(wc -l < "$work/bad.log")" = 1 ] && grep -q -- "${flag% *}" "$work/bad.log"
 done
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$src/data/morse_apartment.ply" "$work"
 # The CPU backend, then the GPU backend (llvmpipe in CI): the same answers.
-rm -f "$work/room.key" "$work/open.key"
-"$sweptccd" keygen --out "$work/room.key"
 # A key file others can read is refused with one line naming the fix.
 "$sweptccd" keygen --out "$work/open.key"
 chmod 644 "$work/open.key"
