@@ -203,6 +203,18 @@ done
 grep -q "^monitor: [0-9]* events " "$work/monitor.out" || fail "no total line"
 ! grep -q " gaps [1-9]" "$work/monitor.out" || fail "the monitor missed events"
 # --timeout alone ends the monitor (nothing published now).
+# A monitor with another key marks every message it cannot verify.
+"$sweptccd" keygen --out "$work/other.key"
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --key "$work/other.key" --timeout 1 \
+  > "$work/monitor_other.out"
+grep -q "^UNVERIFIED status service backend [a-z]* security signed " "$work/monitor_other.out" \
+  || fail "monitor with a wrong key did not mark the status UNVERIFIED"
+! grep -v "^UNVERIFIED \|^monitor: " "$work/monitor_other.out" | grep -q . \
+  || fail "monitor with a wrong key showed a message as verified"
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --key "$work/other.key" --json --timeout 1 \
+  > "$work/monitor_other.jsonl"
+grep -q '^{"type":"service",.*"verified":false}$' "$work/monitor_other.jsonl" \
+  || fail "monitor --json with a wrong key did not say verified false"
 # Without --key nothing is verified, and the monitor says so.
 timeout 10 "$sweptccd" monitor --lcm-url "$url" --timeout 0.3 > "$work/monitor_timeout.out" \
   2> "$work/monitor_timeout.err"
