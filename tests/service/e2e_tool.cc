@@ -13,6 +13,11 @@
 //   e2e_tool probe URL CHANNEL
 //     Publishes a few bytes on CHANNEL once (to see that a logger listens).
 //
+//   e2e_tool crash URL CHANNEL TYPE
+//     Publishes on CHANNEL the 36-byte datagram that crashed lcm-gen 1.3.1's
+//     decoders: TYPE's fingerprint (pose, contact, status or reject), a
+//     utime, and a first string length of INT32_MIN.
+//
 //   e2e_tool collect URL POSES.jsonl EXPECTED.jsonl SWEPTCCD SKELETON ENV
 //                    READY_FILE TIMEOUT_S ID...
 //     Subscribes to contact events, touches READY_FILE once subscribed, and
@@ -57,6 +62,7 @@
 #include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
 namespace {
@@ -186,6 +192,23 @@ int Probe(int argc, char** argv) {
   if (!lcm.good()) return 2;
   const char bytes[] = "probe";
   return lcm.publish(argv[3], bytes, sizeof bytes) == 0 ? 0 : 1;
+}
+
+int Crash(int argc, char** argv) {
+  if (argc != 5) return 2;
+  lcm::LCM lcm(argv[2]);
+  if (!lcm.good()) return 2;
+  const std::string type = argv[4];
+  int64_t hash = 0;
+  if (type == "pose") hash = sweptccd::tracker_pose_t::getHash();
+  if (type == "contact") hash = sweptccd::contact_event_t::getHash();
+  if (type == "status") hash = sweptccd::status_t::getHash();
+  if (type == "reject") hash = sweptccd::rejection_t::getHash();
+  if (hash == 0) return 2;
+  std::vector<uint8_t> bytes(36, 0);
+  for (int i = 0; i < 8; ++i) bytes[i] = static_cast<uint8_t>(static_cast<uint64_t>(hash) >> (56 - 8 * i));
+  bytes[16] = 0x80;  // int32 INT32_MIN, big-endian.
+  return lcm.publish(argv[3], bytes.data(), 36) == 0 ? 0 : 1;
 }
 
 int Collect(int argc, char** argv) {
@@ -503,6 +526,7 @@ int main(int argc, char** argv) {
   if (mode == "publish") rc = Publish(argc, argv);
   if (mode == "lockstep") rc = Lockstep(argc, argv);
   if (mode == "probe") rc = Probe(argc, argv);
+  if (mode == "crash") rc = Crash(argc, argv);
   if (mode == "collect") rc = Collect(argc, argv);
   if (mode == "badinput") rc = BadInput(argc, argv);
   if (rc == 2) std::fprintf(stderr, "e2e_tool: bad arguments (see the comment in e2e_tool.cc)\n");

@@ -15,7 +15,7 @@
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
 enter_private_netns "$@"
-sweptccd=$1 service=$2 src=$4 work=$5
+sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
@@ -203,6 +203,20 @@ done
 grep -q "^monitor: [0-9]* events " "$work/monitor.out" || fail "no total line"
 ! grep -q " gaps [1-9]" "$work/monitor.out" || fail "the monitor missed events"
 # --timeout alone ends the monitor (nothing published now).
+# The 36-byte datagram that crashed lcm-gen's decoders, on each channel the
+# monitor decodes: refused, counted, and the monitor goes on.
+timeout 20 "$sweptccd" monitor --lcm-url "$url" "${key[@]}" --timeout 3 \
+  > "$work/monitor_crash.out" 2> "$work/monitor_crash.err" &
+monitor_crash=$!
+wait_for "$work/monitor_crash.out" "^monitor: listening"
+"$tool" crash "$url" SWEPTCCD_CONTACT contact
+"$tool" crash "$url" SWEPTCCD_STATUS status
+"$tool" crash "$url" SWEPTCCD_REJECT reject
+wait $monitor_crash || fail "monitor exited $? after the crash datagrams"
+grep -q " 3 undecodable, " "$work/monitor_crash.out" || { cat "$work/monitor_crash.out" >&2; fail "monitor did not refuse 3 crash datagrams"; }
+[ "$(grep -c "string length -2147483648" "$work/monitor_crash.err")" = 3 ] \
+  || fail "monitor did not name the bad string length"
+
 # A monitor with another key marks every message it cannot verify.
 "$sweptccd" keygen --out "$work/other.key"
 timeout 10 "$sweptccd" monitor --lcm-url "$url" --key "$work/other.key" --timeout 1 \
