@@ -30,7 +30,7 @@ stop_daemon() {  # LOG
   kill -TERM "$daemon"; wait "$daemon"; grep -q stopped "$1"
 }
 collect() {  # NAME: collector in the background, waits until it is subscribed
-  timeout 60 "$tool" collect "$url" "$work/poses.jsonl" "$work/expected.jsonl" "$sweptccd" \
+  timeout 60 "$tool" --key "$work/room.key" collect "$url" "$work/poses.jsonl" "$work/expected.jsonl" "$sweptccd" \
     "$work/skeleton.json" "$env_ply" "$work/$1.ready" 30 alice > "$work/$1.out" 2>&1 &
   collector=$!; pids+=("$collector")
   wait_for "$work/$1.ready" ready

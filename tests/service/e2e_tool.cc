@@ -37,8 +37,10 @@
 //     and every GOOD_ID event equals EXPECTED.
 //
 // Every mode takes `--key FILE` first (e2e_tool --key FILE MODE ...): poses
-// are then signed with that key (a daemon in signed mode refuses others);
-// without it they go unsigned. badinput then also checks bad_signature.
+// are then signed with that key (a daemon in signed mode refuses others) and
+// every message received from the daemon must verify with it; without it
+// poses go unsigned and nothing is verified. badinput then also checks
+// bad_signature. Received messages are decoded through DecodeChecked.
 //
 // Exit 0 when every check passes; every wait is bounded.
 
@@ -59,6 +61,7 @@
 
 #include "core/errors.h"
 #include "msgs/channels.h"
+#include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
@@ -71,24 +74,38 @@ using sweptccd::kContactChannel;
 using sweptccd::kPoseChannel;
 using sweptccd::kRejectChannel;
 
-std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose.
+std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose, verifies every answer.
 
 // Publishes a pose signed with --key (unsigned without it).
-void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m,
-          const sweptccd::MacKey* key_override = nullptr) {
-  const std::vector<uint8_t> bytes =
-      sweptccd::EncodeSigned(m, key_override ? key_override : (g_key ? &*g_key : nullptr));
+void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
+  const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(m, g_key ? &*g_key : nullptr);
   lcm.publish(kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
 }
 
+// Decodes what the daemon publishes through DecodeChecked and, with --key,
+// verifies each message's mac (a failure ends the run: exit 1).
 struct Receiver {
   std::vector<sweptccd::contact_event_t> events;
   std::vector<sweptccd::rejection_t> rejections;
-  void On(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::contact_event_t* e) {
-    events.push_back(*e);
+  template <class T>
+  static T Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    sweptccd::DecodeResult<T> r = sweptccd::DecodeChecked<T>(rbuf->data, rbuf->data_size, {});
+    if (!r.ok()) {
+      std::fprintf(stderr, "e2e_tool: undecodable message on %s: %s\n", channel.c_str(),
+                   r.problem.c_str());
+      std::exit(1);
+    }
+    if (g_key && !sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key)) {
+      std::fprintf(stderr, "e2e_tool: a message on %s does not verify\n", channel.c_str());
+      std::exit(1);
+    }
+    return std::move(*r.message);
   }
-  void OnReject(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::rejection_t* r) {
-    rejections.push_back(*r);
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    events.push_back(Checked<sweptccd::contact_event_t>(rbuf, channel));
+  }
+  void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    rejections.push_back(Checked<sweptccd::rejection_t>(rbuf, channel));
   }
 };
 
