@@ -22,11 +22,13 @@ namespace {
 // The largest single allocation while tracking is on (this thread only).
 thread_local bool g_tracking = false;
 thread_local size_t g_largest = 0;
+thread_local size_t g_fail_above = SIZE_MAX;  // While tracking: larger allocations throw.
 
 }  // namespace
 
 void* operator new(size_t n) {
   if (g_tracking && n > g_largest) g_largest = n;
+  if (g_tracking && n > g_fail_above) throw std::bad_alloc();
   if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
   throw std::bad_alloc();
 }
@@ -215,6 +217,23 @@ TEST(CheckedDecode, HugeContactCountIsRefusedWithoutAllocating) {
   std::string problem;
   EXPECT_LT(LargestAllocationDecoding<contact_event_t>(bytes, &problem), 1024u);
   EXPECT_NE(problem.find("num_contacts at byte 102 is 67108864"), std::string::npos) << problem;
+}
+
+TEST(CheckedDecode, AllocationFailureIsARefusalNotAnAbort) {
+  tracker_pose_t m = RandomMessages(23).Pose();
+  m.client_id = "alice";
+  m.num_links = 1000;
+  m.position.assign(1000, std::vector<double>(3, 0.5));
+  m.orientation.assign(1000, std::vector<double>(4, 0.5));
+  const std::vector<uint8_t> bytes = Encode(m);
+  g_fail_above = 4096;  // The decoder's vector of 1000 links needs more.
+  g_tracking = true;
+  const DecodeResult<tracker_pose_t> got = DecodeChecked<tracker_pose_t>(bytes.data(), bytes.size(), {});
+  g_tracking = false;
+  g_fail_above = SIZE_MAX;
+  ASSERT_FALSE(got.ok());
+  EXPECT_EQ(got.problem, "out of memory decoding " + std::to_string(bytes.size()) + " bytes");
+  EXPECT_TRUE(DecodeChecked<tracker_pose_t>(bytes.data(), bytes.size(), {}).ok());
 }
 
 TEST(CheckedDecode, LimitsAreHonoured) {
