@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
@@ -167,6 +168,11 @@ int main(int argc, char** argv) {
       }
       for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, *env);
       clients.push_back(std::move(cc));
+    }
+    // No pose may claim more links than the largest configured skeleton.
+    security.limits.max_links = 1;
+    for (const ClientConfig& cc : clients) {
+      security.limits.max_links = std::max(security.limits.max_links, cc.skeleton->num_links());
     }
     // One headless context for the daemon's life; the environment is uploaded
     // once and every client's engine tests against it.
