@@ -80,6 +80,7 @@ struct LcmTransport::Impl {
     }
   }
 };
+
 LcmTransport::LcmTransport(lcm::LCM* lcm, LcmChannels channels, TransportSecurity security)
     : impl_(std::make_unique<Impl>()) {
   if (lcm == nullptr || !lcm->good()) {
