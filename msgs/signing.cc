@@ -69,7 +69,10 @@ MacKey ParseKeyHex(std::string_view text, const std::string& where) {
 }
 
 MacKey LoadKeyFile(const std::string& path) {
-  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
+  // O_NONBLOCK: a FIFO in place of the key must not block the open; it is
+  // then refused as not a regular file. A symlink is followed: its target's
+  // type and mode are what fstat checks.
+  const int fd = open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) throw InputError(path + ": cannot open the key file (" + Errno() + ")");
   struct stat st {};
   std::string text;

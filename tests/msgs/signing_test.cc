@@ -125,6 +125,12 @@ TEST_F(KeyFileTest, RefusesDirectoriesMissingFilesAndBadContent) {
   fs::create_directories(sub);
   chmod(sub.c_str(), 0700);
   EXPECT_NE(LoadProblem(sub.string()).find("not a regular file"), std::string::npos);
+  const std::string fifo = (dir_ / "fifo.key").string();
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_NE(LoadProblem(fifo).find("not a regular file"), std::string::npos);  // Never blocks.
+  const std::string link = (dir_ / "link.key").string();
+  fs::create_symlink(Write("target.key", kHexA, 0600), link);
+  EXPECT_EQ(LoadProblem(link), "");
   EXPECT_NE(LoadProblem((dir_ / "missing").string()).find("cannot open"), std::string::npos);
   EXPECT_NE(LoadProblem(Write("short.key", "abcd", 0600)).find("4 characters long, not 64"),
             std::string::npos);
