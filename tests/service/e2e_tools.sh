@@ -203,6 +203,37 @@ done
 grep -q "^monitor: [0-9]* events " "$work/monitor.out" || fail "no total line"
 ! grep -q " gaps [1-9]" "$work/monitor.out" || fail "the monitor missed events"
 # --timeout alone ends the monitor (nothing published now).
+# A tracker that restarts numbers from 0 again: with a new session (the wall
+# clock at its start, by default) it is not locked out. client0 got $poses
+# poses above; two restarts later: no rejection, and
+# accepted - 3 streams = answered + skipped.
+timeout 30 "$sweptccd" monitor --lcm-url "$url" "${key[@]}" --json --timeout 20 \
+  > "$work/restart.jsonl" &
+monitor_restart=$!
+wait_for "$work/restart.jsonl" '"type":"listening"'
+total=$poses
+for _ in 1 2; do
+  "$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
+    --offset 0 -1 0 --utime-start 1000000 --client client0 --frames 40 --speed 4 > "$work/restart.out"
+  total=$((total + $(sed -n 's/^simulate-tracker: sent \([0-9]*\),.*/\1/p' "$work/restart.out")))
+  sleep 0.01  # Two runs in one microsecond would share a session.
+done
+restarted=
+for _ in $(seq 100); do
+  if grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
+      | grep -q "\"poses_received\":$total,\"pairs_answered\":[0-9]*,\"pairs_skipped\":[0-9]*,\"rejected\":0,"; then
+    restarted=1; break
+  fi
+  sleep 0.1
+done
+kill -INT $monitor_restart; wait $monitor_restart || true
+[ -n "$restarted" ] || { grep client0 "$work/restart.jsonl" | tail -2 >&2; fail "a restarted tracker was refused"; }
+read -r answered skipped < <(grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
+  | sed 's/.*"pairs_answered":\([0-9]*\),"pairs_skipped":\([0-9]*\),.*/\1 \2/')
+[ $((answered + skipped)) = $((total - 3)) ] \
+  || fail "client0: $answered answered + $skipped skipped != $total poses - 3 streams"
+echo "restarts: client0 $total poses in 3 streams, $answered answered, $skipped skipped, 0 rejected"
+
 # The 36-byte datagram that crashed lcm-gen's decoders, on each channel the
 # monitor decodes: refused, counted, and the monitor goes on.
 timeout 20 "$sweptccd" monitor --lcm-url "$url" "${key[@]}" --timeout 3 \
