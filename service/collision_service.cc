@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "core/errors.h"
+#include "msgs/text.h"
 
 namespace sweptccd {
 
@@ -54,10 +55,11 @@ double Quantile(std::vector<double> v, double q) {
 
 }  // namespace
 
-CollisionService::Client::Client(ClientConfig c, const Environment& env)
+CollisionService::Client::Client(ClientConfig c, const Environment& env,
+                                 int64_t max_utime_jump_us)
     : config(std::move(c)),
       engine(std::make_unique<CcdEngine>(*config.skeleton, env, config.filter)),
-      session(config.client_id, config.skeleton->num_links()) {}
+      session(config.client_id, config.skeleton->num_links(), max_utime_jump_us) {}
 
 CollisionService::CollisionService(std::shared_ptr<const Environment> environment,
                                    std::vector<ClientConfig> clients, ServiceOptions options,
@@ -78,8 +80,15 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
   const std::string problem = ValidateQueryOptions(options_.query);
   if (!problem.empty()) throw InputError("collision service: " + problem);
   if (!options_.clock_utime) options_.clock_utime = SystemUtime;
+  if (options_.max_utime_jump_us < 1) {
+    throw InputError("collision service: max_utime_jump_us is " +
+                     std::to_string(options_.max_utime_jump_us) + "; use 1 or more");
+  }
   for (ClientConfig& c : clients) {
-    if (c.client_id.empty()) throw InputError("collision service: a client has an empty client_id");
+    if (!IsValidClientId(c.client_id)) {
+      throw InputError("collision service: client id '" + EscapeForDisplay(c.client_id) +
+                       "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+    }
     if (!c.skeleton || c.skeleton->num_links() < 1) {
       throw InputError("collision service: client '" + c.client_id + "' has no skeleton");
     }
@@ -88,7 +97,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
                        "' is registered twice; give every client its own id");
     }
     client_index_[c.client_id] = static_cast<int>(clients_.size());
-    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_));
+    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_, options_.max_utime_jump_us));
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
   workers_.reserve(options_.num_workers);
@@ -111,8 +120,13 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       ++ignored_after_stop_;
       return;
     }
-    auto it = client_index_.find(pose.client_id);
-    if (it == client_index_.end()) {
+    auto it = client_index_.end();
+    if (!IsValidClientId(pose.client_id)) {
+      ++rejected_unattributed_;
+      rejection = Rejection{rejection_code::kBadClientId,
+                            "client_id '" + EscapeForDisplay(pose.client_id) +
+                                "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"};
+    } else if ((it = client_index_.find(pose.client_id)) == client_index_.end()) {
       ++rejected_unattributed_;
       rejection = Rejection{rejection_code::kUnknownClient,
                             "client_id '" + pose.client_id +
@@ -127,7 +141,23 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       }
     }
   }
-  if (rejection) Reject(pose.client_id, pose.seq, *rejection);
+  if (rejection) {
+    // An id that breaks the rule is not echoed in rejection_t.client_id.
+    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection);
+  }
+}
+
+void CollisionService::OnRefused(const std::string& client_id, const Rejection& rejection) {
+  SWEPTCCD_CHECK(client_id.empty() || IsValidClientId(client_id));
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) {
+      ++ignored_after_stop_;
+      return;
+    }
+    ++rejected_unattributed_;
+  }
+  Reject(client_id, -1, rejection);
 }
 
 void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
@@ -154,6 +184,7 @@ void CollisionService::Reject(const std::string& client_id, int64_t seq,
   msg.seq = seq;
   msg.reason = rejection.reason;
   msg.message = rejection.message;
+  msg.suppressed = 0;  // Publication rate limits come with step two of the issue.
   // Logged at a limited rate: at most 10 lines a second, then a count.
   bool log = false;
   int64_t suppressed = 0;
@@ -174,8 +205,8 @@ void CollisionService::Reject(const std::string& client_id, int64_t seq,
   }
   if (suppressed > 0) spdlog::warn("{} rejection log lines suppressed", suppressed);
   if (log) {
-    spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", client_id, seq, rejection.reason,
-                 rejection.message);
+    spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", EscapeForDisplay(client_id), seq,
+                 rejection.reason, EscapeForDisplay(rejection.message, 1024));
   }
   SafePublish([&] { publisher_->PublishRejection(msg); }, "rejection");
 }
@@ -254,7 +285,7 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
     ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
     ev.contacts.clear();
     ev.links.clear();
-    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, ev.error);
+    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, EscapeForDisplay(ev.error, 1024));
   }
   ev.num_contacts = static_cast<int32_t>(ev.contacts.size());
   ev.num_links = static_cast<int32_t>(ev.links.size());
@@ -322,6 +353,7 @@ status_t CollisionService::Status() const {
   s.utime = NowUtime();
   s.backend = options_.backend_state ? options_.backend_state() : options_.backend;
   s.renderer = options_.renderer;
+  s.security = options_.security;
   std::lock_guard<std::mutex> lock(mutex_);
   s.num_clients = static_cast<int32_t>(clients_.size());
   int32_t pending = 0;

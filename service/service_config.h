@@ -2,6 +2,7 @@
 // The daemon's configuration: a YAML file (deploy/sweptccd.yaml documents
 // every key) with command-line overrides. Typed options, validated at load.
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,15 @@ struct ClientSpec {
   std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
 };
 
+/// The `security:` block (docs/SERVICE.md, "Signed messages").
+struct SecurityConfig {
+  std::string mode = "signed";  // signed, or unsigned for a lab bench.
+  std::string room_key;         // Key file: clients without their own key, and the service.
+  std::string service_key;      // Key file that signs what the service publishes; default room_key.
+  std::map<std::string, std::string> client_keys;  // Client id -> key file.
+  double max_utime_jump_s = 10;  // utime_jump horizon, seconds, > 0.
+};
+
 struct ServiceConfig {
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   LcmChannels channels;
@@ -30,6 +40,7 @@ struct ServiceConfig {
   double status_period_s = 1.0;
   std::string log_level = "info";
   std::vector<ClientSpec> clients;
+  SecurityConfig security;
 };
 
 /// Reads a YAML configuration. Relative paths are taken relative to the
@@ -43,7 +54,13 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
 
 /// Checks a configuration after overrides: environment and clients present,
 /// unique client ids, workers >= 1, status period > 0, query options valid,
-/// backend cpu, gpu or auto. Throws InputError naming the problem.
+/// backend cpu, gpu or auto, client ids following the id rule, the security
+/// block (mode, a key for every client and for the service in signed mode).
+/// Throws InputError naming the problem.
 void ValidateServiceConfig(const ServiceConfig& config);
+
+/// Loads the key files named in `security` (LoadKeyFile's checks: mode 600,
+/// 64 hex digits). Unsigned mode loads nothing. Throws InputError.
+TransportSecurity LoadTransportSecurity(const SecurityConfig& security);
 
 }  // namespace sweptccd

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
@@ -72,6 +73,13 @@ int main(int argc, char** argv) {
   app.add_option("--ignore", ignore_flags,
                  "ID=LINK:OBJECT: a client ignores LINK against OBJECT (names, indices or *); "
                  "repeat");
+  std::string security_mode, room_key, service_key;
+  std::vector<std::string> client_key_flags;
+  app.add_option("--security-mode", security_mode,
+                 "signed (default) or unsigned (lab bench: nothing is authenticated)");
+  app.add_option("--room-key", room_key, "Key file (mode 600, 64 hex digits) of the room");
+  app.add_option("--service-key", service_key, "Key file that signs what the service publishes");
+  app.add_option("--client-key", client_key_flags, "ID=FILE: a client's own key file; repeat");
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -128,7 +136,15 @@ int main(int argc, char** argv) {
     if (require_hardware) config.require_hardware = true;
     if (status_period >= 0) config.status_period_s = status_period;
     if (!log_level.empty()) config.log_level = log_level;
+    if (!security_mode.empty()) config.security.mode = security_mode;
+    if (!room_key.empty()) config.security.room_key = room_key;
+    if (!service_key.empty()) config.security.service_key = service_key;
+    for (const std::string& flag : client_key_flags) {
+      const auto [id, path] = split(flag, "--client-key");
+      config.security.client_keys[id] = path;
+    }
     ValidateServiceConfig(config);
+    TransportSecurity security = LoadTransportSecurity(config.security);
     const auto level = spdlog::level::from_str(config.log_level);
     if (level == spdlog::level::off && config.log_level != "off") {
       throw InputError("configuration: unknown log_level '" + config.log_level + "'");
@@ -153,6 +169,11 @@ int main(int argc, char** argv) {
       for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, *env);
       clients.push_back(std::move(cc));
     }
+    // No pose may claim more links than the largest configured skeleton.
+    security.limits.max_links = 1;
+    for (const ClientConfig& cc : clients) {
+      security.limits.max_links = std::max(security.limits.max_links, cc.skeleton->num_links());
+    }
     // One headless context for the daemon's life; the environment is uploaded
     // once and every client's engine tests against it.
     gpu::BackendOptions backend_options;
@@ -168,7 +189,11 @@ int main(int argc, char** argv) {
 
     lcm::LCM lcm(config.lcm_url);
     if (!lcm.good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
-    LcmTransport transport(&lcm, config.channels);
+    if (!security.signed_mode) {
+      spdlog::warn("UNSIGNED MODE: poses are not authenticated and what this service publishes is "
+                   "not signed; anyone on the network can forge or replay them. Lab bench only.");
+    }
+    LcmTransport transport(&lcm, config.channels, std::move(security));
     ServiceOptions options;
     options.num_workers = config.workers;
     options.query = config.query;
@@ -176,6 +201,8 @@ int main(int argc, char** argv) {
     options.backend_state = [&query_backend] { return query_backend.State(); };
     options.renderer = query_backend.renderer();
     options.prepare_engine = [&query_backend](CcdEngine* engine) { query_backend.Attach(engine); };
+    options.security = config.security.mode;
+    options.max_utime_jump_us = static_cast<int64_t>(config.security.max_utime_jump_s * 1e6);
     CollisionService service(env, std::move(clients), options, &transport);
     transport.Subscribe(&service);
 

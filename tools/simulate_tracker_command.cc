@@ -17,6 +17,7 @@
 #include "core/errors.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "msgs/signing.h"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "tools/stop_signal.h"
 
@@ -182,6 +183,11 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
   app->add_option("--seq-start", o->seq_start, "seq of the first sample (default 0)");
   app->add_flag("--rebase-utime", o->rebase_utime,
                 "utimes start at the wall clock now (spacing kept) instead of the file's");
+  app->add_option("--key", o->key_path,
+                  "Key file (mode 600) that signs every pose; without it poses go unsigned");
+  app->add_option("--session", o->session,
+                  "Stream session, >= 0 (default: the wall clock in microseconds at start, so a "
+                  "restarted tracker starts a new stream)");
 }
 
 int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
@@ -229,6 +235,19 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     return 2;
   }
 
+  std::optional<MacKey> key;
+  try {
+    if (o.session < -1) throw InputError("simulate-tracker: --session must be >= 0");
+    if (!o.key_path.empty()) key = LoadKeyFile(o.key_path);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+  if (!key) {
+    std::fprintf(stderr, "simulate-tracker: no --key: poses are sent UNSIGNED (a daemon in signed "
+                         "mode refuses them)\n");
+  }
+  const int64_t session = o.session >= 0 ? o.session : WallClockUtime();
   lcm::LCM lcm(o.lcm_url);
   if (!lcm.good()) {
     std::fprintf(stderr, "error: simulate-tracker: --lcm-url '%s': LCM cannot open it\n",
@@ -252,7 +271,10 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
   int64_t sent = 0, dropped = 0, late = 0;
   bool publish_failed = false;
   auto publish = [&](const tracker_pose_t& m) {
-    if (lcm.publish(o.channel, &m) != 0) publish_failed = true;
+    const std::vector<uint8_t> bytes = EncodeSigned(m, key ? &*key : nullptr);
+    if (lcm.publish(o.channel, bytes.data(), static_cast<unsigned int>(bytes.size())) != 0) {
+      publish_failed = true;
+    }
     ++sent;
   };
 
@@ -291,6 +313,7 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
         tracker_pose_t m;
         m.utime = utime + rebase_us;
         m.client_id = c.id;
+        m.session = session;
         m.seq = o.seq_start + loop * n + k;
         m.num_links = static_cast<int32_t>(sample.links.size());
         for (const LinkPose& l : sample.links) {

@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "msgs/channels.h"
 #include "tools/import_bvh_command.h"
 
 namespace CLI {
@@ -34,7 +35,9 @@ namespace sweptccd {
 
 struct SimulateTrackerCommandOptions {
   std::string lcm_url;  // Empty: LCM's default (LCM_DEFAULT_URL or udpm).
-  std::string channel = "SWEPTCCD_POSE";
+  std::string channel = kPoseChannel;
+  std::string key_path;  // Signs every pose; empty: unsigned.
+  int64_t session = -1;  // tracker_pose_t.session; -1: the wall clock (us) at start.
   std::string poses_path;               // A SPEC pose stream (JSON Lines), or
   ImportBvhCommandOptions bvh;          // bvh.bvh_path: a BVH clip (import-bvh's options).
   std::string skeleton_path;            // Optional: checks the link count.

@@ -7,6 +7,8 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
+#include "core/errors.h"
+#include "msgs/signing.h"
 #include "tools/bench_command.h"
 #include "tools/import_bvh_command.h"
 #include "tools/monitor_command.h"
@@ -77,6 +79,11 @@ int main(int argc, char** argv) {
       app.add_subcommand("monitor", "Print the contact events, status and rejections of the daemon");
   sweptccd::AddMonitorOptions(monitor, &mon);
 
+  std::string keygen_out;
+  CLI::App* keygen = app.add_subcommand(
+      "keygen", "Write a new random HMAC key (64 hex digits, mode 600) for signed messages");
+  keygen->add_option("--out", keygen_out, "Key file to create (never overwritten)")->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -98,5 +105,14 @@ int main(int argc, char** argv) {
   if (render->parsed()) return sweptccd::RunRenderCommand(rn);
   if (simulate->parsed()) return sweptccd::RunSimulateTrackerCommand(st);
   if (monitor->parsed()) return sweptccd::RunMonitorCommand(mon);
+  if (keygen->parsed()) {
+    try {
+      sweptccd::WriteNewKeyFile(keygen_out);
+      return 0;
+    } catch (const sweptccd::InputError& e) {
+      std::fprintf(stderr, "error: keygen: %s\n", e.what());
+      return 2;
+    }
+  }
   return 1;
 }

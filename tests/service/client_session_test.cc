@@ -24,7 +24,7 @@ class ClientSessionTest : public ::testing::Test {
   // Invariant of ClientSession: no pair is lost silently.
   void ExpectAccounted() {
     if (session_.poses_accepted() == 0) return;
-    EXPECT_EQ(session_.poses_accepted() - 1,
+    EXPECT_EQ(session_.poses_accepted() - session_.streams_started(),
               session_.pairs_taken() + session_.pairs_skipped() + (session_.has_pending() ? 1 : 0));
   }
 
@@ -126,7 +126,8 @@ TEST_F(ClientSessionTest, LatestWinsReplacesThePendingPairAndCountsSkips) {
   EXPECT_EQ(third.seq0, 4);
   EXPECT_EQ(third.seq1, 5);
   session_.FinishPair();
-  EXPECT_EQ(session_.poses_accepted() - 1, session_.pairs_finished() + session_.pairs_skipped());
+  EXPECT_EQ(session_.poses_accepted() - session_.streams_started(),
+            session_.pairs_finished() + session_.pairs_skipped());
 }
 
 TEST_F(ClientSessionTest, LatestWinsBeforeAnyPairWasTaken) {
@@ -238,6 +239,85 @@ TEST_F(ClientSessionTest, RejectionMessagesNameTheValue) {
   r = ValidateTrackerPose(m, 2, &pose);
   ASSERT_TRUE(r);
   EXPECT_NE(r->message.find("link 1"), std::string::npos) << r->message;
+}
+
+// Sessions (docs/SERVICE.md): a restarted tracker numbers from 0 again under
+// a greater session and is not locked out.
+tracker_pose_t InSession(int64_t session, int64_t seq, int64_t utime) {
+  tracker_pose_t m = MakePose("a", seq, utime, test::Height(seq));
+  m.session = session;
+  return m;
+}
+
+TEST_F(ClientSessionTest, GreaterSessionStartsANewStreamWithoutAPairAcross) {
+  ASSERT_FALSE(Offer(InSession(5, 100, 9'000'000)));
+  ASSERT_FALSE(Offer(InSession(5, 101, 9'010'000)));
+  ASSERT_TRUE(session_.ready());
+  PosePair old = session_.TakePair();
+  EXPECT_EQ(old.session, 5);
+  session_.FinishPair();
+  // Restart: seq and utime from 0 again.
+  ASSERT_FALSE(Offer(InSession(6, 0, 1'000)));
+  EXPECT_FALSE(session_.ready());  // No pair (101 of session 5, 0 of session 6).
+  EXPECT_EQ(session_.session(), 6);
+  ASSERT_FALSE(Offer(InSession(6, 1, 2'000)));
+  ASSERT_TRUE(session_.ready());
+  const PosePair p = session_.TakePair();
+  EXPECT_EQ(p.session, 6);
+  EXPECT_EQ(p.seq0, 0);
+  EXPECT_EQ(p.seq1, 1);
+  session_.FinishPair();
+  EXPECT_EQ(session_.streams_started(), 2);
+  EXPECT_EQ(session_.seq_gaps(), 0);  // Not 0 - 101 across sessions.
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, SmallerSessionIsRefusedAsStale) {
+  ASSERT_FALSE(Offer(InSession(7, 0, 1'000)));
+  const auto r = Offer(InSession(6, 1, 2'000));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kStaleSession);
+  EXPECT_NE(r->message.find("session 6 is older than the current 7"), std::string::npos)
+      << r->message;
+  EXPECT_EQ(session_.rejected(), 1);
+  ASSERT_FALSE(Offer(InSession(7, 1, 2'000)));  // The current stream goes on.
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, UtimeJumpBeyondTheHorizonIsRefused) {
+  ASSERT_FALSE(Offer(InSession(1, 0, 1'000)));
+  // INT64_MAX would lock the stream out for good; it is refused instead.
+  auto r = Offer(InSession(1, 1, INT64_MAX));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kUtimeJump);
+  r = Offer(InSession(1, 2, 1'000 + kDefaultMaxUtimeJumpUs + 1));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kUtimeJump);
+  EXPECT_FALSE(Offer(InSession(1, 3, 1'000 + kDefaultMaxUtimeJumpUs)));  // At the horizon.
+  ExpectAccounted();
+}
+
+TEST(ClientSessionHorizon, IsConfigurable) {
+  ClientSession session("a", 2, 500);
+  const auto now = SteadyClock::now();
+  ASSERT_FALSE(session.OnPose(MakePose("a", 0, 1'000, 1.0), 0, now));
+  EXPECT_TRUE(session.OnPose(MakePose("a", 1, 1'501, 1.0), 0, now));
+  EXPECT_FALSE(session.OnPose(MakePose("a", 2, 1'500, 1.0), 0, now));
+}
+
+TEST_F(ClientSessionTest, PendingPairOfAnOldSessionIsReplacedNotExtended) {
+  ASSERT_FALSE(Offer(InSession(1, 0, 1'000)));
+  ASSERT_FALSE(Offer(InSession(1, 1, 2'000)));  // (0, 1) pending, not taken.
+  ASSERT_FALSE(Offer(InSession(2, 0, 500)));     // New stream: (0, 1) still pending.
+  ASSERT_TRUE(session_.has_pending());
+  ASSERT_FALSE(Offer(InSession(2, 1, 600)));     // (0, 1) of session 1 replaced by (0, 1) of 2.
+  ASSERT_TRUE(session_.ready());
+  const PosePair p = session_.TakePair();
+  EXPECT_EQ(p.session, 2);
+  EXPECT_EQ(p.pose0.utime, 500);
+  EXPECT_EQ(p.pose1.utime, 600);
+  EXPECT_EQ(session_.pairs_skipped(), 1);
+  ExpectAccounted();
 }
 
 }  // namespace

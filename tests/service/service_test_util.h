@@ -56,10 +56,12 @@ inline tracker_pose_t MakePose(const std::string& client, int64_t seq, int64_t u
   tracker_pose_t m;
   m.utime = utime;
   m.client_id = client;
+  m.session = 1;
   m.seq = seq;
   m.num_links = 2;
   m.position = {{0.1 * seq, 0, z}, {0.1 * seq, 0, z + 0.3}};
   m.orientation = {{1, 0, 0, 0}, {std::cos(angle / 2), 0, 0, std::sin(angle / 2)}};
+  std::fill(std::begin(m.mac), std::end(m.mac), uint8_t{0});
   return m;
 }
 
