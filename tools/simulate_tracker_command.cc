@@ -64,12 +64,17 @@ class ClipSource : public SampleSource {
 class PoseFileSource : public SampleSource {
  public:
   PoseFileSource(std::string path, int num_links, int64_t start, int64_t frames)
-      : path_(std::move(path)), num_links_(num_links), start_(start), frames_(frames) {}
+      : path_(std::move(path)),
+        num_links_(num_links),
+        max_line_bytes_(DefaultMaxPoseLineBytes(num_links)),
+        start_(start),
+        frames_(frames) {}
 
   void Rewind() override {
     in_ = std::make_unique<std::ifstream>(path_, std::ios::binary);
     if (!*in_) throw InputError(path_ + ": cannot open the pose stream");
-    reader_ = std::make_unique<PoseLineReader>(*in_, num_links_);
+    // The same cap every pass (without --skeleton: the cap for kDefaultMaxLinks).
+    reader_ = std::make_unique<PoseLineReader>(*in_, num_links_, max_line_bytes_);
     returned_ = 0;
     ++pass_;
     for (int64_t k = 0; k < start_ && NextPose(); ++k) {
@@ -106,6 +111,7 @@ class PoseFileSource : public SampleSource {
 
   std::string path_;
   int num_links_;
+  uint64_t max_line_bytes_;
   int64_t start_, frames_;
   std::unique_ptr<std::ifstream> in_;
   std::unique_ptr<PoseLineReader> reader_;
