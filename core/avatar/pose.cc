@@ -73,8 +73,12 @@ std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_link
     return std::nullopt;
   }
   auto jl = doc.find("links");
-  if (jl == doc.end() || !jl->is_array() || (num_links < 0 && jl->empty())) {
+  if (jl == doc.end() || !jl->is_array()) {
     *error = "missing 'links' array";
+    return std::nullopt;
+  }
+  if (num_links < 0 && jl->empty()) {
+    *error = "'links' is empty";
     return std::nullopt;
   }
   if (num_links >= 0 && static_cast<int64_t>(jl->size()) != num_links) {

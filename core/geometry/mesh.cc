@@ -67,7 +67,8 @@ std::string Gunzip(std::string& raw, const std::string& path, uint64_t max_bytes
 }  // namespace
 
 std::string ReadFileMaybeGzip(const std::string& path, uint64_t max_bytes) {
-  // Compressed data never exceeds the cap on what it inflates to (uInt avail_in below).
+  // The file itself is held under the same cap (and below 4 GiB: zlib's
+  // avail_in is 32 bits).
   std::string raw = ReadFileBounded(path, std::min<uint64_t>(max_bytes, 0xffffffffu), "file",
                                     kRaiseMeshCap);
   if (raw.size() < 2 || static_cast<unsigned char>(raw[0]) != 0x1f ||
