@@ -129,7 +129,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
-             "status_period_s", "log_level", "clients", "security"},
+             "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
+             "max_links"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
@@ -167,6 +168,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   }
   if (root["log_level"]) c.log_level = Get<std::string>(root["log_level"], at + "log_level");
   if (root["security"]) c.security = ParseSecurity(root["security"], at, base_dir);
+  if (root["max_mesh_bytes"]) {
+    c.max_mesh_bytes = Get<uint64_t>(root["max_mesh_bytes"], at + "max_mesh_bytes");
+  }
+  if (root["max_links"]) c.max_links = Get<int>(root["max_links"], at + "max_links");
   if (const YAML::Node clients = root["clients"]) {
     if (!clients.IsSequence()) throw InputError(at + "clients: expected a list");
     for (size_t i = 0; i < clients.size(); ++i) {
@@ -217,6 +222,10 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
+  if (c.max_mesh_bytes == 0) throw InputError("configuration: max_mesh_bytes must be >= 1 byte");
+  if (c.max_links < 1) {
+    throw InputError("configuration: max_links must be >= 1, got " + std::to_string(c.max_links));
+  }
   if (c.backend != "cpu" && c.backend != "gpu" && c.backend != "auto") {
     throw InputError("configuration: backend must be cpu, gpu or auto, got '" + c.backend + "'");
   }

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
 
@@ -39,6 +41,8 @@ struct ServiceConfig {
   int workers = 2;
   double status_period_s = 1.0;
   std::string log_level = "info";
+  uint64_t max_mesh_bytes = kDefaultMaxMeshBytes;  // Cap on each mesh file, before and after gunzip.
+  int max_links = kDefaultMaxLinks;                // Cap on each client's skeleton.
   std::vector<ClientSpec> clients;
   SecurityConfig security;
 };

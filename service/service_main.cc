@@ -152,7 +152,8 @@ int main(int argc, char** argv) {
     spdlog::set_level(level);
 
     const auto t0 = std::chrono::steady_clock::now();
-    auto env = std::make_shared<Environment>(Environment::LoadFiles(config.environment));
+    auto env = std::make_shared<Environment>(Environment::LoadFiles(
+        config.environment, MeshLoadOptions{config.max_mesh_bytes, kDefaultMaxMeshLineBytes}));
     spdlog::info("environment: {} objects, {} triangles, loaded in {:.3f} s", env->num_objects(),
                  env->num_triangles(),
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
@@ -160,7 +161,7 @@ int main(int argc, char** argv) {
     for (const ClientSpec& spec : config.clients) {
       ClientConfig cc;
       cc.client_id = spec.id;
-      cc.skeleton = std::make_shared<const Skeleton>(LoadSkeletonFile(spec.skeleton_path));
+      cc.skeleton = std::make_shared<const Skeleton>(LoadSkeletonFile(spec.skeleton_path, config.max_links));
       cc.motion = spec.motion;
       cc.filter = CollisionFilter(cc.skeleton->num_links(), env->num_objects());
       if (!spec.filter_path.empty()) {

@@ -38,6 +38,9 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
       ->check(CLI::IsMember({"gpu", "hardware", "off"}));
   app->add_option("--gpu-device", o->gpu_device, "EGL device index for the GPU backend");
   app->add_option("--markdown", o->markdown_path, "Also write the tables as Markdown");
+  app->add_option("--max-mesh-bytes", o->mesh.max_bytes,
+                  "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+      ->check(CLI::PositiveNumber);
 }
 
 namespace {
@@ -96,8 +99,9 @@ std::string DataFile(const std::string& path) {
   return std::filesystem::exists(path, ec) ? path : path + ".gz";
 }
 
-TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m) {
-  TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file));
+TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
+                        const MeshLoadOptions& options) {
+  TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file), options);
   for (Eigen::Vector3f& v : mesh.vertices) {
     v = (v.cast<double>() * m.scale + m.offset).cast<float>();
   }
@@ -285,7 +289,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     std::vector<Row> rows;
     for (const SceneSpec& scene : scenes) {
       std::vector<TriangleMesh> meshes;
-      for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m));
+      for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m, options.mesh));
       const long rss0 = ResidentKiB();
       const auto t0 = Clock::now();
       Environment env;

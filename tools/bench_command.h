@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "core/geometry/mesh.h"
+
 namespace CLI {
 class App;
 }
@@ -28,6 +30,7 @@ struct BenchCommandOptions {
   std::string gpu = "gpu";
   int gpu_device = -1;
   std::string markdown_path;  // Also write the table as Markdown here.
+  MeshLoadOptions mesh;       // --max-mesh-bytes.
 };
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* options);

@@ -31,12 +31,12 @@ int RunQueryCommand(const QueryCommandOptions& options) {
                                      {"--filter", options.filter_path}};
     for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
     RefuseClashingPaths(inputs, {{"--output", options.output_path}});
-    const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path);
+    const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
     std::ifstream poses(options.poses_path, std::ios::binary);
     if (!poses) throw InputError(options.poses_path + ": cannot open the pose stream file");
 
     const auto load_start = std::chrono::steady_clock::now();
-    const Environment env = Environment::LoadFiles(options.env_paths);
+    const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);
     spdlog::info("environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s",
                  env.num_objects(), env.num_triangles(), env.memory_bytes() / 1048576.0,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)

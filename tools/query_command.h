@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
 #include "core/query/ccd_query.h"
 
 namespace sweptccd {
@@ -19,6 +21,8 @@ struct QueryCommandOptions {
   std::string filter_path;
   std::vector<std::string> ignore_rules;  // LINK:OBJECT
   QueryOptions query;
+  MeshLoadOptions mesh;              // --max-mesh-bytes.
+  int max_links = kDefaultMaxLinks;  // --max-links.
 };
 
 /// Runs the command. Returns the exit status: 0 when the inputs could be

@@ -646,14 +646,19 @@ void AddRenderOptions(CLI::App* app, RenderCommandOptions* o) {
                   "Timeline: separations clamped at this many metres (default 0.5)");
   app->add_option("--swept-steps", o->swept_steps,
                   "In-between times drawn for the swept volumes (default 12)");
+  app->add_option("--max-mesh-bytes", o->mesh.max_bytes,
+                  "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+      ->check(CLI::PositiveNumber);
+  app->add_option("--max-links", o->max_links, "Largest skeleton, links (default 256)")
+      ->check(CLI::PositiveNumber);
 }
 
 int RunRenderCommand(const RenderCommandOptions& o) {
   try {
     Validate(o);
-    const Skeleton skeleton = LoadSkeletonFile(o.skeleton_path);
+    const Skeleton skeleton = LoadSkeletonFile(o.skeleton_path, o.max_links);
     const std::vector<PairOutcome> pairs = ReadPairs(o.poses_path, skeleton.num_links());
-    const Environment env = Environment::LoadFiles(o.env_paths);
+    const Environment env = Environment::LoadFiles(o.env_paths, o.mesh);
     const MotionModel model = *ParseMotionModel(o.motion);
     QueryOptions query = o.query;
     query.motion = model;

@@ -19,6 +19,13 @@
 // its seq and utime are older than the last one the daemon accepted: the
 // daemon rejects it as non_increasing_seq). The random choices come from one
 // generator seeded with `seed`: the same flags give the same messages.
+//
+// A pose file is streamed: each sample is read (core PoseLineReader: query's
+// blank lines, utime parsing and line cap) just before it is due, so memory
+// does not grow with the file and a FIFO plays as it is written; the first
+// pass fixes `samples` and loop_span, later passes re-open the file. A line
+// that is no pose is skipped with a warning and counted (SPEC 2: an invalid
+// pose is not fatal); poses are sent as written, for the daemon to validate.
 
 #include <cstdint>
 #include <string>

@@ -54,6 +54,11 @@ int main(int argc, char** argv) {
                     "repeat");
   query->add_option("--max-intervals", q.query.max_intervals,
                     "Work limit per pair (interval tests) before answering undecided");
+  query->add_option("--max-mesh-bytes", q.mesh.max_bytes,
+                    "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+      ->check(CLI::PositiveNumber);
+  query->add_option("--max-links", q.max_links, "Largest skeleton, links (default 256)")
+      ->check(CLI::PositiveNumber);
 
   sweptccd::BenchCommandOptions b;
   CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");

@@ -1,8 +1,11 @@
 #include "core/avatar/pose.h"
 
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
+
+#include "core/avatar/skeleton.h"
 
 namespace sweptccd {
 
@@ -50,7 +53,8 @@ bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
 
 }  // namespace
 
-std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error) {
+std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
+                                           std::string* error) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(line);
@@ -73,13 +77,17 @@ std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::s
     *error = "missing 'links' array";
     return std::nullopt;
   }
-  if (static_cast<int>(jl->size()) != num_links) {
+  if (num_links < 0 && jl->empty()) {
+    *error = "'links' is empty";
+    return std::nullopt;
+  }
+  if (num_links >= 0 && static_cast<int64_t>(jl->size()) != num_links) {
     *error = "'links' has " + std::to_string(jl->size()) + " entries, the skeleton has " +
              std::to_string(num_links);
     return std::nullopt;
   }
-  pose.links.resize(num_links);
-  for (int i = 0; i < num_links; ++i) {
+  pose.links.resize(jl->size());
+  for (size_t i = 0; i < jl->size(); ++i) {
     const nlohmann::json& e = (*jl)[i];
     if (!e.is_array() || e.size() != 7) {
       *error = "link " + std::to_string(i) + ": expected [px, py, pz, qw, qx, qy, qz]";
@@ -96,7 +104,13 @@ std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::s
     pose.links[i].p = Eigen::Vector3d(v[0], v[1], v[2]);
     pose.links[i].q = Eigen::Quaterniond(v[3], v[4], v[5], v[6]);
   }
-  std::string problem = ValidateAndNormalizePose(&pose, num_links);
+  return pose;
+}
+
+std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error) {
+  std::optional<Pose> pose = ParsePoseLineAsWritten(line, num_links, error);
+  if (!pose) return std::nullopt;
+  std::string problem = ValidateAndNormalizePose(&*pose, num_links);
   if (!problem.empty()) {
     *error = problem;
     return std::nullopt;
@@ -115,14 +129,79 @@ std::string PoseToJsonLine(const Pose& pose) {
   return doc.dump();
 }
 
-std::optional<PairOutcome> PoseStreamReader::Next() {
-  std::string line;
-  while (std::getline(in_, line)) {
+uint64_t DefaultMaxPoseLineBytes(int num_links) {
+  const uint64_t links = static_cast<uint64_t>(num_links < 0 ? kDefaultMaxLinks : num_links);
+  return 4096 + links * 7 * 64;
+}
+
+namespace {
+
+// Reads one line (to '\n' or the end) through the stream buffer, keeping at
+// most max_bytes of it in *line. Returns false at the end of the stream with
+// nothing read. *too_long: the line had more bytes; *blank: only whitespace.
+bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
+                     bool* blank) {
+  line->clear();
+  *too_long = false;
+  *blank = true;
+  std::streambuf* buf = in.rdbuf();
+  bool any = false;
+  for (;;) {
+    const int c = buf->sbumpc();
+    if (c == std::char_traits<char>::eof()) {
+      in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
+      return any;
+    }
+    any = true;
+    if (c == '\n') return true;
+    if (*blank && !std::isspace(c)) *blank = false;
+    if (line->size() < max_bytes) {
+      line->push_back(static_cast<char>(c));
+    } else {
+      *too_long = true;
+    }
+  }
+}
+
+}  // namespace
+
+PoseLineReader::PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes)
+    : in_(in),
+      num_links_(num_links),
+      max_line_bytes_(max_line_bytes > 0 ? max_line_bytes : DefaultMaxPoseLineBytes(num_links)) {}
+
+std::optional<PoseLine> PoseLineReader::Next() {
+  bool too_long = false, blank = true;
+  while (in_.good() && ReadBoundedLine(in_, max_line_bytes_, &line_, &too_long, &blank)) {
     ++line_number_;
-    if (line.find_first_not_of(" \t\r\n\f\v") == std::string::npos) continue;  // Blank.
-    std::string error;
-    std::optional<Pose> pose = ParsePoseLine(line, num_links_, &error);
-    if (!pose) error = "line " + std::to_string(line_number_) + ": " + error;
+    if (blank) continue;
+    PoseLine out;
+    out.line_number = line_number_;
+    if (too_long) {
+      out.error = "longer than the cap of " + std::to_string(max_line_bytes_) +
+                  " bytes for a pose of " + std::to_string(num_links_) +
+                  " links (skipped to its end)";
+    } else {
+      out.pose = ParsePoseLineAsWritten(line_, num_links_, &out.error);
+      if (out.pose && num_links_ < 0) num_links_ = static_cast<int>(out.pose->links.size());
+    }
+    if (!out.pose) out.error = "line " + std::to_string(line_number_) + ": " + out.error;
+    return out;
+  }
+  return std::nullopt;
+}
+
+std::optional<PairOutcome> PoseStreamReader::Next() {
+  while (std::optional<PoseLine> line = lines_.Next()) {
+    std::string error = line->error;
+    std::optional<Pose> pose = std::move(line->pose);
+    if (pose) {
+      const std::string problem = ValidateAndNormalizePose(&*pose, num_links_);
+      if (!problem.empty()) {
+        error = "line " + std::to_string(line->line_number) + ": " + problem;
+        pose.reset();
+      }
+    }
     std::optional<PairOutcome> outcome = pairer_.Feed(std::move(pose), error);
     if (outcome) return outcome;
     first_line_error_ = error;  // Only the first counted line yields no record.

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/scene/environment.h"
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/avatar/skeleton.h"
 
@@ -104,11 +105,9 @@ CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::st
 
 CollisionFilter CollisionFilter::FromFile(const std::string& path, const Skeleton& skeleton,
                                           const Environment& env) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the filter file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return FromJson(buffer.str(), path, skeleton, env);
+  const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "filter file",
+                                           "a filter file is at most a few MiB of JSON");
+  return FromJson(text, path, skeleton, env);
 }
 
 void CollisionFilter::AddRule(const std::string& rule, const Skeleton& skeleton,

@@ -36,7 +36,12 @@ refused() {
 refused missing.jsonl "$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/missing.jsonl"
 refused missing.bvh "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$work/missing.bvh"
 printf '{"utime": 1, "links": [[0, 0, 0, 1, 0, 0, 0]]}\n{"utime": 2, "links": [[0, 0\n' > "$work/bad.jsonl"
-refused "bad.jsonl: line 2" "$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/bad.jsonl"
+# A line that is no pose is skipped with a counted warning (SPEC 2: an
+# invalid pose, not a fatal error), as `query` reads the same file.
+"$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/bad.jsonl" --client badfile \
+  > "$work/bad.out" 2> "$work/bad.err" < /dev/null || fail "simulate-tracker refused bad.jsonl"
+grep -qF "bad.jsonl: line 2" "$work/bad.err" || fail "no warning naming bad.jsonl: line 2"
+grep -q "skipped 1 malformed line" "$work/bad.out" || fail "the skipped line is not counted"
 refused "--drop" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --drop 1.5
 refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed -2
 refused "--clients" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --clients many

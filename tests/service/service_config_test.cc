@@ -159,5 +159,23 @@ TEST(ServiceConfigTest, SecurityBlockParses) {
   EXPECT_THROW(LoadTransportSecurity(c.security), InputError);
 }
 
+// The input limits: defaults when absent, read when given, refused when 0.
+TEST(ServiceConfigTest, MaxMeshBytesAndMaxLinks) {
+  const std::string base = "environment: [room.ply]\nclients: [{id: a, skeleton: a.json}]\n";
+  ServiceConfig c = ParseServiceConfig(base, "cfg.yaml", "/base");
+  EXPECT_EQ(c.max_mesh_bytes, kDefaultMaxMeshBytes);
+  EXPECT_EQ(c.max_links, kDefaultMaxLinks);
+  c = ParseServiceConfig(base + "max_mesh_bytes: 5000000000\nmax_links: 1000\n", "cfg.yaml",
+                         "/base");
+  EXPECT_EQ(c.max_mesh_bytes, 5000000000u);
+  EXPECT_EQ(c.max_links, 1000);
+  EXPECT_NE(RefusalOf(base + "max_mesh_bytes: 0\n").find("max_mesh_bytes must be >= 1"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "max_links: 0\n").find("max_links must be >= 1, got 0"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "max_links: many\n").find("cfg.yaml: max_links: expected a number"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -744,6 +744,33 @@ TEST_F(QueryCommandTest, PoseAndEnvironmentRefusals) {
                 {Path("no_dir/results.jsonl")}, "output in a missing folder");
 }
 
+// The input limits through the command line: --max-mesh-bytes and
+// --max-links refuse with the file, the value and the flag; raised, the same
+// inputs run; a pose line over the derived cap is an invalid record.
+TEST_F(QueryCommandTest, InputLimitsAndTheirFlags) {
+  const std::string poses = Write("poses.jsonl", TwoLinkPose(1, {0, 3, 0}) + "\n" +
+                                                     TwoLinkPose(2, {0, 3, 0}) + "\n");
+  ExpectRefusal(QueryArgs(poses, {"--max-mesh-bytes", "10"}),
+                {floor_, "more than the cap of 10 bytes", "--max-mesh-bytes"}, "mesh cap");
+  EXPECT_EQ(RunRecords(QueryArgs(poses, {"--max-mesh-bytes", "100000"})).size(), 1u);
+  ExpectRefusal(QueryArgs(poses, {"--max-links", "1"}),
+                {skeleton_, "2 links, above the limit of 1", "--max-links"}, "link limit");
+  EXPECT_EQ(RunRecords(QueryArgs(poses, {"--max-links", "2"})).size(), 1u);
+  ExpectRefusal(QueryArgs(poses, {"--max-links", "0"}), {"--max-links"}, "link limit 0");
+  // 4096 + 2 x 448 bytes is the cap for two links.
+  const std::string long_line = TwoLinkPose(2, {0, 3, 0}) + std::string(5000, ' ');
+  const std::string long_poses = Write("long.jsonl", TwoLinkPose(1, {0, 3, 0}) + "\n" +
+                                                         long_line + "\n" +
+                                                         TwoLinkPose(3, {0, 3, 0}) + "\n");
+  const std::vector<json> records = RunRecords(QueryArgs(long_poses));
+  ASSERT_EQ(records.size(), 2u);
+  EXPECT_EQ(records[0]["result"], "invalid");
+  EXPECT_NE(records[0]["error"].get<std::string>().find("line 2: longer than the cap of 4992 bytes"),
+            std::string::npos)
+      << records[0];
+  EXPECT_NE(records[1]["result"], "invalid") << records[1];
+}
+
 // A PLY whose header never ends. (Seen: assimp 5.2.5 loops forever, so the
 // command never exits.)
 TEST_F(QueryCommandTest, PlyHeaderWithoutEndHeaderIsRefused) {

@@ -452,6 +452,108 @@ TEST(PoseStreamReaderTest, SkipsBlankLinesAndPairsTheRest) {
   EXPECT_GT(records, 3000);
 }
 
+// A line longer than the cap is an invalid pose (SPEC 2), read to its newline
+// without being kept: the next lines are read as usual, with their numbers.
+TEST(PoseStreamReaderTest, OverlongLineIsAnInvalidPoseAndReadingGoesOn) {
+  const std::string good0 = Line("1000", {kIdentity});
+  const std::string good2 = Line("3000", {kIdentity});
+  const std::string huge = Line("2000", {kIdentity}) + std::string(5000, ' ');
+  const std::string text = good0 + "\n" + huge + "\n\n" + good2 + "\n";
+  std::istringstream in(text);
+  PoseStreamReader reader(in, 1, /*max_line_bytes=*/200);
+  std::optional<PairOutcome> first = reader.Next();
+  ASSERT_TRUE(first.has_value());
+  EXPECT_FALSE(first->valid);
+  EXPECT_EQ(first->error,
+            "invalid pose: line 2: longer than the cap of 200 bytes for a pose of 1 links "
+            "(skipped to its end)");
+  std::optional<PairOutcome> second = reader.Next();
+  ASSERT_TRUE(second.has_value());
+  EXPECT_TRUE(second->valid) << second->error;
+  EXPECT_EQ(second->pair, 1);
+  EXPECT_EQ(second->pose0.utime, 1000);
+  EXPECT_EQ(second->pose1.utime, 3000);
+  EXPECT_FALSE(reader.Next().has_value());
+  // An overlong line of whitespace only is still blank.
+  std::istringstream blank(good0 + "\n" + std::string(1000, ' ') + "\n" + good2 + "\n");
+  PoseStreamReader blank_reader(blank, 1, 200);
+  std::optional<PairOutcome> only = blank_reader.Next();
+  ASSERT_TRUE(only.has_value());
+  EXPECT_TRUE(only->valid) << only->error;
+  EXPECT_EQ(only->pair, 0);
+}
+
+// The bounded line reader against std::getline and the blank rule, on seeded
+// random text (lines of random lengths around the cap, whitespace, a missing
+// final newline): every counted line comes back whole, or flagged over the cap.
+TEST(PoseLineReaderTest, MatchesGetlineTwinOnRandomText) {
+  std::mt19937_64 g(0xb0bd5);
+  const char alphabet[] = " \t\rx{}0";
+  for (int c = 0; c < 500; ++c) {
+    std::string text;
+    const int lines = static_cast<int>(g() % 8);
+    for (int k = 0; k < lines; ++k) {
+      const int len = static_cast<int>(g() % 40);
+      for (int i = 0; i < len; ++i) text += alphabet[g() % (sizeof(alphabet) - 1)];
+      if (k + 1 < lines || g() % 2) text += '\n';
+    }
+    const uint64_t cap = 1 + g() % 30;
+    std::istringstream twin(text);
+    std::istringstream in(text);
+    PoseLineReader reader(in, 1, cap);
+    std::string line;
+    int64_t number = 0;
+    while (std::getline(twin, line)) {
+      ++number;
+      if (line.find_first_not_of(" \t\r\n\f\v") == std::string::npos) continue;
+      std::optional<PoseLine> got = reader.Next();
+      ASSERT_TRUE(got.has_value()) << "case " << c;
+      EXPECT_EQ(got->line_number, number);
+      ASSERT_FALSE(got->pose.has_value());
+      const bool over = line.size() > cap;
+      EXPECT_EQ(got->error.find("longer than the cap") != std::string::npos, over)
+          << "case " << c << ": " << got->error;
+    }
+    EXPECT_FALSE(reader.Next().has_value()) << "case " << c;
+    EXPECT_FALSE(reader.bad());
+  }
+}
+
+TEST(PoseLineReaderTest, DefaultCapGrowsWithTheLinkCount) {
+  EXPECT_EQ(DefaultMaxPoseLineBytes(1), 4096u + 7 * 64);
+  EXPECT_EQ(DefaultMaxPoseLineBytes(31), 4096u + 31 * 7 * 64);
+  EXPECT_EQ(DefaultMaxPoseLineBytes(-1), DefaultMaxPoseLineBytes(256));
+  // A real line of 31 links, written with full precision, fits easily.
+  Pose pose;
+  pose.utime = 1234567890123;
+  pose.links.resize(31);
+  for (LinkPose& l : pose.links) {
+    l.p = {-123.456789012345678, 0.1234567890123456, -1e-300};
+    l.q = Eigen::Quaterniond(-0.123456789012345, 0.98765432109876, -1e-17, 0.3);
+  }
+  EXPECT_LT(PoseToJsonLine(pose).size() * 2, DefaultMaxPoseLineBytes(31));
+}
+
+// With num_links < 0 the first pose fixes the count; lines are kept as
+// written (not normalised), fractional-but-integral utimes accepted.
+TEST(PoseLineReaderTest, LearnsTheLinkCountAndKeepsPosesAsWritten) {
+  std::istringstream in(Line("1000.0", {"[1, 2, 3, 2, 0, 0, 0]", kIdentity}) + "\n" +
+                        Line("2000", {kIdentity}) + "\n" +
+                        Line("3000", {kIdentity, "[0, 0, 0, 0, 0, 0, 0]"}) + "\n");
+  PoseLineReader reader(in, -1);
+  std::optional<PoseLine> a = reader.Next();
+  ASSERT_TRUE(a && a->pose) << (a ? a->error : "end");
+  EXPECT_EQ(reader.num_links(), 2);
+  EXPECT_EQ(a->pose->utime, 1000);
+  EXPECT_EQ(a->pose->links[0].q.w(), 2.0);  // As written.
+  std::optional<PoseLine> b = reader.Next();
+  ASSERT_TRUE(b.has_value());
+  EXPECT_FALSE(b->pose.has_value());
+  EXPECT_EQ(b->error, "line 2: 'links' has 1 entries, the skeleton has 2");
+  std::optional<PoseLine> c = reader.Next();
+  ASSERT_TRUE(c && c->pose) << (c ? c->error : "end");  // A zero quaternion is structurally fine.
+}
+
 // A few hand-written sequences, as named regressions of the rule.
 TEST(PosePairerTest, HandWrittenSequences) {
   auto run = [](const std::vector<std::pair<bool, int64_t>>& seq) {

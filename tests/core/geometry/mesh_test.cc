@@ -521,6 +521,148 @@ TEST_F(MeshTest, BinaryStlWhoseHeaderStartsWithSolid) {
                   "solid_header.stl");
 }
 
+// --- Bounds: size caps and header counts checked before allocation ---------
+
+// The InputError message of LoadMeshFile(path, options), or "" when it loads.
+std::string RefusalOf(const std::string& path, const MeshLoadOptions& options = {}) {
+  try {
+    LoadMeshFile(path, options);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A gzip bomb: 8 MiB of zeros after an OBJ, compressed to a few KiB, with a
+// 1 MiB cap. The inflate loop must stop at the cap (naming the file, the cap
+// and the flag); a 4 GiB bomb takes the same path with the default 1 GiB cap.
+TEST_F(MeshTest, GzipBombStopsAtTheDecompressedCap) {
+  const std::string text = ObjText() + "#" + std::string(8 << 20, ' ') + "\n";
+  const std::string gz = WriteGz("bomb.obj.gz", text);
+  ASSERT_LT(fs::file_size(gz), 100000u);
+  MeshLoadOptions options;
+  options.max_bytes = 1 << 20;
+  options.max_line_bytes = 16 << 20;
+  const std::string why = RefusalOf(gz, options);
+  EXPECT_NE(why.find(gz), std::string::npos) << why;
+  EXPECT_NE(why.find("inflates to more than the cap of 1048576 bytes"), std::string::npos) << why;
+  EXPECT_NE(why.find("--max-mesh-bytes"), std::string::npos) << why;
+  EXPECT_THROW(ReadFileMaybeGzip(gz, 1 << 20), InputError);
+  // Under a cap it fits, the same file loads.
+  options.max_bytes = 16 << 20;
+  EXPECT_EQ(RefusalOf(gz, options), "");
+}
+
+TEST_F(MeshTest, PlainFileOverTheSizeCapIsRefused) {
+  const std::string text = ObjText();
+  const std::string path = Write("plain.obj", text);
+  MeshLoadOptions options;
+  options.max_bytes = text.size();  // The cap is inclusive.
+  EXPECT_EQ(RefusalOf(path, options), "");
+  options.max_bytes = text.size() - 1;
+  const std::string why = RefusalOf(path, options);
+  EXPECT_NE(why.find("the file holds more than the cap of " + std::to_string(text.size() - 1)),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("--max-mesh-bytes"), std::string::npos) << why;
+}
+
+// Regression: `element vertex 2000000000` with no properties kept assimp busy
+// for 25 s (the daemon was not ready after 20 s). Refused from the header.
+TEST_F(MeshTest, PlyElementWithoutPropertiesAndHugeCountIsRefused) {
+  for (const char* format : {"ascii", "binary_little_endian"}) {
+    SCOPED_TRACE(format);
+    const std::string path = Write(std::string("noprop_") + format + ".ply",
+                                   std::string("ply\nformat ") + format +
+                                       " 1.0\nelement vertex 2000000000\nend_header\n");
+    const std::string why = RefusalOf(path);
+    EXPECT_NE(why.find("the PLY element 'vertex' announces 2000000000 items but has no "
+                       "properties"),
+              std::string::npos)
+        << why;
+  }
+}
+
+TEST_F(MeshTest, PlyCountBeyondInt32IsRefused) {
+  const std::string path = Write("int32.ply",
+                                 "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n"
+                                 "property float x\nend_header\n");
+  const std::string why = RefusalOf(path);
+  EXPECT_NE(why.find("announces 2147483648 items, beyond the limit of 2147483647"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(RefusalOf(Write("neg.ply", "ply\nformat ascii 1.0\nelement vertex -3\n"
+                                       "property float x\nend_header\n"))
+                .find("bad PLY element line"),
+            std::string::npos);
+}
+
+// Counts that need more bytes than the body holds are refused before the body
+// is walked: binary (3 floats = 12 bytes a vertex; a list counts its 1-byte
+// length prefix) and ASCII (two bytes a value).
+TEST_F(MeshTest, PlyCountsBeyondTheBodyAreRefusedFromTheHeader) {
+  const std::string body(1000, '\0');
+  const std::string bin = Write("counts_bin.ply",
+                                "ply\nformat binary_little_endian 1.0\nelement vertex 50\n"
+                                "property float x\nproperty float y\nproperty float z\n"
+                                "element face 600\nproperty list uchar int vertex_indices\n"
+                                "end_header\n" + body);
+  // 50 x 12 + 600 x 1 = 1200 > 1000.
+  std::string why = RefusalOf(bin);
+  EXPECT_NE(why.find("announces more data than the file holds: element 'face' x 600 needs at "
+                     "least 1200 bytes after the header, the file has 1000"),
+            std::string::npos)
+      << why;
+  const std::string ascii = Write("counts_ascii.ply",
+                                  "ply\nformat ascii 1.0\nelement vertex 1000000\n"
+                                  "property float x\nproperty float y\nproperty float z\n"
+                                  "end_header\n0 0 0\n1 0 0\n0 1 0\n");
+  why = RefusalOf(ascii);
+  EXPECT_NE(why.find("element 'vertex' x 1000000 needs at least 6000000 bytes"), std::string::npos)
+      << why;
+  // A body that fits, without a final newline, still loads.
+  const std::string tight =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n3 0 1 2";
+  EXPECT_EQ(RefusalOf(Write("tight.ply", tight)), "");
+}
+
+TEST_F(MeshTest, BinaryStlCountMismatchIsRefused) {
+  std::string text = StlBinaryText();
+  const uint32_t huge = 1000000000;
+  std::memcpy(&text[80], &huge, 4);
+  const std::string path = Write("count.stl", text);
+  const std::string why = RefusalOf(path);
+  EXPECT_NE(why.find("its binary header announces 1000000000 triangles, which need 84 + 50 x "
+                     "1000000000 = 50000000084 bytes, but the file size is " +
+                     std::to_string(text.size())),
+            std::string::npos)
+      << why;
+}
+
+TEST_F(MeshTest, OverlongTextLinesAreRefused) {
+  MeshLoadOptions options;
+  options.max_line_bytes = 64;
+  const std::string long_comment = "# " + std::string(100, 'x') + "\n";
+  struct Case {
+    const char* name;
+    std::string text;
+  };
+  const std::vector<Case> cases = {
+      {"long.obj", long_comment + ObjText()},
+      {"long.stl", StlAsciiText() + long_comment},
+      {"long.ply", PlyAsciiText() + std::string(100, ' ') + "\n"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string path = Write(c.name, c.text);
+    const std::string why = RefusalOf(path, options);
+    EXPECT_NE(why.find("is longer than the cap of 64 bytes per line"), std::string::npos) << why;
+    EXPECT_EQ(RefusalOf(path), "");  // The default cap (1 MiB) lets it through.
+  }
+}
+
 // --- Real data ------------------------------------------------------------
 
 TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
