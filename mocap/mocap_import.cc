@@ -876,7 +876,10 @@ MocapClip ImportBvhText(const std::string& text, const std::string& source,
     links[i].radius = it != options.radius_override_m.end() ? it->second : specs[i].radius_m;
     clip.source_joints.push_back(bvh.joints[bindings[i].joint].name);
   }
-  std::string name = std::filesystem::path(source).stem().string();
+  // The skeleton is named after the file: "walk" for walk.bvh and walk.bvh.gz.
+  std::filesystem::path file = std::filesystem::path(source).filename();
+  if (file.extension() == ".gz") file = file.stem();
+  std::string name = file.stem().string();
   if (name.empty()) name = "bvh_clip";
   clip.skeleton = Skeleton::FromLinks(name, std::move(links), source);
 
