@@ -21,10 +21,11 @@
 
 #include "core/errors.h"
 #include "core/avatar/skeleton.h"
+#include "service/daemon/stop_signal.h"
+#include "service/percentile.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
-#include "tools/stop_signal.h"
 
 namespace sweptccd {
 namespace {
@@ -43,14 +44,6 @@ struct ClientTally {
 };
 
 constexpr size_t kMaxLatencies = 100000;
-
-double Percentile(const std::deque<double>& d, double q) {
-  std::vector<double> v(d.begin(), d.end());
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 // Decodes an LCM message; nullopt (with *problem) for wrong fingerprints and
 // truncated or malformed bytes. The generated decoders resize arrays from
@@ -123,7 +116,7 @@ class Monitor {
       free += t.free;
       invalid += t.invalid;
       rejected += t.rejected;
-      const double median = Percentile(t.latency_us, 0.5);
+      const double median = Percentile(std::vector<double>(t.latency_us.begin(), t.latency_us.end()), 0.5);
       if (o_.json) {
         Emit(json{{"type", "summary"},
                   {"client", id},
