@@ -1,8 +1,9 @@
 #pragma once
-// SIGINT/SIGTERM as a file descriptor, for the long-running tools
-// (`simulate-tracker`, `monitor`): their loops poll() it next to LCM's fd and
-// their timers, as sweptccd-service does, so Ctrl-C ends them cleanly (with
-// their summary) instead of killing them.
+// SIGINT/SIGTERM as a file descriptor (the self-pipe), the one stop signal of
+// the processes that run until stopped: sweptccd-service waits on it before
+// stopping its Daemon, the long-running tools (`simulate-tracker`, `monitor`)
+// poll() it next to LCM's fd and their timers, so Ctrl-C ends them cleanly
+// (in-flight work answered, summaries printed) instead of killing them.
 
 #include <chrono>
 
@@ -25,6 +26,8 @@ class StopSignal {
   /// Sleeps until `deadline` or a signal, whichever comes first. Returns
   /// stopped().
   bool WaitUntil(std::chrono::steady_clock::time_point deadline) const;
+  /// Sleeps until a signal arrives (returns at once if one already has).
+  void Wait() const;
 };
 
 }  // namespace sweptccd
