@@ -89,7 +89,9 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       c.query.max_intervals = Get<int64_t>(q["max_intervals"], at + "query.max_intervals");
     }
   }
-  if (root["backend"]) c.backend = Get<std::string>(root["backend"], at + "backend");
+  if (root["backend"]) {
+    c.backend = gpu::ParseBackendKind(Get<std::string>(root["backend"], at + "backend"), at + "backend");
+  }
   if (root["gpu_device"]) c.gpu_device = Get<int>(root["gpu_device"], at + "gpu_device");
   if (root["require_hardware"]) {
     c.require_hardware = Get<bool>(root["require_hardware"], at + "require_hardware");
@@ -146,9 +148,6 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
-  if (c.backend != "cpu" && c.backend != "gpu" && c.backend != "auto") {
-    throw InputError("configuration: backend must be cpu, gpu or auto, got '" + c.backend + "'");
-  }
   if (c.gpu_device < -1) {
     throw InputError("configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "
                      "first that works), got " + std::to_string(c.gpu_device));

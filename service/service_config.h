@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
 
@@ -23,7 +24,7 @@ struct ServiceConfig {
   LcmChannels channels;
   std::vector<std::string> environment;  // Mesh files, in object order.
   QueryOptions query;
-  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
   int gpu_device = -1;           // EGL device index; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
@@ -42,8 +43,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
                                  const std::string& base_dir);
 
 /// Checks a configuration after overrides: environment and clients present,
-/// unique client ids, workers >= 1, status period > 0, query options valid,
-/// backend cpu, gpu or auto. Throws InputError naming the problem.
+/// unique client ids, workers >= 1, status period > 0, query options valid.
+/// Throws InputError naming the problem.
 void ValidateServiceConfig(const ServiceConfig& config);
 
 }  // namespace sweptccd

@@ -14,28 +14,8 @@
 namespace sweptccd {
 namespace {
 
-using test::Height;
-using test::MakePose;
-
-tracker_pose_t Sample(const std::string& client, int64_t k) {
-  return MakePose(client, k, 2'000'000 + k * 8'333, Height(k), 0.1 * static_cast<double>(k));
-}
-
-// Collects what the service publishes, from the same memq:// instance.
-struct Listener {
-  std::vector<contact_event_t> contacts;
-  std::vector<rejection_t> rejections;
-  std::vector<status_t> statuses;
-  void OnContact(const lcm::ReceiveBuffer*, const std::string&, const contact_event_t* m) {
-    contacts.push_back(*m);
-  }
-  void OnReject(const lcm::ReceiveBuffer*, const std::string&, const rejection_t* m) {
-    rejections.push_back(*m);
-  }
-  void OnStatus(const lcm::ReceiveBuffer*, const std::string&, const status_t* m) {
-    statuses.push_back(*m);
-  }
-};
+using test::Listener;
+using test::Sample;
 
 class LcmTransportTest : public ::testing::Test {
  protected:
@@ -52,9 +32,7 @@ class LcmTransportTest : public ::testing::Test {
     service_ = std::make_unique<CollisionService>(env_, std::vector<ClientConfig>{a, b}, options,
                                                   transport_.get());
     transport_->Subscribe(service_.get());
-    lcm_.subscribe("SWEPTCCD_CONTACT", &Listener::OnContact, &listener_);
-    lcm_.subscribe("SWEPTCCD_REJECT", &Listener::OnReject, &listener_);
-    lcm_.subscribe("SWEPTCCD_STATUS", &Listener::OnStatus, &listener_);
+    listener_.SubscribeTo(&lcm_);
   }
   void TearDown() override {
     transport_->Unsubscribe();
@@ -90,13 +68,13 @@ TEST_F(LcmTransportTest, PosesInContactEventsOut) {
   }
   EXPECT_EQ(transport_->messages_received(), 2 * kPoses);
   EXPECT_EQ(transport_->callback_errors(), 0);
-  EXPECT_TRUE(listener_.rejections.empty());
-  ASSERT_EQ(listener_.contacts.size(), static_cast<size_t>(2 * (kPoses - 1)));
+  EXPECT_TRUE(listener_.rejections().empty());
+  ASSERT_EQ(listener_.contacts().size(), static_cast<size_t>(2 * (kPoses - 1)));
   QueryOptions query;
   int contact = 0;
   for (const char* id : {"a", "b"}) {
     int64_t next = 0;
-    for (const contact_event_t& e : listener_.contacts) {
+    for (const contact_event_t& e : listener_.contacts()) {
       if (e.client_id != id) continue;
       SCOPED_TRACE(std::string(id) + " pair " + std::to_string(next));
       EXPECT_EQ(e.pair, next);
@@ -132,8 +110,8 @@ TEST_F(LcmTransportTest, UndecodableMessagesAreRejectedNotFatal) {
   ASSERT_EQ(lcm_.publish("SWEPTCCD_POSE", negative.data(), static_cast<unsigned>(negative.size())),
             0);
   Pump();
-  ASSERT_EQ(listener_.rejections.size(), 4u);
-  for (const rejection_t& r : listener_.rejections) {
+  ASSERT_EQ(listener_.rejections().size(), 4u);
+  for (const rejection_t& r : listener_.rejections()) {
     EXPECT_EQ(r.reason, rejection_code::kDecodeError) << r.message;
     EXPECT_EQ(r.seq, -1);
     EXPECT_NE(r.message.find("SWEPTCCD_POSE"), std::string::npos) << r.message;
@@ -145,7 +123,7 @@ TEST_F(LcmTransportTest, UndecodableMessagesAreRejectedNotFatal) {
     lcm_.publish("SWEPTCCD_POSE", &m);
     Pump();  // One pose at a time: no latest-wins skipping.
   }
-  EXPECT_EQ(listener_.contacts.size(), 2u);
+  EXPECT_EQ(listener_.contacts().size(), 2u);
   EXPECT_EQ(service_->rejected_unattributed(), 4);
 }
 
@@ -156,16 +134,16 @@ TEST_F(LcmTransportTest, RejectionsAndStatusGoOutOnTheirChannels) {
   m.orientation[1] = {0, 0, 0, 0};
   lcm_.publish("SWEPTCCD_POSE", &m);
   Pump();
-  ASSERT_EQ(listener_.rejections.size(), 2u);
-  EXPECT_EQ(listener_.rejections[0].reason, rejection_code::kUnknownClient);
-  EXPECT_EQ(listener_.rejections[0].client_id, "nobody");
-  EXPECT_EQ(listener_.rejections[1].reason, rejection_code::kZeroQuaternion);
-  EXPECT_EQ(listener_.rejections[1].client_id, "a");
-  EXPECT_EQ(listener_.rejections[1].seq, 0);
+  ASSERT_EQ(listener_.rejections().size(), 2u);
+  EXPECT_EQ(listener_.rejections()[0].reason, rejection_code::kUnknownClient);
+  EXPECT_EQ(listener_.rejections()[0].client_id, "nobody");
+  EXPECT_EQ(listener_.rejections()[1].reason, rejection_code::kZeroQuaternion);
+  EXPECT_EQ(listener_.rejections()[1].client_id, "a");
+  EXPECT_EQ(listener_.rejections()[1].seq, 0);
   service_->PublishStatus();
   Pump();
-  ASSERT_EQ(listener_.statuses.size(), 1u);
-  const status_t& s = listener_.statuses[0];
+  ASSERT_EQ(listener_.statuses().size(), 1u);
+  const status_t s = listener_.statuses()[0];
   EXPECT_EQ(s.num_clients, 2);
   EXPECT_EQ(s.client_id[0], "a");
   EXPECT_EQ(s.rejected[0], 1);
