@@ -90,7 +90,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     }
   }
   if (root["backend"]) {
-    c.backend = gpu::ParseBackendKind(Get<std::string>(root["backend"], at + "backend"), at + "backend");
+    const std::string name = Get<std::string>(root["backend"], at + "backend");
+    c.backend = gpu::ParseBackendKind(name, at + "backend");
   }
   if (root["gpu_device"]) c.gpu_device = Get<int>(root["gpu_device"], at + "gpu_device");
   if (root["require_hardware"]) {

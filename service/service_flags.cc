@@ -70,7 +70,8 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--contact-channel", f->contact_channel, "Channel of contact_event_t (out)");
   app->add_option("--reject-channel", f->reject_channel, "Channel of rejection_t (out)");
   app->add_option("--status-channel", f->status_channel, "Channel of status_t (out)");
-  app->add_option("--filter", f->filter_flags, "ID=FILTER.json: a client's collision filter; repeat");
+  app->add_option("--filter", f->filter_flags,
+                  "ID=FILTER.json: a client's collision filter; repeat");
   app->add_option("--ignore", f->ignore_flags,
                   "ID=LINK:OBJECT: a client ignores LINK against OBJECT (names, indices or *); "
                   "repeat");

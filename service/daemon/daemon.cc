@@ -174,8 +174,8 @@ bool Daemon::Impl::HandleControl() {
 }
 
 void Daemon::Impl::Loop() {
-  const auto period =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(config.status_period_s));
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(config.status_period_s));
   auto next_status = Clock::now() + period;
   for (;;) {
     const auto now = Clock::now();
@@ -229,9 +229,9 @@ void Daemon::Start() {
 }
 
 void Daemon::WaitUntilIdle() {
-  impl_->Barrier();  // Every pose published before the call is handled...
+  impl_->Barrier();                 // Every pose published before the call is handled...
   impl_->service->WaitUntilIdle();  // ...every pair answered and published...
-  impl_->Barrier();  // ...and every answer delivered to lcm()'s subscribers.
+  impl_->Barrier();                 // ...and every answer delivered to lcm()'s subscribers.
 }
 
 void Daemon::Stop() {

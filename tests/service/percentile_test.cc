@@ -15,8 +15,8 @@ double BruteForcePercentile(const std::vector<double>& samples, double q) {
   const double need = q * static_cast<double>(samples.size());
   double best = *std::max_element(samples.begin(), samples.end());
   for (double x : samples) {
-    const auto at_or_below = std::count_if(samples.begin(), samples.end(),
-                                           [x](double v) { return v <= x; });
+    const auto at_or_below =
+        std::count_if(samples.begin(), samples.end(), [x](double v) { return v <= x; });
     if (static_cast<double>(at_or_below) > need && x < best) best = x;
   }
   return best;

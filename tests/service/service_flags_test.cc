@@ -25,9 +25,9 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   ServiceFlags flags;
   AddServiceFlags(&app, &flags);
   const char* argv[] = {"sweptccd-service", "--lcm-url", "memq://",   "--client",  "a=a.json",
-                        "--client",         "b=b.json", "--filter",  "b=f.json",  "--ignore",
-                        "a=arm:*",          "--eps",    "1e-5",      "--backend", "cpu",
-                        "--gpu-device",     "-1",       "--workers", "3"};
+                        "--client",         "b=b.json",  "--filter",  "b=f.json",  "--ignore",
+                        "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
+                        "--gpu-device",     "-1",        "--workers", "3"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};

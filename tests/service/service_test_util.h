@@ -82,7 +82,8 @@ inline tracker_pose_t Sample(const std::string& client, int64_t k) {
 
 // A fresh folder for one test's files, under the build tree.
 inline std::string TestDir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::path(SWEPTCCD_BINARY_DIR) / "test_files" / name;
+  const std::filesystem::path dir =
+      std::filesystem::path(SWEPTCCD_BINARY_DIR) / "test_files" / name;
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir.string();
