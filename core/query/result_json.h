@@ -3,7 +3,7 @@
 // in microseconds (ResultRecord), built once by MakeResultRecord and written
 // by every front end: `sweptccd query` as one JSON object per pair
 // (RecordToJson), the collision service as a contact_event_t
-// (service/session/contact_event.h).
+// (service/contact_event.h).
 
 #include <cstdint>
 #include <optional>
