@@ -17,6 +17,31 @@ std::string Num(double v) {
   return buf;
 }
 
+// A rejection naming the value, the place and the fix.
+Rejection ToRejection(const PoseProblem& problem) {
+  const std::string link = "link " + std::to_string(problem.link) + ": ";
+  const std::string component = "[" + std::to_string(problem.component) + "] is " +
+                                Num(problem.value);
+  switch (problem.kind) {
+    case PoseProblem::Kind::kNonFinite:
+      return Rejection{rejection_code::kNonFinite,
+                       link + (problem.in_orientation ? "orientation" : "position") + component +
+                           "; send finite numbers"};
+    case PoseProblem::Kind::kPositionOutOfRange:
+      return Rejection{rejection_code::kPositionOutOfRange,
+                       link + "position" + component + " m, beyond 1e9 m; send metres in the " +
+                           "world frame"};
+    case PoseProblem::Kind::kZeroQuaternion:
+      return Rejection{rejection_code::kZeroQuaternion,
+                       link + "quaternion norm " + Num(problem.value) +
+                           " is below 1e-6; send a rotation as [w x y z]"};
+    case PoseProblem::Kind::kLinkCount:
+      break;  // Checked on the message's arrays before a Pose exists.
+  }
+  return Rejection{rejection_code::kWrongLinkCount,
+                   "got " + Num(problem.value) + " link poses; send one pose per skeleton link"};
+}
+
 }  // namespace
 
 std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_links, Pose* pose) {
@@ -42,40 +67,14 @@ std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_
   for (int i = 0; i < num_links; ++i) {
     const auto& p = msg.position[i];
     const auto& q = msg.orientation[i];
-    for (int k = 0; k < 3; ++k) {
-      if (!std::isfinite(p[k])) {
-        return Rejection{rejection_code::kNonFinite, "link " + std::to_string(i) + ": position[" +
-                                                         std::to_string(k) + "] is " + Num(p[k]) +
-                                                         "; send finite numbers"};
-      }
-    }
-    for (int k = 0; k < 4; ++k) {
-      if (!std::isfinite(q[k])) {
-        return Rejection{rejection_code::kNonFinite,
-                         "link " + std::to_string(i) + ": orientation[" + std::to_string(k) +
-                             "] is " + Num(q[k]) + "; send finite numbers"};
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      if (std::fabs(p[k]) > kMaxCoordinate) {
-        return Rejection{rejection_code::kPositionOutOfRange,
-                         "link " + std::to_string(i) + ": position[" + std::to_string(k) + "] is " +
-                             Num(p[k]) + " m, beyond 1e9 m; send metres in the world frame"};
-      }
-    }
-    LinkPose& lp = pose->links[i];
-    lp.p = Eigen::Vector3d(p[0], p[1], p[2]);
-    lp.q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // w, x, y, z
-    const double norm = lp.q.coeffs().stableNorm();
-    if (!(norm >= kMinQuaternionNorm)) {
-      return Rejection{rejection_code::kZeroQuaternion,
-                       "link " + std::to_string(i) + ": quaternion norm " + Num(norm) +
-                           " is below 1e-6; send a rotation as [w x y z]"};
-    }
+    pose->links[i].p = Eigen::Vector3d(p[0], p[1], p[2]);
+    pose->links[i].q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // w, x, y, z
   }
-  // Normalises; the checks above are the same as core's, so this cannot fail.
-  const std::string problem = ValidateAndNormalizePose(pose, num_links);
-  SWEPTCCD_CHECK(problem.empty());
+  // The rule is core's (FindPoseProblem); the wording is the service's.
+  const std::optional<PoseProblem> problem = FindPoseProblem(*pose, num_links);
+  if (problem) return ToRejection(*problem);
+  const std::string error = ValidateAndNormalizePose(pose, num_links);
+  SWEPTCCD_CHECK(error.empty());  // Same rule as FindPoseProblem just passed.
   return std::nullopt;
 }
 

@@ -10,6 +10,9 @@
 
 #include "core/errors.h"
 #include "msgs/text.h"
+#include "core/query/result_json.h"
+#include "service/contact_event.h"
+#include "service/percentile.h"
 
 namespace sweptccd {
 
@@ -23,34 +26,6 @@ int64_t SystemUtime() {
 
 double MicrosBetween(SteadyClock::time_point a, SteadyClock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
-}
-
-void CopyVec(const Eigen::Vector3d& v, double out[3]) {
-  out[0] = v.x();
-  out[1] = v.y();
-  out[2] = v.z();
-}
-
-contact_record_t ToMsg(const ContactRecord& c) {
-  contact_record_t m;
-  m.link = c.link;
-  m.object = c.object;
-  m.triangle = c.triangle;
-  m.s = c.s;
-  CopyVec(c.point_link, m.point_link);
-  CopyVec(c.point_env, m.point_env);
-  CopyVec(c.normal, m.normal);
-  m.separation = c.separation;
-  return m;
-}
-
-// Quantile of a sample by nearest rank (q in [0, 1]); 0 when empty.
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(
-      v.size() - 1, static_cast<size_t>(std::llround(q * static_cast<double>(v.size() - 1))));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
 }
 
 }  // namespace
@@ -234,12 +209,6 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
   ev.pair = pair.pair;
   ev.utime0 = pair.pose0.utime;
   ev.utime1 = pair.pose1.utime;
-  ev.result = contact_event_t::RESULT_FREE;
-  ev.initially_colliding = false;
-  ev.undecided = false;
-  ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
-  ev.num_contacts = 0;
-  ev.num_links = 0;
   ev.receive_utime = pair.receive_utime;
   ev.queue_us = queue_us;
   ev.skipped_pairs_total = pair.skipped_pairs_total;
@@ -249,46 +218,16 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
   const SteadyClock::time_point start = SteadyClock::now();
   try {
     const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options);
-    if (r.contact) {
-      ev.result = contact_event_t::RESULT_CONTACT;
-      ev.initially_colliding = r.initially_colliding;
-      ev.undecided = r.undecided;
-      ev.s_lo = r.s_lo;
-      ev.s_hi = r.s_hi;
-      ev.t_lo = BracketTimeLo(ev.utime0, ev.utime1, r.s_lo);
-      ev.t_hi = BracketTimeHi(ev.utime0, ev.utime1, r.s_hi);
-      for (const ContactRecord& c : r.contacts) ev.contacts.push_back(ToMsg(c));
-    }
-    for (const LinkBracket& b : r.links) {
-      link_bracket_t m;
-      m.link = b.link;
-      m.s_lo = b.s_lo;
-      m.s_hi = b.s_hi;
-      m.t_lo = BracketTimeLo(ev.utime0, ev.utime1, b.s_lo);
-      m.t_hi = BracketTimeHi(ev.utime0, ev.utime1, b.s_hi);
-      m.initially_colliding = b.initially_colliding;
-      m.undecided = b.undecided;
-      m.has_witness = b.has_witness;
-      m.witness = b.has_witness ? ToMsg(b.witness) : contact_record_t{};
-      ev.links.push_back(m);
-    }
+    FillContactEvent(MakeResultRecord(ev.pair, ev.utime0, ev.utime1, r, options.per_link), &ev);
   } catch (const std::exception& e) {
     // Not expected (the poses were validated); answered, never lost.
-    ev.result = contact_event_t::RESULT_INVALID;
-    ev.error = std::string("query failed: ") + e.what();
+    MarkContactEventInvalid(std::string("query failed: ") + e.what(), &ev);
   } catch (...) {
-    ev.result = contact_event_t::RESULT_INVALID;
-    ev.error = "query failed with an unknown exception";
+    MarkContactEventInvalid("query failed with an unknown exception", &ev);
   }
   if (ev.result == contact_event_t::RESULT_INVALID) {
-    ev.initially_colliding = ev.undecided = false;
-    ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
-    ev.contacts.clear();
-    ev.links.clear();
     spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, EscapeForDisplay(ev.error, 1024));
   }
-  ev.num_contacts = static_cast<int32_t>(ev.contacts.size());
-  ev.num_links = static_cast<int32_t>(ev.links.size());
   ev.compute_us = MicrosBetween(start, SteadyClock::now());
   return ev;
 }
@@ -367,8 +306,8 @@ status_t CollisionService::Status() const {
     s.rejected.push_back(cs.rejected());
     s.seq_gaps.push_back(cs.seq_gaps());
     std::vector<double> lat(c->latencies_us.begin(), c->latencies_us.end());
-    s.latency_median_us.push_back(Quantile(lat, 0.5));
-    s.latency_p99_us.push_back(Quantile(std::move(lat), 0.99));
+    s.latency_median_us.push_back(Percentile(lat, 0.5));
+    s.latency_p99_us.push_back(Percentile(std::move(lat), 0.99));
     if (cs.has_pending()) ++pending;
     dropped += cs.pairs_skipped();
   }

@@ -157,7 +157,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       c.query.max_intervals = Get<int64_t>(q["max_intervals"], at + "query.max_intervals");
     }
   }
-  if (root["backend"]) c.backend = Get<std::string>(root["backend"], at + "backend");
+  if (root["backend"]) {
+    const std::string name = Get<std::string>(root["backend"], at + "backend");
+    c.backend = gpu::ParseBackendKind(name, at + "backend");
+  }
   if (root["gpu_device"]) c.gpu_device = Get<int>(root["gpu_device"], at + "gpu_device");
   if (root["require_hardware"]) {
     c.require_hardware = Get<bool>(root["require_hardware"], at + "require_hardware");
@@ -225,9 +228,6 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   if (c.max_mesh_bytes == 0) throw InputError("configuration: max_mesh_bytes must be >= 1 byte");
   if (c.max_links < 1) {
     throw InputError("configuration: max_links must be >= 1, got " + std::to_string(c.max_links));
-  }
-  if (c.backend != "cpu" && c.backend != "gpu" && c.backend != "auto") {
-    throw InputError("configuration: backend must be cpu, gpu or auto, got '" + c.backend + "'");
   }
   if (c.gpu_device < -1) {
     throw InputError("configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "

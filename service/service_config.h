@@ -8,6 +8,7 @@
 
 #include "core/avatar/skeleton.h"
 #include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
 
@@ -35,7 +36,7 @@ struct ServiceConfig {
   LcmChannels channels;
   std::vector<std::string> environment;  // Mesh files, in object order.
   QueryOptions query;
-  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
   int gpu_device = -1;           // EGL device index; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
@@ -58,7 +59,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
 
 /// Checks a configuration after overrides: environment and clients present,
 /// unique client ids, workers >= 1, status period > 0, query options valid,
-/// backend cpu, gpu or auto, client ids following the id rule, the security
+/// client ids following the id rule, the security
 /// block (mode, a key for every client and for the service in signed mode).
 /// Throws InputError naming the problem.
 void ValidateServiceConfig(const ServiceConfig& config);

@@ -279,7 +279,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     std::unique_ptr<gpu::Backend> gpu_backend;
     if (options.gpu != "off") {
       gpu::BackendOptions bo;
-      bo.backend = "gpu";
+      bo.backend = gpu::BackendKind::kGpu;
       bo.device_index = options.gpu_device;
       bo.require_hardware = options.gpu == "hardware";
       gpu_backend = std::make_unique<gpu::Backend>(bo);

@@ -24,10 +24,11 @@
 #include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
+#include "service/daemon/stop_signal.h"
+#include "service/percentile.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
-#include "tools/stop_signal.h"
 
 namespace sweptccd {
 namespace {
@@ -47,13 +48,6 @@ struct ClientTally {
 
 constexpr size_t kMaxLatencies = 100000;
 
-double Percentile(const std::deque<double>& d, double q) {
-  std::vector<double> v(d.begin(), d.end());
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
 
 class Monitor {
  public:
@@ -107,7 +101,7 @@ class Monitor {
       free += t.free;
       invalid += t.invalid;
       rejected += t.rejected;
-      const double median = Percentile(t.latency_us, 0.5);
+      const double median = Percentile(std::vector<double>(t.latency_us.begin(), t.latency_us.end()), 0.5);
       if (o_.json) {
         Emit(json{{"type", "summary"},
                   {"client", id},

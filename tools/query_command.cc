@@ -23,8 +23,6 @@ int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd query: " + problem);
-    const std::string backend_problem = gpu::ValidateBackendName(options.backend);
-    if (!backend_problem.empty()) throw InputError("sweptccd query: --" + backend_problem);
     if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
     std::vector<NamedPath> inputs = {{"--skeleton", options.skeleton_path},
                                      {"--poses", options.poses_path},
@@ -64,7 +62,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     backend_options.device_index = options.gpu_device;
     backend_options.require_hardware = options.require_hardware;
     gpu::Backend backend(backend_options);
-    if (options.backend != "cpu") std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
+    if (options.backend != gpu::BackendKind::kCpu) {
+      std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
+    }
     backend.Attach(&engine);
     PoseStreamReader reader(poses, skeleton.num_links());
     int64_t pairs = 0, invalid = 0, contacts = 0;

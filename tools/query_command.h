@@ -6,6 +6,7 @@
 
 #include "core/avatar/skeleton.h"
 #include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 
 namespace sweptccd {
@@ -15,7 +16,7 @@ struct QueryCommandOptions {
   std::string poses_path;
   std::vector<std::string> env_paths;
   std::string output_path;  // Empty: standard output.
-  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
   int gpu_device = -1;           // EGL device index; -1: the first that works.
   bool require_hardware = false;
   std::string filter_path;

@@ -8,6 +8,7 @@
 #include <cstdio>
 
 #include "core/errors.h"
+#include "core/gpu/backend.h"
 #include "msgs/signing.h"
 #include "tools/bench_command.h"
 #include "tools/import_bvh_command.h"
@@ -40,8 +41,17 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"articulated", "independent"}));
   query->add_option("--eps", q.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   query->add_option("--delta", q.query.delta_m, "Distance tolerance, metres (default 1e-3)");
-  query->add_option("--backend", q.backend,
-                    "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
+  // Parsed into the enum as the flag is read: a bad name is a parse error.
+  query->add_option_function<std::string>(
+      "--backend",
+      [&q](const std::string& name) {
+        try {
+          q.backend = sweptccd::gpu::ParseBackendKind(name, "--backend");
+        } catch (const sweptccd::InputError& e) {
+          throw CLI::ValidationError(e.what());
+        }
+      },
+      "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
   query->add_option("--gpu-device", q.gpu_device, "EGL device index for the GPU backend");
   query->add_flag("--require-hardware", q.require_hardware,
                   "GPU backend: refuse software renderers (llvmpipe)");

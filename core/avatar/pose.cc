@@ -9,27 +9,77 @@
 
 namespace sweptccd {
 
-std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
-  if (static_cast<int>(pose->links.size()) != num_links) {
-    return "expected " + std::to_string(num_links) + " link poses, got " +
-           std::to_string(pose->links.size());
+std::string PoseProblem::Describe(int num_links) const {
+  const std::string at = "link " + std::to_string(link) + ": ";
+  switch (kind) {
+    case Kind::kLinkCount:
+      return "expected " + std::to_string(num_links) + " link poses, got " +
+             std::to_string(static_cast<int64_t>(value));
+    case Kind::kNonFinite:
+      return at + "non-finite number";
+    case Kind::kPositionOutOfRange:
+      return at + "position beyond 1e9 m";
+    case Kind::kZeroQuaternion:
+      return at + "quaternion norm " + std::to_string(value) + " is below 1e-6";
+  }
+  return at + "invalid";  // Not reached: every kind is handled above.
+}
+
+namespace {
+
+// The first problem of one link pose, or nullopt.
+std::optional<PoseProblem> FindLinkProblem(const LinkPose& lp, int link) {
+  PoseProblem problem;
+  problem.link = link;
+  const double q[4] = {lp.q.w(), lp.q.x(), lp.q.y(), lp.q.z()};
+  for (int k = 0; k < 7; ++k) {
+    const double v = k < 3 ? lp.p[k] : q[k - 3];
+    if (!std::isfinite(v)) {
+      problem.kind = PoseProblem::Kind::kNonFinite;
+      problem.in_orientation = k >= 3;
+      problem.component = k < 3 ? k : k - 3;
+      problem.value = v;
+      return problem;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(lp.p[k]) > kMaxCoordinate) {
+      problem.kind = PoseProblem::Kind::kPositionOutOfRange;
+      problem.component = k;
+      problem.value = lp.p[k];
+      return problem;
+    }
+  }
+  // stableNorm: the plain norm overflows for components near 1e200.
+  const double norm = lp.q.coeffs().stableNorm();
+  if (!(norm >= kMinQuaternionNorm)) {
+    problem.kind = PoseProblem::Kind::kZeroQuaternion;
+    problem.value = norm;
+    return problem;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<PoseProblem> FindPoseProblem(const Pose& pose, int num_links) {
+  if (static_cast<int>(pose.links.size()) != num_links) {
+    PoseProblem problem;
+    problem.kind = PoseProblem::Kind::kLinkCount;
+    problem.value = static_cast<double>(pose.links.size());
+    return problem;
   }
   for (int i = 0; i < num_links; ++i) {
-    LinkPose& lp = pose->links[i];
-    if (!lp.p.allFinite() || !lp.q.coeffs().allFinite()) {
-      return "link " + std::to_string(i) + ": non-finite number";
-    }
-    // stableNorm: the plain norm overflows for components near 1e200.
-    if (lp.p.cwiseAbs().maxCoeff() > kMaxCoordinate) {
-      return "link " + std::to_string(i) + ": position beyond 1e9 m";
-    }
-    const double norm = lp.q.coeffs().stableNorm();
-    if (!(norm >= kMinQuaternionNorm)) {
-      return "link " + std::to_string(i) + ": quaternion norm " + std::to_string(norm) +
-             " is below 1e-6";
-    }
-    lp.q.coeffs() /= norm;
+    if (std::optional<PoseProblem> problem = FindLinkProblem(pose.links[i], i)) return problem;
   }
+  return std::nullopt;
+}
+
+std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
+  if (const std::optional<PoseProblem> problem = FindPoseProblem(*pose, num_links)) {
+    return problem->Describe(num_links);
+  }
+  for (LinkPose& lp : pose->links) lp.q.coeffs() /= lp.q.coeffs().stableNorm();
   return {};
 }
 

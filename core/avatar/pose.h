@@ -31,8 +31,37 @@ inline constexpr double kMinQuaternionNorm = 1e-6;
 /// anything for a tracked body.
 inline constexpr double kMaxCoordinate = 1e9;
 
-/// Checks finiteness and quaternion norms and normalises the quaternions.
-/// Returns an empty string when valid, else a message naming the link.
+/// Why a pose is invalid under SPEC section 2: the one rule, shared by
+/// `sweptccd query` (pose lines) and the collision service (tracker
+/// messages), each wording it for its own users.
+struct PoseProblem {
+  enum class Kind {
+    kLinkCount,           // `value` is the number of link poses given.
+    kNonFinite,           // `value` is the NaN or infinity.
+    kPositionOutOfRange,  // `value` is the coordinate, |value| > kMaxCoordinate.
+    kZeroQuaternion,      // `value` is the norm, below kMinQuaternionNorm.
+  };
+  Kind kind = Kind::kLinkCount;
+  int link = -1;                // The link index; -1 for kLinkCount.
+  bool in_orientation = false;  // kNonFinite: in the quaternion, not the position.
+  /// kNonFinite, kPositionOutOfRange: index in [x y z] or in [w x y z].
+  int component = -1;
+  double value = 0;
+
+  /// The wording of `sweptccd query`'s records, e.g. "link 2: non-finite
+  /// number" (`num_links` is what the skeleton has).
+  std::string Describe(int num_links) const;
+};
+
+/// The first problem of `pose` for a skeleton of `num_links` links, or
+/// nullopt: the link count, then link by link its non-finite numbers
+/// (position x, y, z, then quaternion w, x, y, z), a coordinate beyond
+/// kMaxCoordinate, a quaternion norm below kMinQuaternionNorm. Pure.
+std::optional<PoseProblem> FindPoseProblem(const Pose& pose, int num_links);
+
+/// Checks `pose` (FindPoseProblem) and, when valid, normalises its
+/// quaternions. Returns an empty string when valid, else the problem as
+/// PoseProblem::Describe words it (the pose is then left as it was).
 std::string ValidateAndNormalizePose(Pose* pose, int num_links);
 
 /// Parses one pose line `{"utime": ..., "links": [[px,py,pz,qw,qx,qy,qz], ...]}`

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <random>
 
 #include "service_test_util.h"
 
@@ -318,6 +319,81 @@ TEST_F(ClientSessionTest, PendingPairOfAnOldSessionIsReplacedNotExtended) {
   EXPECT_EQ(p.pose1.utime, 600);
   EXPECT_EQ(session_.pairs_skipped(), 1);
   ExpectAccounted();
+}
+
+// The service and `sweptccd query` apply one pose rule (core's
+// FindPoseProblem): for random tracker messages with spoiled numbers, the
+// service accepts exactly when core accepts the same numbers as a pose line,
+// the normalised poses are bit-identical, and the rejection names the link
+// core names.
+TEST(TrackerPoseValidation, SameRuleAsThePoseLinesOfTheCli) {
+  std::mt19937_64 rng(4242);
+  const double specials[] = {std::numeric_limits<double>::quiet_NaN(),
+                             std::numeric_limits<double>::infinity(),
+                             -std::numeric_limits<double>::infinity(),
+                             2e9, -1e9, 1e9, 1e-7, 0, 1e200};
+  std::uniform_real_distribution<double> u(-2, 2);
+  for (int trial = 0; trial < 4000; ++trial) {
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    tracker_pose_t m = MakePose("a", 0, 1'000'000, u(rng), u(rng));
+    for (int spoil = static_cast<int>(rng() % 3); spoil > 0; --spoil) {
+      const size_t link = rng() % 2, k = rng() % 7;
+      const double v = specials[rng() % std::size(specials)];
+      if (k < 3) m.position[link][k] = v;
+      if (k >= 3) m.orientation[link][k - 3] = v;
+      if (rng() % 4 == 0) m.orientation[link] = {v * 1e-9, 0, 0, 0};
+    }
+    Pose from_message;
+    const std::optional<Rejection> rejection = ValidateTrackerPose(m, 2, &from_message);
+    Pose from_line;
+    from_line.utime = m.utime;
+    from_line.links.resize(2);
+    for (int i = 0; i < 2; ++i) {
+      const auto& p = m.position[i];
+      const auto& q = m.orientation[i];
+      from_line.links[i].p = {p[0], p[1], p[2]};
+      from_line.links[i].q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+    }
+    const std::string core_error = ValidateAndNormalizePose(&from_line, 2);
+    ASSERT_EQ(rejection.has_value(), !core_error.empty())
+        << (rejection ? rejection->message : core_error);
+    if (rejection) {
+      const std::string link = core_error.substr(0, core_error.find(':'));  // "link N"
+      EXPECT_EQ(rejection->message.rfind(link + ":", 0), 0u)
+          << rejection->message << " vs " << core_error;
+      continue;
+    }
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_EQ(from_message.links[i].p, from_line.links[i].p);
+      EXPECT_EQ(from_message.links[i].q.coeffs(), from_line.links[i].q.coeffs());
+    }
+  }
+}
+
+// The wording of each kind of problem: the value, the place, the fix.
+TEST(TrackerPoseValidation, RejectionWordingPerProblem) {
+  Pose pose;
+  tracker_pose_t m = MakePose("a", 0, 1, 1.0);
+  m.position[1][2] = std::numeric_limits<double>::infinity();
+  auto r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 1: position[2] is inf; send finite numbers");
+  m = MakePose("a", 0, 1, 1.0);
+  m.orientation[0][1] = std::numeric_limits<double>::quiet_NaN();
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 0: orientation[1] is nan; send finite numbers");
+  m = MakePose("a", 0, 1, 1.0);
+  m.position[0][0] = -2e9;
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 0: position[0] is -2000000000 m, beyond 1e9 m; send metres in the "
+                        "world frame");
+  m = MakePose("a", 0, 1, 1.0);
+  m.orientation[1] = {0, 0, 0, 0};
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 1: quaternion norm 0 is below 1e-6; send a rotation as [w x y z]");
 }
 
 }  // namespace

@@ -588,5 +588,87 @@ TEST(PosePairerTest, HandWrittenSequences) {
   EXPECT_FALSE(p.has_anchor());
 }
 
+// FindPoseProblem against a twin written here from SPEC section 2 and the
+// documented order (count; then per link: non-finite position x, y, z, then
+// quaternion w, x, y, z; a coordinate beyond 1e9 m; a norm below 1e-6), on
+// random poses with spoiled numbers; ValidateAndNormalizePose words it.
+TEST(FindPoseProblemTest, FirstProblemMatchesTheTwin) {
+  std::mt19937_64 rng(99);
+  const double specials[] = {std::numeric_limits<double>::quiet_NaN(),
+                             std::numeric_limits<double>::infinity(), -2e9, 1e9, 1e-7, 0};
+  std::uniform_real_distribution<double> u(-3, 3);
+  int problems = 0;
+  for (int trial = 0; trial < 5000; ++trial) {
+    const int n = 1 + static_cast<int>(rng() % 4);
+    Pose pose;
+    pose.links.resize(n);
+    double v[4][7];
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 7; ++k) v[i][k] = u(rng);
+      for (int spoil = static_cast<int>(rng() % 2); spoil > 0; --spoil) {
+        v[i][rng() % 7] = specials[rng() % std::size(specials)];
+      }
+      if (rng() % 8 == 0) v[i][3] = v[i][4] = v[i][5] = v[i][6] = 1e-8;
+      pose.links[i].p = {v[i][0], v[i][1], v[i][2]};
+      pose.links[i].q = Eigen::Quaterniond(v[i][3], v[i][4], v[i][5], v[i][6]);
+    }
+    // The twin: the first (link, kind, component) in the documented order.
+    std::optional<PoseProblem> want;
+    for (int i = 0; i < n && !want; ++i) {
+      for (int k = 0; k < 7 && !want; ++k) {
+        if (!std::isfinite(v[i][k])) {
+          want = PoseProblem{PoseProblem::Kind::kNonFinite, i, k >= 3, k < 3 ? k : k - 3, v[i][k]};
+        }
+      }
+      for (int k = 0; k < 3 && !want; ++k) {
+        if (std::fabs(v[i][k]) > 1e9) {
+          want = PoseProblem{PoseProblem::Kind::kPositionOutOfRange, i, false, k, v[i][k]};
+        }
+      }
+      const double norm = std::sqrt(v[i][3] * v[i][3] + v[i][4] * v[i][4] + v[i][5] * v[i][5] +
+                                    v[i][6] * v[i][6]);
+      if (!want && !(norm >= 1e-6)) {
+        want = PoseProblem{PoseProblem::Kind::kZeroQuaternion, i, false, -1, norm};
+      }
+    }
+    const std::optional<PoseProblem> got = FindPoseProblem(pose, n);
+    ASSERT_EQ(got.has_value(), want.has_value()) << "trial " << trial;
+    Pose copy = pose;
+    const std::string error = ValidateAndNormalizePose(&copy, n);
+    EXPECT_EQ(error.empty(), !want.has_value());
+    if (!want) continue;
+    ++problems;
+    EXPECT_EQ(got->kind, want->kind) << "trial " << trial;
+    EXPECT_EQ(got->link, want->link);
+    EXPECT_EQ(got->in_orientation, want->in_orientation);
+    EXPECT_EQ(got->component, want->component);
+    if (want->kind == PoseProblem::Kind::kZeroQuaternion) {
+      EXPECT_NEAR(got->value, want->value, 1e-12);
+    } else if (std::isnan(want->value)) {
+      EXPECT_TRUE(std::isnan(got->value));
+    } else {
+      EXPECT_EQ(got->value, want->value);
+    }
+    EXPECT_EQ(error, got->Describe(n));
+    EXPECT_EQ(error.rfind("link " + std::to_string(want->link) + ": ", 0), 0u) << error;
+  }
+  EXPECT_GT(problems, 1000);  // The spoils did reach every branch often.
+}
+
+TEST(FindPoseProblemTest, WrongLinkCountAndTheCliWording) {
+  Pose pose;
+  pose.links.resize(2);
+  const std::optional<PoseProblem> count = FindPoseProblem(pose, 3);
+  ASSERT_TRUE(count);
+  EXPECT_EQ(count->kind, PoseProblem::Kind::kLinkCount);
+  EXPECT_EQ(count->Describe(3), "expected 3 link poses, got 2");
+  pose.links[1].q = Eigen::Quaterniond(0, 0, 0, 0);
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: quaternion norm 0.000000 is below 1e-6");
+  pose.links[1].p.x() = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: non-finite number");
+  pose.links[1].p.x() = 1.5e9;
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: position beyond 1e9 m");
+}
+
 }  // namespace
 }  // namespace sweptccd

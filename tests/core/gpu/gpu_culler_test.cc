@@ -346,7 +346,7 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
 // its context is lost (the daemon reports this in status_t).
 TEST(GpuBackendTest, StateReportsALostContext) {
   BackendOptions options;
-  options.backend = "gpu";
+  options.backend = gpu::BackendKind::kGpu;
   Backend backend(options);
   ASSERT_TRUE(backend.gpu());
   EXPECT_EQ(backend.State(), "gpu");
@@ -357,7 +357,7 @@ TEST(GpuBackendTest, StateReportsALostContext) {
   EXPECT_EQ(backend.State(), "cpu (gpu failed: the OpenGL context was lost)");
   EXPECT_STREQ(backend.name(), "gpu");  // What was chosen at start.
   BackendOptions cpu_options;
-  cpu_options.backend = "cpu";
+  cpu_options.backend = gpu::BackendKind::kCpu;
   EXPECT_EQ(Backend(cpu_options).State(), "cpu");
 }
 
@@ -367,7 +367,7 @@ TEST(GpuBackendTest, StateReportsALostContext) {
 // benchmark, which builds one environment per scene).
 TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
   BackendOptions options;
-  options.backend = "gpu";
+  options.backend = gpu::BackendKind::kGpu;
   Backend backend(options);
   ASSERT_TRUE(backend.gpu()) << backend.reason();
   const Skeleton skeleton = OneLinkSkeleton("[0, 0.4, 0]");
