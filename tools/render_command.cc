@@ -434,9 +434,9 @@ ContactPicture RenderContact(const RenderCommandOptions& o, const Skeleton& skel
     info["undecided"] = result.undecided;
   }
   if (has_witness) {
-    info["link"] = witness.link;
+    info["link"] = witness.link.value();
     info["link_name"] = skeleton.link(witness.link).name;
-    info["object"] = witness.object;
+    info["object"] = witness.object.value();
     info["object_name"] = env.object(witness.object).name;
     info["triangle"] = witness.triangle;
     info["witness"] = {{"s", witness.s},
@@ -486,7 +486,7 @@ RgbaImage RenderTimeline(const RenderCommandOptions& o, const Skeleton& skeleton
     TimelineSample ts{seconds(utime), std::vector<double>(n, max_sep)};
     for (int link = 0; link < n; ++link) {
       ContactRecord record;
-      if (engine.Separation(motion, link, s, max_sep, &record)) {
+      if (engine.Separation(motion, LinkIndex(link), s, max_sep, &record)) {
         ts.separation[link] = std::clamp(record.separation, 0.0, max_sep);
       }
     }

@@ -9,8 +9,8 @@ namespace {
 nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json ContactJson(const ContactRecord& c) {
-  return {{"link", c.link},
-          {"object", c.object},
+  return {{"link", c.link.value()},
+          {"object", c.object.value()},
           {"triangle", c.triangle},
           {"s", c.s},
           {"point_link", Vec(c.point_link)},
@@ -47,7 +47,7 @@ std::string ResultToJson(int64_t pair, int64_t utime0, int64_t utime1, const Que
   if (per_link) {
     nlohmann::json links = nlohmann::json::array();
     for (const LinkBracket& b : result.links) {
-      nlohmann::json e = {{"link", b.link},
+      nlohmann::json e = {{"link", b.link.value()},
                           {"s_lo", b.s_lo},
                           {"s_hi", b.s_hi},
                           {"t_lo", BracketTimeLo(utime0, utime1, b.s_lo)},

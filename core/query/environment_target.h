@@ -1,0 +1,67 @@
+#pragma once
+// Internal to the query engine (see docs/DESIGN.md, "core/query"): what a
+// link is tested against. Today the one target is the static environment
+// (objects of triangles behind BVHs, minus the collision filter). SPEC
+// section 8 adds other targets (another avatar's links, a moving object);
+// they answer the same questions: which primitives come within a capsule,
+// the exact separation at s, whether the link touches at s.
+
+#include <Eigen/Core>
+#include <cstdint>
+
+#include "core/avatar/motion.h"
+#include "core/avatar/skeleton.h"
+#include "core/geometry/distance.h"
+#include "core/query/ccd_query.h"
+#include "core/query/link_capsule.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+
+namespace sweptccd::internal {
+
+/// A primitive of the target: an object and a slot of its BVH.
+struct Candidate {
+  uint32_t object;
+  uint32_t slot;
+};
+
+/// The static environment seen through a collision filter. Holds references
+/// (all three outlive it); const methods are thread-safe.
+class EnvironmentTarget {
+ public:
+  EnvironmentTarget(const Skeleton& skeleton, const Environment& environment,
+                    const CollisionFilter& filter)
+      : skeleton_(skeleton), env_(environment), filter_(filter) {}
+
+  int num_objects() const { return env_.num_objects(); }
+  const TriangleBvh& bvh(ObjectIndex object) const { return env_.object(object).bvh; }
+  /// Whether the link is never tested (filtered from every object).
+  bool IgnoresAll(LinkIndex link) const { return filter_.IgnoresAll(link); }
+  bool Ignores(LinkIndex link, ObjectIndex object) const { return filter_.Ignores(link, object); }
+
+  /// Whether the candidate's triangle comes within the capsule (conservative
+  /// towards "inside" by a relative 1e-9 on the cheap tests, exact otherwise).
+  bool WithinCapsule(const LinkCapsule& capsule, Candidate candidate) const;
+
+  /// As CcdEngine::TouchesAt and CcdEngine::Separation (which call these).
+  bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const;
+  bool Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
+                  ContactRecord* record) const;
+
+  /// The exact separation of `link` at s over `count` candidates from
+  /// `first` only: false when count is 0. Adds count to *triangle_tests.
+  bool NearestOf(const PairMotion& motion, LinkIndex link, double s, const Candidate* first,
+                 uint32_t count, ContactRecord* best, int64_t* triangle_tests) const;
+
+ private:
+  ContactRecord MakeRecord(LinkIndex link, ObjectIndex object, uint32_t slot, double s,
+                           const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const SegmentTriangleResult& r, const Eigen::Vector3d& ta,
+                           const Eigen::Vector3d& tb, const Eigen::Vector3d& tc) const;
+
+  const Skeleton& skeleton_;
+  const Environment& env_;
+  const CollisionFilter& filter_;
+};
+
+}  // namespace sweptccd::internal
