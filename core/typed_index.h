@@ -16,6 +16,9 @@ class TypedIndex {
   /// The invalid index (-1).
   constexpr TypedIndex() = default;
   constexpr explicit TypedIndex(int value) : value_(value) {}
+  /// An index of another kind is no index of this kind, even explicitly.
+  template <class Other, std::enable_if_t<!std::is_same_v<Other, Tag>, int> = 0>
+  TypedIndex(TypedIndex<Other>) = delete;
 
   constexpr int value() const { return value_; }
   constexpr operator int() const { return value_; }  // NOLINT: indexing arrays.

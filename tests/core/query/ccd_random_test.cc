@@ -2142,7 +2142,9 @@ QueryResult QueryOnBackend(const Skeleton& sk, const Environment& env, const Pos
   const QueryResult r = engine.Query(p0, p1, QueryOptions());
   if (std::string(testing::BackendName()) == "gpu") {
     EXPECT_TRUE(engine.culler() != nullptr);
-    if (!r.initially_colliding) EXPECT_GT(r.stats.cull_round_trips, 0) << "the GPU never ran";
+    if (!r.initially_colliding) {
+      EXPECT_GT(r.stats.cull_round_trips, 0) << "the GPU never ran";
+    }
     const CcdEngine cpu(sk, env);
     EXPECT_TRUE(testing::SameAnswer(r, cpu.Query(p0, p1, QueryOptions())))
         << "GPU and CPU answers differ";
