@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Compares the records of two `sweptccd` binaries on the real data: every
 # scene of DATA/env against a set of BVH clips from DATA/mocap, with both
-# motion models, with and without --per-link. Records are compared with
+# motion models, with and without --per-link, and with a small work limit
+# (--max-intervals 3, undecided answers). Records are compared with
 # `elapsed_us` and `stats` removed; every other field must be equal.
 #
 # Usage: tools/compare_records.sh OLD_SWEPTCCD NEW_SWEPTCCD [DATA_DIR] [WORK_DIR]
 #   DATA_DIR  default ../shared/data (relative to the repository root)
 #   WORK_DIR  default a fresh temporary folder (kept, printed at the end)
 # Environment: CLIPS (space-separated .bvh names), FRAMES (poses per clip,
-# default 90), RATE (Hz, default 30), BACKEND (default cpu).
+# default 90), RATE (Hz, default 30), BACKEND (default cpu), SCENES
+# (space-separated scene names from the list below; default all).
 # Exit status 0 when no record differs, 1 when some do, 2 on a usage error.
 set -euo pipefail
 
@@ -92,13 +94,17 @@ PY
 runs=0
 for scene in "${scenes[@]}"; do
   read -r name mesh up floor c0 c1 <<<"$scene"
+  if [[ -n ${SCENES:-} && " $SCENES " != *" $name "* ]]; then continue; fi
   for clip in $clips; do
     poses="$work/${name}_${clip%.bvh}.jsonl"
     place "$clip" "$up" "$floor" "$c0" "$c1" "$poses"
     skel="$work/raw_${clip%.bvh}_$up.skeleton.json"
     for motion in articulated independent; do
-      for per_link in "" "--per-link"; do
-        tag="${name}_${clip%.bvh}_${motion}${per_link:+_perlink}"
+      # The last variant runs out of work often (undecided brackets).
+      for per_link in "" "--per-link" "--per-link --max-intervals 3"; do
+        variant=${per_link//--max-intervals /_limit}
+        variant=${variant//--per-link/_perlink}
+        tag="${name}_${clip%.bvh}_${motion}${variant// /}"
         for which in old new; do
           bin=$old; [[ $which == new ]] && bin=$new
           "$bin" query --backend "$backend" --skeleton "$skel" --poses "$poses" \
