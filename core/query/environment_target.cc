@@ -32,26 +32,6 @@ Eigen::Vector3d UnitNormal(const SegmentTriangleResult& r, const Eigen::Vector3d
 
 }  // namespace
 
-bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c) const {
-  Eigen::Vector3d ta, tb, tc;
-  env_.object(static_cast<int>(c.object)).bvh.Triangle(c.slot, &ta, &tb, &tc);
-  // Cheap answers first: the triangle's bounding sphere around ta misses
-  // the capsule (reject), or a vertex is inside it (accept). Both compare
-  // squared distances with a relative margin of 1e-9 towards "inside".
-  const Eigen::Vector3d d = cap.b - cap.a;
-  const double dd = d.squaredNorm();
-  const double reach = std::sqrt(std::max((tb - ta).squaredNorm(), (tc - ta).squaredNorm()));
-  const double da = PointSegmentDistanceSquared(ta, cap.a, d, dd);
-  const double far = cap.radius + reach;
-  if (da > far * far * (1 + 1e-9)) return false;
-  if (da <= cap.radius * cap.radius * (1 - 1e-9) ||
-      PointSegmentDistanceSquared(tb, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9) ||
-      PointSegmentDistanceSquared(tc, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9)) {
-    return true;
-  }
-  return SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
-}
-
 bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, double s,
                                   double slack) const {
   Eigen::Vector3d a, b, ta, tb, tc;
