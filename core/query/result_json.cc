@@ -9,8 +9,8 @@ namespace {
 nlohmann::json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 nlohmann::json ContactJson(const ContactRecord& c) {
-  return {{"link", c.link},
-          {"object", c.object},
+  return {{"link", c.link.value()},
+          {"object", c.object.value()},
           {"triangle", c.triangle},
           {"s", c.s},
           {"point_link", Vec(c.point_link)},
@@ -70,7 +70,7 @@ std::string RecordToJson(const ResultRecord& r, double elapsed_us) {
     nlohmann::json links = nlohmann::json::array();
     for (const LinkRecord& l : r.links) {
       const LinkBracket& b = l.bracket;
-      nlohmann::json e = {{"link", b.link},
+      nlohmann::json e = {{"link", b.link.value()},
                           {"s_lo", b.s_lo},
                           {"s_hi", b.s_hi},
                           {"t_lo", l.t_lo},

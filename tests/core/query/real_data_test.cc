@@ -61,13 +61,13 @@ struct RefNearest {
 // The exact separation of `link` at s over the unfiltered triangles within
 // radius + reach of its segment.
 RefNearest ReferenceSeparation(const Environment& env, const CollisionFilter& filter,
-                               const Skeleton& skel, const PairMotion& motion, int link, double s,
-                               double reach) {
+                               const Skeleton& skel, const PairMotion& motion, LinkIndex link,
+                               double s, double reach) {
   Vector3d a, b;
   motion.SegmentAt(link, s, &a, &b);
   const double radius = skel.link(link).radius;
   RefNearest best;
-  for (int o = 0; o < env.num_objects(); ++o) {
+  for (ObjectIndex o(0); o < env.num_objects(); ++o) {
     if (filter.Ignores(link, o)) continue;
     const TriangleBvh& bvh = env.object(o).bvh;
     bvh.QueryCapsule(a, b, radius + reach, [&](uint32_t slot) {
@@ -87,7 +87,7 @@ RefNearest ReferenceSeparation(const Environment& env, const CollisionFilter& fi
 
 bool Touches(const Environment& env, const CollisionFilter& filter, const Skeleton& skel,
              const PairMotion& motion, int link, double s) {
-  const RefNearest r = ReferenceSeparation(env, filter, skel, motion, link, s, 0.0);
+  const RefNearest r = ReferenceSeparation(env, filter, skel, motion, LinkIndex(link), s, 0.0);
   return r.found && r.separation <= 0;
 }
 
@@ -477,10 +477,10 @@ TEST(RealDataTest, DragonInThePath) {
     MocapClip clip = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(0.6, 0, 0.0), -0.01);
     CollisionFilter feet_floor(kMocapNumLinks, env.num_objects());
-    feet_floor.Ignore(clip.skeleton.FindLink("foot_l"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("foot_r"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("shin_l"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("shin_r"), 1);
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("foot_l")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("foot_r")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("shin_l")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("shin_r")), ObjectIndex(1));
     CheckClip(env, feet_floor, clip, 0, 84, "walk into the dragon, feet ignore floor", &tally);
   }
   {  // Jumping next to the dragon's tail; landings reach 5 mm into the floor.
