@@ -320,9 +320,9 @@ void DescribeAnswer(const ContactScene& c, const Environment& env, json* info) {
   }
   if (!c.has_witness) return;
   const ContactRecord& w = c.witness;
-  (*info)["link"] = w.link;
+  (*info)["link"] = w.link.value();
   (*info)["link_name"] = c.skeleton.link(w.link).name;
-  (*info)["object"] = w.object;
+  (*info)["object"] = w.object.value();
   (*info)["object_name"] = env.object(w.object).name;
   (*info)["triangle"] = w.triangle;
   (*info)["witness"] = {{"s", w.s},

@@ -56,7 +56,7 @@ std::vector<TimelineSample> Sample(const Plot& plot, const Skeleton& skeleton,
     TimelineSample ts{plot.Seconds(utime), std::vector<double>(n, plot.max_sep)};
     for (int link = 0; link < n; ++link) {
       ContactRecord record;
-      if (engine.Separation(motion, link, s, plot.max_sep, &record)) {
+      if (engine.Separation(motion, LinkIndex(link), s, plot.max_sep, &record)) {
         ts.separation[link] = std::clamp(record.separation, 0.0, plot.max_sep);
       }
     }

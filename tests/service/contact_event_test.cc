@@ -14,8 +14,8 @@ namespace {
 ContactRecord RandomContact(std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(-2, 2);
   ContactRecord c;
-  c.link = static_cast<int>(rng() % 20);
-  c.object = static_cast<int>(rng() % 5);
+  c.link = LinkIndex(static_cast<int>(rng() % 20));
+  c.object = ObjectIndex(static_cast<int>(rng() % 5));
   c.triangle = static_cast<uint32_t>(rng() % 100000);
   c.s = std::uniform_real_distribution<double>(0, 1)(rng);
   c.point_link = {u(rng), u(rng), u(rng)};
@@ -40,7 +40,7 @@ QueryResult RandomResult(std::mt19937_64& rng) {
   }
   for (int i = 0, n = static_cast<int>(rng() % 4); i < n; ++i) {
     LinkBracket b;
-    b.link = i;
+    b.link = LinkIndex(i);
     b.s_lo = unit(rng);
     b.s_hi = std::min(1.0, b.s_lo + 1e-4);
     b.initially_colliding = rng() % 2;
