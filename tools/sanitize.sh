@@ -41,6 +41,19 @@ cmake --build "$build" -j"$jobs"
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:detect_stack_use_after_return=0:strict_string_checks=1:check_initialization_order=1:detect_odr_violation=1"
 export LSAN_OPTIONS="suppressions=$src/tools/lsan_suppressions.txt:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
+# Findings, open (CI's .ci/run runs the suites verified clean until fixed):
+#  - LcmTransportTest.{PosesInContactEventsOut,UndecodableMessagesAreRejectedNotFatal,
+#    RejectionsAndStatusGoOutOnTheirChannels}: UBSan "member access within
+#    address ... which does not point to an object of type
+#    LCMMHUntypedSubscription" in LCM's cb_func (lcm-cpp-impl.hpp:108) while
+#    the test pumps memq://: a subscription pointer that no longer points to
+#    its object (a stale subscription of a transport, or LCM's own).
+#  - ServiceEndToEnd.BadInputRejectedGoodClientUnaffected: LeakSanitizer,
+#    2 x 128 bytes realloc'd inside the sweptccd binary (no symbols past the
+#    allocator).
+#  - Not yet run through under the sanitizers on the shared machine (time):
+#    Bvh, Distance, SweptBound, mocap_import, Query/RenderCommand, Gpu.*
+#    (culler, context), the other ServiceEndToEnd tests, Demo.
 exclude='^(Gpu\.)?(CcdRandomTest|RealDataTest)\.'
 if [ "${SANITIZE_ALL:-0}" = 1 ]; then exclude='^$'; fi
 ctest --test-dir "$build" --output-on-failure -j"$jobs" -E "$exclude" "$@"
