@@ -52,8 +52,10 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 #    2 x 128 bytes realloc'd inside the sweptccd binary (no symbols past the
 #    allocator).
 #  - Not yet run through under the sanitizers on the shared machine (time):
-#    Bvh, Distance, SweptBound, mocap_import, Query/RenderCommand, Gpu.*
-#    (culler, context), the other ServiceEndToEnd tests, Demo.
+#    BvhTest (31 of its tests passed, SeparationMatchesBruteForceOverAllTriangles
+#    and QueryNeverCullsATouchingLink did not finish in the time there was),
+#    Query/RenderCommandTest, Gpu.* (culler, context), the other
+#    ServiceEndToEnd tests, Demo.
 exclude='^(Gpu\.)?(CcdRandomTest|RealDataTest)\.'
 if [ "${SANITIZE_ALL:-0}" = 1 ]; then exclude='^$'; fi
 ctest --test-dir "$build" --output-on-failure -j"$jobs" -E "$exclude" "$@"
