@@ -34,7 +34,12 @@ T Get(const YAML::Node& node, const std::string& where) {
 
 void CheckKeys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
   for (const auto& kv : map) {
-    const std::string key = kv.first.as<std::string>();
+    // A key may be any YAML node ("? [a, b]: 1"); as<std::string>() would
+    // throw YAML's own exception for a non-scalar one (found by fuzz_config).
+    if (!kv.first.IsScalar()) {
+      throw InputError(where + ": a key must be a plain name, got '" + YAML::Dump(kv.first) + "'");
+    }
+    const std::string key = kv.first.Scalar();
     if (!known.count(key)) throw InputError(where + ": unknown key '" + key + "'");
   }
 }

@@ -119,6 +119,22 @@ TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
   }
 }
 
+// Regression (tests/fuzz/corpus/fuzz_config/crash_non_scalar_key.yaml): a
+// key that is a list or a mapping escaped as YAML::TypedBadConversion.
+TEST(ServiceConfigTest, NonScalarKeyIsRefusedAsInputError) {
+  const std::string base = "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\n";
+  const std::vector<std::string> cases = {
+      base + "? [workers, 2]\n: 3\n",
+      base + "{a: b}: 1\n",
+      "environment: [a.ply]\nclients: [{[id]: a, skeleton: s.json}]\n",
+  };
+  for (const std::string& yaml : cases) {
+    const std::string message = RefusalOf(yaml);
+    EXPECT_NE(message.find("a key must be a plain name"), std::string::npos)
+        << "yaml:\n" << yaml << "\nmessage: " << message;
+  }
+}
+
 TEST(ServiceConfigTest, MissingFileNamesThePath) {
   try {
     LoadServiceConfig("/nonexistent/sweptccd.yaml");
