@@ -27,7 +27,8 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   const char* argv[] = {"sweptccd-service", "--lcm-url", "memq://",   "--client",  "a=a.json",
                         "--client",         "b=b.json",  "--filter",  "b=f.json",  "--ignore",
                         "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
-                        "--gpu-device",     "-1",        "--workers", "3"};
+                        "--gpu-device",     "-1",        "--workers", "3",
+                        "--room-key",       "room.key",  "--client-key", "a=a.key"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};
@@ -50,6 +51,9 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   EXPECT_EQ(config.gpu_device, -1);  // -1 is a value, not "not given".
   EXPECT_EQ(config.workers, 3);
   EXPECT_EQ(config.log_level, "info");
+  EXPECT_EQ(config.security.mode, "signed");  // The default: not given.
+  EXPECT_EQ(config.security.room_key, "room.key");
+  EXPECT_EQ(config.security.client_keys.at("a"), "a.key");
   EXPECT_NO_THROW(ValidateServiceConfig(config));
 }
 
@@ -75,6 +79,8 @@ TEST(ServiceFlagsTest, BuildValidatesTheMergedConfiguration) {
   EXPECT_THROW(BuildServiceConfig(flags), InputError);  // No environment, no clients.
   flags.env_paths = {"room.ply"};
   flags.client_flags = {"a=a.json"};
+  EXPECT_THROW(BuildServiceConfig(flags), InputError);  // Signed mode without a key.
+  flags.security_mode = "unsigned";
   const ServiceConfig config = BuildServiceConfig(flags);
   EXPECT_EQ(config.clients.size(), 1u);
   EXPECT_EQ(config.backend, gpu::BackendKind::kAuto);

@@ -8,6 +8,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "core/errors.h"
+#include "msgs/signing.h"
 #include "service/collision_service.h"
 #include "tests/service/service_test_util.h"
 
@@ -16,9 +17,27 @@ namespace {
 
 using test::Sample;
 
+// The room key of a test's daemon: a new mode-600 key file in its folder.
+std::string RoomKeyFile(const std::string& dir) {
+  const std::string path = dir + "/room.key";
+  std::remove(path.c_str());
+  WriteNewKeyFile(path);
+  return path;
+}
+
+// Publishes `m` signed with the room key of the test's daemon (signed mode,
+// the default, refuses anything else).
+int PublishSigned(Daemon* daemon, const ServiceConfig& config, const tracker_pose_t& m) {
+  const MacKey key = LoadKeyFile(config.security.room_key);
+  const std::vector<uint8_t> bytes = EncodeSigned(m, &key);
+  return daemon->lcm()->publish("SWEPTCCD_POSE", bytes.data(),
+                                static_cast<unsigned int>(bytes.size()));
+}
+
 ServiceConfig MemqConfig(const std::string& test_name) {
   const std::string dir = test::TestDir("daemon_test_" + test_name);
   ServiceConfig config;
+  config.security.room_key = RoomKeyFile(dir);
   config.lcm_url = "memq://";
   config.environment = {test::WriteFloorObj(dir)};
   const std::string skeleton = test::WriteTwoLinkSkeleton(dir);
@@ -36,7 +55,8 @@ ServiceConfig MemqConfig(const std::string& test_name) {
 }
 
 TEST(DaemonTest, AnswersEveryPairThenStopsWithAFinalStatus) {
-  Daemon daemon(MemqConfig("answers"));
+  const ServiceConfig config = MemqConfig("answers");
+  Daemon daemon(config);
   test::Listener listener;
   listener.SubscribeTo(daemon.lcm());
   daemon.Start();
@@ -44,13 +64,13 @@ TEST(DaemonTest, AnswersEveryPairThenStopsWithAFinalStatus) {
   for (int64_t k = 0; k < kPoses; ++k) {
     for (const char* id : {"a", "b"}) {
       const tracker_pose_t m = Sample(id, k);
-      ASSERT_EQ(daemon.lcm()->publish("SWEPTCCD_POSE", &m), 0);
+      ASSERT_EQ(PublishSigned(&daemon, config, m), 0);
     }
     daemon.WaitUntilIdle();  // One pose per client at a time: no latest-wins skipping.
     ASSERT_EQ(listener.contacts().size(), static_cast<size_t>(2 * k)) << "after pose " << k;
   }
   const tracker_pose_t stranger = Sample("nobody", 0);
-  daemon.lcm()->publish("SWEPTCCD_POSE", &stranger);
+  PublishSigned(&daemon, config, stranger);
   daemon.WaitUntilIdle();
   ASSERT_EQ(listener.rejections().size(), 1u);
   EXPECT_EQ(listener.rejections()[0].reason, rejection_code::kUnknownClient);
@@ -83,7 +103,7 @@ TEST(DaemonTest, AnswersEveryPairThenStopsWithAFinalStatus) {
 
   // Stopped: poses are no longer taken, and Stop stays idempotent.
   const tracker_pose_t late = Sample("a", kPoses);
-  daemon.lcm()->publish("SWEPTCCD_POSE", &late);
+  PublishSigned(&daemon, config, late);
   daemon.WaitUntilIdle();
   EXPECT_EQ(listener.contacts().size(), static_cast<size_t>(2 * (kPoses - 1)));
   daemon.Stop();
@@ -103,12 +123,13 @@ TEST(DaemonTest, PublishesStatusOnItsTimer) {
 }
 
 TEST(DaemonTest, StopWithoutStartAnswersWhatWasQueued) {
-  Daemon daemon(MemqConfig("no_start"));
+  const ServiceConfig config = MemqConfig("no_start");
+  Daemon daemon(config);
   test::Listener listener;
   listener.SubscribeTo(daemon.lcm());
   for (int64_t k = 0; k < 2; ++k) {
     const tracker_pose_t m = Sample("a", k);
-    daemon.lcm()->publish("SWEPTCCD_POSE", &m);
+    PublishSigned(&daemon, config, m);
   }
   daemon.WaitUntilIdle();  // No loop: handled on this thread.
   ASSERT_EQ(listener.contacts().size(), 1u);
