@@ -17,6 +17,51 @@ double ClosestPointOnSegment(const Eigen::Vector3d& q, const Eigen::Vector3d& p0
   return t;
 }
 
+namespace {
+
+// Nearly parallel segments (under ~0.01 rad): the closed form loses up to
+// eps / angle^2 and alternating projections converge too slowly. The squared
+// distance from P1(s) to the other segment is convex in s: golden-section
+// search over s, each step a well-conditioned projection. Lowers *best (and
+// the closest points) when it finds a closer pair.
+void NearlyParallelSearch(const Eigen::Vector3d& p1, const Eigen::Vector3d& d1,
+                          const Eigen::Vector3d& p2, const Eigen::Vector3d& q2, double* best,
+                          Eigen::Vector3d* c1, Eigen::Vector3d* c2) {
+  auto f = [&](double u, Eigen::Vector3d* x1, Eigen::Vector3d* x2) {
+    *x1 = p1 + d1 * u;
+    ClosestPointOnSegment(*x1, p2, q2, x2);
+    return (*x1 - *x2).squaredNorm();
+  };
+  constexpr double kGolden = 0.6180339887498949;
+  double lo = 0, hi = 1;
+  Eigen::Vector3d x1, x2;
+  double m1 = hi - kGolden * (hi - lo), m2 = lo + kGolden * (hi - lo);
+  double f1 = f(m1, &x1, &x2), f2 = f(m2, &x1, &x2);
+  for (int it = 0; it < 80 && hi - lo > 1e-15; ++it) {
+    if (f1 <= f2) {
+      hi = m2;
+      m2 = m1;
+      f2 = f1;
+      m1 = hi - kGolden * (hi - lo);
+      f1 = f(m1, &x1, &x2);
+    } else {
+      lo = m1;
+      m1 = m2;
+      f1 = f2;
+      m2 = lo + kGolden * (hi - lo);
+      f2 = f(m2, &x1, &x2);
+    }
+  }
+  const double d = f(0.5 * (lo + hi), &x1, &x2);
+  if (d < *best) {
+    *best = d;
+    *c1 = x1;
+    *c2 = x2;
+  }
+}
+
+}  // namespace
+
 // Ericson, Real-Time Collision Detection, 5.1.9, with the degenerate cases.
 double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1,
                                      const Eigen::Vector3d& p2, const Eigen::Vector3d& q2,
@@ -74,42 +119,7 @@ double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vec
   if (a > 0 && e > 0) {
     const double b = d1.dot(d2);
     if (a * e - b * b <= 1e-4 * a * e) {
-      // Nearly parallel (under ~0.01 rad): the closed form loses up to
-      // eps / angle^2 and alternating projections converge too slowly. The
-      // squared distance from P1(s) to the other segment is convex in s:
-      // golden-section search over s, each step a well-conditioned
-      // projection.
-      auto f = [&](double u, Eigen::Vector3d* x1, Eigen::Vector3d* x2) {
-        *x1 = p1 + d1 * u;
-        ClosestPointOnSegment(*x1, p2, q2, x2);
-        return (*x1 - *x2).squaredNorm();
-      };
-      constexpr double kGolden = 0.6180339887498949;
-      double lo = 0, hi = 1;
-      Eigen::Vector3d x1, x2;
-      double m1 = hi - kGolden * (hi - lo), m2 = lo + kGolden * (hi - lo);
-      double f1 = f(m1, &x1, &x2), f2 = f(m2, &x1, &x2);
-      for (int it = 0; it < 80 && hi - lo > 1e-15; ++it) {
-        if (f1 <= f2) {
-          hi = m2;
-          m2 = m1;
-          f2 = f1;
-          m1 = hi - kGolden * (hi - lo);
-          f1 = f(m1, &x1, &x2);
-        } else {
-          lo = m1;
-          m1 = m2;
-          f1 = f2;
-          m2 = lo + kGolden * (hi - lo);
-          f2 = f(m2, &x1, &x2);
-        }
-      }
-      const double d = f(0.5 * (lo + hi), &x1, &x2);
-      if (d < best) {
-        best = d;
-        *c1 = x1;
-        *c2 = x2;
-      }
+      NearlyParallelSearch(p1, d1, p2, q2, &best, c1, c2);
     }
   }
   // Robustness: the clamped solution above is exact in exact arithmetic; with
