@@ -6,7 +6,7 @@
 # `elapsed_us` and `stats` removed; every other field must be equal.
 #
 # Usage: tools/compare_records.sh OLD_SWEPTCCD NEW_SWEPTCCD [DATA_DIR] [WORK_DIR]
-#   DATA_DIR  default ../shared/data (relative to the repository root)
+#   DATA_DIR  default the project's data/ (NAME or NAME.gz, whichever is there)
 #   WORK_DIR  default a fresh temporary folder (kept, printed at the end)
 # Environment: CLIPS (space-separated .bvh names), FRAMES (poses per clip,
 # default 90), RATE (Hz, default 30), BACKEND (default cpu), SCENES
@@ -21,7 +21,9 @@ fi
 old=$(realpath "$1")
 new=$(realpath "$2")
 root=$(cd "$(dirname "$0")/.." && pwd)
-data=$(realpath "${3:-$root/../shared/data}")
+data=$(realpath "${3:-$root/data}")
+# A data file by its plain name, else its gzip (data/ ships NAME.gz).
+datafile() { if [ -e "$1" ]; then echo "$1"; else echo "$1.gz"; fi; }
 work=${4:-$(mktemp -d /tmp/compare_records.XXXXXX)}
 mkdir -p "$work"
 for bin in "$old" "$new"; do
@@ -55,7 +57,7 @@ place() {  # clip up floor c0 c1 out
   local clip=$1 up=$2 floor=$3 c0=$4 c1=$5 out=$6
   local raw="$work/raw_${clip%.bvh}_$up"
   if [[ ! -f "$raw.jsonl" ]]; then
-    "$old" import-bvh --bvh "$data/mocap/$clip" --up "$up" --rate "$rate" \
+    "$old" import-bvh --bvh "$(datafile "$data/mocap/$clip")" --up "$up" --rate "$rate" \
       --skeleton-out "$raw.skeleton.json" --poses-out "$raw.jsonl" >/dev/null
   fi
   python3 - "$raw.jsonl" "$raw.skeleton.json" "$up" "$floor" "$c0" "$c1" "$frames" "$out" <<'PY'
@@ -108,7 +110,7 @@ for scene in "${scenes[@]}"; do
         for which in old new; do
           bin=$old; [[ $which == new ]] && bin=$new
           "$bin" query --backend "$backend" --skeleton "$skel" --poses "$poses" \
-            --env "$data/env/$mesh" --motion "$motion" $per_link \
+            --env "$(datafile "$data/env/$mesh")" --motion "$motion" $per_link \
             --output "$work/$tag.$which.jsonl" 2>"$work/$tag.$which.log"
         done
         runs=$((runs + 1))
