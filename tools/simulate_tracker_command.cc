@@ -21,7 +21,7 @@
 #include "core/avatar/skeleton.h"
 #include "msgs/signing.h"
 #include "sweptccd/tracker_pose_t.hpp"
-#include "tools/stop_signal.h"
+#include "service/daemon/stop_signal.h"
 
 namespace sweptccd {
 namespace {
