@@ -22,6 +22,7 @@
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
 #include "core/avatar/skeleton.h"
+#include "msgs/channels.h"
 #include "service/client_session.h"
 #include "service/collision_service.h"
 #include "service/publisher.h"
@@ -132,9 +133,9 @@ class Listener {
   }
   // Subscribes to the service's default output channels.
   void SubscribeTo(lcm::LCM* lcm) {
-    lcm->subscribe("SWEPTCCD_CONTACT", &Listener::OnContact, this);
-    lcm->subscribe("SWEPTCCD_REJECT", &Listener::OnReject, this);
-    lcm->subscribe("SWEPTCCD_STATUS", &Listener::OnStatus, this);
+    lcm->subscribe(kContactChannel, &Listener::OnContact, this);
+    lcm->subscribe(kRejectChannel, &Listener::OnReject, this);
+    lcm->subscribe(kStatusChannel, &Listener::OnStatus, this);
   }
   // Waits (on state, not time) until `n` statuses arrived; false if they do
   // not within `limit` (a guard against hanging, never the expected path).

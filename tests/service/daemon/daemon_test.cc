@@ -30,7 +30,7 @@ std::string RoomKeyFile(const std::string& dir) {
 int PublishSigned(Daemon* daemon, const ServiceConfig& config, const tracker_pose_t& m) {
   const MacKey key = LoadKeyFile(config.security.room_key);
   const std::vector<uint8_t> bytes = EncodeSigned(m, &key);
-  return daemon->lcm()->publish("SWEPTCCD_POSE", bytes.data(),
+  return daemon->lcm()->publish(kPoseChannel, bytes.data(),
                                 static_cast<unsigned int>(bytes.size()));
 }
 
