@@ -69,7 +69,12 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 #    test's alike, on the first dispatch: not a subscription of ours used
 #    after Unsubscribe (none has been unsubscribed yet then). Cause not found;
 #    next: LCM 1.3.1's memq provider / lcm_dispatch_handlers under ASan.
-#    LcmTransportConstruction (no memq dispatch to our handlers) is clean.
+#    LcmTransportConstruction fails the same way since the merges (its
+#    unsigned-mode test delivers over memq:// to a raw subscription: the
+#    user_data handed over was ASCII text, 0x2073696874206d6f); so do
+#    LcmTransportTest's newer tests (The36ByteCrashDatagramIsRefused,
+#    WhatThePublisherSendsIsSignedWithTheServiceKey: a typed subscription's
+#    cb_func, line 88, with a misaligned user_data).
 #  - ServiceEndToEnd.BadInputRejectedGoodClientUnaffected: LeakSanitizer,
 #    2 x 128 bytes realloc'd inside the sweptccd binary (no symbols past the
 #    allocator; 128 bytes is GLib's first GPtrArray growth, which liblcm uses
