@@ -19,17 +19,16 @@ jobs=${JOBS:-2}
 # Every parser of outside input.
 parsers=(fuzz_skeleton fuzz_pose fuzz_filter fuzz_config
          fuzz_mesh_obj fuzz_mesh_ply fuzz_mesh_stl)
+# The LCM message types that cross the wire, each decoded as the daemon and
+# the tools decode it: msgs/'s DecodeChecked<T> with the default WireLimits,
+# and the raw datagram through VerifyEncoded (tests/fuzz/decode_fuzzer.cc).
+# Their corpora hold the attacks lcm-gen's own decoders fall to (client_id and
+# reason length INT32_MIN, 2^26 links or contacts, 2^24 clients).
 decoders=(fuzz_decode_tracker_pose_t fuzz_decode_status_t fuzz_decode_rejection_t
-          fuzz_decode_contact_event_t fuzz_decode_contact_record_t fuzz_decode_link_bracket_t)
-# The LCM decoder targets fuzz each message type's decoder as the daemon
-# calls it (tests/fuzz/decode_fuzzer.cc, Decode()). With LCM's generated
-# T::decode behind a try/catch, a 36-byte datagram overflows (client_id
-# length INT32_MIN) and an 82-byte one allocates 1.5 GiB (num_links 2^26);
-# the fuzzer finds such inputs in seconds. Until Decode() calls msgs/'s
-# DecodeChecked, the decoder targets are built (they keep compiling) but run
-# only when named on the command line; with it, set decoders_checked=1 and
-# they run by default, in CI.
-decoders_checked=0
+          fuzz_decode_contact_event_t)
+# 1: the decoder targets run by default (in CI). Set since Decode() calls
+# DecodeChecked; before that lcm-gen's decoders failed in seconds.
+decoders_checked=1
 targets=("${parsers[@]}")
 if [ "$decoders_checked" = 1 ]; then targets+=("${decoders[@]}"); fi
 build_targets=("${parsers[@]}" "${decoders[@]}")

@@ -5,7 +5,12 @@
 # it) and runs ctest there. Exit status: ctest's (non-zero on any finding).
 #   tools/sanitize.sh [extra ctest arguments]
 # Environment: SWEPTCCD_ASAN_BUILD (build folder, default build-asan),
-# CC/CXX (default: the system gcc), JOBS (default 2).
+# CC/CXX (default: the system gcc), JOBS (default 2), SANITIZE_TARGETS (the
+# CMake targets to build, space-separated; default: all). CI builds only the
+# test binaries of the suites it runs (.ci/run): the ASan/UBSan build of
+# everything (render, GPU, every test binary) at -O1 on 2 shared cores is most
+# of the step's cap. ctest lists no test of a binary not built (gtest
+# discovery runs at build time), so -R must name suites of built targets.
 #
 # What runs: every ctest test except the ones named by `exclude` below: the
 # GPU ones on Mesa's llvmpipe, the end-to-end ones inside their private
@@ -33,7 +38,12 @@ if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=cc
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Sanitize -DSWEPTCCD_SANITIZE=ON \
   -DCMAKE_CXX_FLAGS_SANITIZE="-O1 -g" -DCMAKE_C_FLAGS_SANITIZE="-O1 -g" \
   "${launcher[@]}" >/dev/null
-cmake --build "$build" -j"$jobs"
+if [ -n "${SANITIZE_TARGETS:-}" ]; then
+  # shellcheck disable=SC2086
+  cmake --build "$build" -j"$jobs" --target $SANITIZE_TARGETS
+else
+  cmake --build "$build" -j"$jobs"
+fi
 
 # halt_on_error/abort: the first finding ends the process with a report;
 # detect_leaks: LSan at exit. The suppressions file lists third-party
@@ -41,21 +51,41 @@ cmake --build "$build" -j"$jobs"
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:detect_stack_use_after_return=0:strict_string_checks=1:check_initialization_order=1:detect_odr_violation=1"
 export LSAN_OPTIONS="suppressions=$src/tools/lsan_suppressions.txt:print_suppressions=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
-# Findings, open (CI's .ci/run runs the suites verified clean until fixed):
-#  - LcmTransportTest.{PosesInContactEventsOut,UndecodableMessagesAreRejectedNotFatal,
-#    RejectionsAndStatusGoOutOnTheirChannels}: UBSan "member access within
-#    address ... which does not point to an object of type
-#    LCMMHUntypedSubscription" in LCM's cb_func (lcm-cpp-impl.hpp:108) while
-#    the test pumps memq://: a subscription pointer that no longer points to
-#    its object (a stale subscription of a transport, or LCM's own).
+# Findings, open (CI's .ci/run runs only the suites verified clean, and builds
+# only their binaries, until these are fixed):
+#  - LcmTransportTest (re-checked after the msgs/ and mesh merges, 2026-11-24:
+#    still fails, in its first test, PosesInContactEventsOut, on the first
+#    Pump()): UBSan "member access within address ... which does not point to
+#    an object of type LCMMHUntypedSubscription" in LCM's cb_func
+#    (lcm-cpp-impl.hpp:108), reached from liblcm's lcm_dispatch_handlers under
+#    lcm_handle_timeout on memq://. The address is inside a ~1 KiB heap block
+#    whose first word is a heap pointer, not a vptr: not the 40-byte
+#    subscription LCM::subscribe registered. With service/lcm_transport.cc
+#    rebuilt -fno-sanitize=vptr, the next report is in the test's own typed
+#    subscription (lcm-cpp-impl.hpp:88, LCMMHSubscription::cb_func) with a
+#    NULL user_data. So liblcm (1.3.1, not instrumented: ASan cannot see a
+#    use-after-free inside it) hands its callbacks a user_data that is not the
+#    one they were registered with, for the transport's subscription and the
+#    test's alike, on the first dispatch: not a subscription of ours used
+#    after Unsubscribe (none has been unsubscribed yet then). Cause not found;
+#    next: LCM 1.3.1's memq provider / lcm_dispatch_handlers under ASan.
+#    LcmTransportConstruction fails the same way since the merges (its
+#    unsigned-mode test delivers over memq:// to a raw subscription: the
+#    user_data handed over was ASCII text, 0x2073696874206d6f); so do
+#    LcmTransportTest's newer tests (The36ByteCrashDatagramIsRefused,
+#    WhatThePublisherSendsIsSignedWithTheServiceKey: a typed subscription's
+#    cb_func, line 88, with a misaligned user_data).
 #  - ServiceEndToEnd.BadInputRejectedGoodClientUnaffected: LeakSanitizer,
 #    2 x 128 bytes realloc'd inside the sweptccd binary (no symbols past the
-#    allocator).
+#    allocator; 128 bytes is GLib's first GPtrArray growth, which liblcm uses
+#    per channel). Not re-checked after the merges (the ASan daemon build did
+#    not fit the time there was).
 #  - Not yet run through under the sanitizers on the shared machine (time):
 #    BvhTest (31 of its tests passed, SeparationMatchesBruteForceOverAllTriangles
 #    and QueryNeverCullsATouchingLink did not finish in the time there was),
 #    Query/RenderCommandTest, Gpu.* (culler, context), the other
-#    ServiceEndToEnd tests, Demo.
+#    ServiceEndToEnd tests, Demo, and the suites added by the merges
+#    (CheckedDecode, signing, token bucket, typed index, query parts).
 exclude='^(Gpu\.)?(CcdRandomTest|RealDataTest)\.'
 if [ "${SANITIZE_ALL:-0}" = 1 ]; then exclude='^$'; fi
 ctest --test-dir "$build" --output-on-failure -j"$jobs" -E "$exclude" "$@"

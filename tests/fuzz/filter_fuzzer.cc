@@ -37,8 +37,10 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     const sweptccd::CollisionFilter filter = sweptccd::CollisionFilter::FromJson(
         sweptccd::fuzz::AsText(data, size), "fuzz", skeleton, env);
     for (int link = 0; link < skeleton.num_links(); ++link) {
-      for (int object = 0; object < env.num_objects(); ++object) filter.Ignores(link, object);
-      filter.IgnoresAll(link);
+      for (int object = 0; object < env.num_objects(); ++object) {
+        filter.Ignores(sweptccd::LinkIndex(link), sweptccd::ObjectIndex(object));
+      }
+      filter.IgnoresAll(sweptccd::LinkIndex(link));
     }
   } catch (const sweptccd::InputError&) {
   }

@@ -8,6 +8,8 @@ so they carry the current fingerprints: run this again after a change to
 msgs/ (python3 tests/fuzz/make_corpus.py) and commit the result.
 """
 import gzip
+import hashlib
+import hmac
 import importlib
 import pathlib
 import struct
@@ -165,49 +167,85 @@ def record(m, link):
     return r
 
 
+# The key the decoder fuzzer (decode_fuzzer.cc) verifies with: seeds signed
+# with it start the fuzzer on the verifying path too.
+FUZZ_KEY = bytes([0x5A]) * 32
+
+
+def sign(data, key=FUZZ_KEY):
+    """The bytes with their last 32 (the mac field) set to HMAC-SHA256 of the rest."""
+    return data[:-32] + hmac.new(key, data[:-32], hashlib.sha256).digest()
+
+
 def messages(m):
     fp = {name: getattr(m, name)._get_packed_fingerprint()
-          for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t",
-                       "contact_record_t", "link_bracket_t")}
+          for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t")}
     p = m.tracker_pose_t()
-    p.utime, p.client_id, p.seq, p.num_links = 1000000, "alice", 7, 2
+    p.utime, p.client_id, p.session, p.seq, p.num_links = 1000000, "alice", 1700000000000000, 7, 2
     p.position = [[0, 0, 1], [0, 0.2, 1]]
     p.orientation = [[1, 0, 0, 0], [0.7071, 0.7071, 0, 0]]
+    p.mac = bytes(32)
     write("fuzz_decode_tracker_pose_t", "two_links.lcm", p.encode())
-    # Attack: client_id length INT32_MIN, 36 bytes in all.
+    write("fuzz_decode_tracker_pose_t", "two_links_signed.lcm", sign(p.encode()))
+    # Attack: client_id length INT32_MIN, 36 bytes in all (lcm-gen's decoder
+    # reads before the buffer: a segfault no try/catch stops).
     write("fuzz_decode_tracker_pose_t", "attack_client_id_length_int32_min.lcm",
           fp["tracker_pose_t"] + struct.pack(">qi", 1, -2**31) + bytes(16))
-    # Attack: num_links = 2^26 in a short message (arrays sized from it).
+    # Attack: num_links = 2^26 in a short message (arrays sized from it: 1.5 GiB).
     write("fuzz_decode_tracker_pose_t", "attack_num_links_2pow26.lcm",
-          fp["tracker_pose_t"] + struct.pack(">qi", 1, 2) + b"a\x00" + struct.pack(">qi", 1, 2**26) + bytes(48))
+          fp["tracker_pose_t"] + struct.pack(">qi", 1, 2) + b"a\x00" +
+          struct.pack(">qqi", 1, 1, 2**26) + bytes(48))
+    # Attack the fuzzer found (then an out-of-memory): num_links 1080033280
+    # (0x40600000, the high word of a double) in a 66-byte message.
+    write("fuzz_decode_tracker_pose_t", "attack_num_links_1080033280_found_oom.lcm",
+          fp["tracker_pose_t"] + struct.pack(">qi", 1000000, 6) + b"alice\x00" +
+          struct.pack(">qqi", 1, 7, 0x40600000) + struct.pack(">dd", 0.7051, 0.7051) + bytes(4))
     s = m.status_t()
-    s.utime, s.backend, s.renderer, s.num_clients = 5, "gpu", "llvmpipe", 1
+    s.utime, s.backend, s.renderer, s.security, s.num_clients = 5, "gpu", "llvmpipe", "signed", 1
     s.client_id, s.poses_received, s.pairs_answered, s.pairs_skipped = ["alice"], [10], [9], [0]
     s.rejected, s.seq_gaps, s.latency_median_us, s.latency_p99_us = [1], [0], [800.0], [2100.0]
     s.queue_depth, s.dropped_total, s.rejected_unattributed = 0, 0, 3
+    s.mac = bytes(32)
     write("fuzz_decode_status_t", "one_client.lcm", s.encode())
-    # Attack: 2^24 clients announced in a short message.
+    write("fuzz_decode_status_t", "one_client_signed.lcm", sign(s.encode()))
+    # Attack: 2^24 clients announced in a short message (nine arrays sized from it).
     write("fuzz_decode_status_t", "attack_num_clients_2pow24.lcm",
           fp["status_t"] + struct.pack(">q", 5) + struct.pack(">i", 4) + b"cpu\x00" +
-          struct.pack(">i", 1) + b"\x00" + struct.pack(">i", 2**24) + bytes(16))
+          struct.pack(">i", 1) + b"\x00" + struct.pack(">i", 9) + b"unsigned\x00" +
+          struct.pack(">i", 2**24) + bytes(16))
     e = m.contact_event_t()
     e.utime, e.client_id, e.seq0, e.seq1, e.pair, e.utime0, e.utime1 = 9, "alice", 6, 7, 0, 100, 200
     e.result, e.error, e.initially_colliding, e.undecided = 1, "", False, False
     e.s_lo, e.s_hi, e.t_lo, e.t_hi = 0.25, 0.2501, 125.0, 125.01
+    e.num_contacts, e.contacts, e.num_links, e.links = 0, [], 0, []
+    e.receive_utime, e.compute_us, e.queue_us, e.skipped_pairs_total = 300, 40.0, 2.0, 0
+    e.mac = bytes(32)
+    # Where num_contacts starts: what follows it in a message with no
+    # contacts and no links is num_contacts, num_links, 4 x 8 bytes, the mac.
+    at_num_contacts = len(e.encode()) - (4 + 4 + 4 * 8 + 32)
+    write("fuzz_decode_contact_event_t", "no_contacts.lcm", e.encode())
     e.num_contacts, e.contacts = 1, [record(m, 1)]
     b = m.link_bracket_t()
     b.link, b.s_lo, b.s_hi, b.t_lo, b.t_hi = 1, 0.25, 0.2501, 125.0, 125.01
     b.initially_colliding, b.undecided, b.has_witness, b.witness = False, False, True, record(m, 1)
     e.num_links, e.links = 1, [b]
-    e.receive_utime, e.compute_us, e.queue_us, e.skipped_pairs_total = 300, 40.0, 2.0, 0
-    write("fuzz_decode_contact_event_t", "contact_per_link.lcm", e.encode())
+    full = e.encode()
+    assert struct.unpack(">i", full[at_num_contacts:at_num_contacts + 4])[0] == 1
+    write("fuzz_decode_contact_event_t", "contact_per_link.lcm", full)
+    write("fuzz_decode_contact_event_t", "contact_per_link_signed.lcm", sign(full))
+    # Attack: 2^26 contacts announced, the message ends there (arrays of
+    # 104-byte records sized from it: 7 GiB).
     write("fuzz_decode_contact_event_t", "attack_num_contacts_2pow26.lcm",
-          e.encode()[:8 + 8 + 4 + 6 + 6 * 8 + 1 + 4 + 1 + 2 + 32] + struct.pack(">i", 2**26))
-    write("fuzz_decode_contact_record_t", "record.lcm", record(m, 3).encode())
-    write("fuzz_decode_link_bracket_t", "bracket.lcm", b.encode())
+          full[:at_num_contacts] + struct.pack(">i", 2**26))
+    # Attack: num_contacts 0, num_links INT32_MIN.
+    write("fuzz_decode_contact_event_t", "attack_num_links_int32_min.lcm",
+          full[:at_num_contacts] + struct.pack(">ii", 0, -2**31) + bytes(64))
     r = m.rejection_t()
     r.utime, r.client_id, r.seq, r.reason, r.message = 1, "mallory", -1, "decode_error", "bad"
+    r.suppressed, r.mac = 4, bytes(32)
     write("fuzz_decode_rejection_t", "decode_error.lcm", r.encode())
+    write("fuzz_decode_rejection_t", "decode_error_signed.lcm", sign(r.encode()))
+    # Attack: reason length INT32_MIN.
     write("fuzz_decode_rejection_t", "attack_reason_length_int32_min.lcm",
           fp["rejection_t"] + struct.pack(">q", 1) + struct.pack(">i", 1) + b"\x00" +
           struct.pack(">q", -1) + struct.pack(">i", -2**31) + bytes(8))
