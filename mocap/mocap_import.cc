@@ -7,14 +7,13 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
-#include <fstream>
 #include <limits>
-#include <sstream>
 #include <string_view>
 #include <system_error>
 #include <utility>
 
 #include "core/errors.h"
+#include "core/geometry/mesh.h"
 
 namespace sweptccd {
 namespace {
@@ -877,7 +876,10 @@ MocapClip ImportBvhText(const std::string& text, const std::string& source,
     links[i].radius = it != options.radius_override_m.end() ? it->second : specs[i].radius_m;
     clip.source_joints.push_back(bvh.joints[bindings[i].joint].name);
   }
-  std::string name = std::filesystem::path(source).stem().string();
+  // The skeleton is named after the file: "walk" for walk.bvh and walk.bvh.gz.
+  std::filesystem::path file = std::filesystem::path(source).filename();
+  if (file.extension() == ".gz") file = file.stem();
+  std::string name = file.stem().string();
   if (name.empty()) name = "bvh_clip";
   clip.skeleton = Skeleton::FromLinks(name, std::move(links), source);
 
@@ -920,12 +922,8 @@ MocapClip ImportBvhFile(const std::string& path, const MocapImportOptions& optio
   if (std::filesystem::is_directory(path, ec)) {
     throw InputError(path + ": is a directory, not a BVH file");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the file");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw InputError(path + ": read error");
-  return ImportBvhText(text.str(), path, options);
+  // gzip-compressed files (by magic bytes) are inflated as meshes are.
+  return ImportBvhText(ReadFileMaybeGzip(path), path, options);
 }
 
 void TranslateClip(MocapClip* clip, const Eigen::Vector3d& offset_W) {

@@ -83,7 +83,8 @@ struct MocapClip {
   std::vector<std::string> source_joints;
 };
 
-/// Reads and imports a BVH file. Throws InputError("PATH: problem") for a file
+/// Reads and imports a BVH file, which may be gzip-compressed (by magic bytes,
+/// `.gz` or not). Throws InputError("PATH: problem") for a file
 /// that cannot be read, a malformed or truncated file ("PATH: line N: ..."), a
 /// hierarchy in which a link's joint cannot be found, or bad options.
 /// Deterministic; thread-safe (no shared state).

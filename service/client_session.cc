@@ -17,6 +17,31 @@ std::string Num(double v) {
   return buf;
 }
 
+// A rejection naming the value, the place and the fix.
+Rejection ToRejection(const PoseProblem& problem) {
+  const std::string link = "link " + std::to_string(problem.link) + ": ";
+  const std::string component = "[" + std::to_string(problem.component) + "] is " +
+                                Num(problem.value);
+  switch (problem.kind) {
+    case PoseProblem::Kind::kNonFinite:
+      return Rejection{rejection_code::kNonFinite,
+                       link + (problem.in_orientation ? "orientation" : "position") + component +
+                           "; send finite numbers"};
+    case PoseProblem::Kind::kPositionOutOfRange:
+      return Rejection{rejection_code::kPositionOutOfRange,
+                       link + "position" + component + " m, beyond 1e9 m; send metres in the " +
+                           "world frame"};
+    case PoseProblem::Kind::kZeroQuaternion:
+      return Rejection{rejection_code::kZeroQuaternion,
+                       link + "quaternion norm " + Num(problem.value) +
+                           " is below 1e-6; send a rotation as [w x y z]"};
+    case PoseProblem::Kind::kLinkCount:
+      break;  // Checked on the message's arrays before a Pose exists.
+  }
+  return Rejection{rejection_code::kWrongLinkCount,
+                   "got " + Num(problem.value) + " link poses; send one pose per skeleton link"};
+}
+
 }  // namespace
 
 std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_links, Pose* pose) {
@@ -42,46 +67,55 @@ std::optional<Rejection> ValidateTrackerPose(const tracker_pose_t& msg, int num_
   for (int i = 0; i < num_links; ++i) {
     const auto& p = msg.position[i];
     const auto& q = msg.orientation[i];
-    for (int k = 0; k < 3; ++k) {
-      if (!std::isfinite(p[k])) {
-        return Rejection{rejection_code::kNonFinite, "link " + std::to_string(i) + ": position[" +
-                                                         std::to_string(k) + "] is " + Num(p[k]) +
-                                                         "; send finite numbers"};
-      }
-    }
-    for (int k = 0; k < 4; ++k) {
-      if (!std::isfinite(q[k])) {
-        return Rejection{rejection_code::kNonFinite,
-                         "link " + std::to_string(i) + ": orientation[" + std::to_string(k) +
-                             "] is " + Num(q[k]) + "; send finite numbers"};
-      }
-    }
-    for (int k = 0; k < 3; ++k) {
-      if (std::fabs(p[k]) > kMaxCoordinate) {
-        return Rejection{rejection_code::kPositionOutOfRange,
-                         "link " + std::to_string(i) + ": position[" + std::to_string(k) + "] is " +
-                             Num(p[k]) + " m, beyond 1e9 m; send metres in the world frame"};
-      }
-    }
-    LinkPose& lp = pose->links[i];
-    lp.p = Eigen::Vector3d(p[0], p[1], p[2]);
-    lp.q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // w, x, y, z
-    const double norm = lp.q.coeffs().stableNorm();
-    if (!(norm >= kMinQuaternionNorm)) {
-      return Rejection{rejection_code::kZeroQuaternion,
-                       "link " + std::to_string(i) + ": quaternion norm " + Num(norm) +
-                           " is below 1e-6; send a rotation as [w x y z]"};
-    }
+    pose->links[i].p = Eigen::Vector3d(p[0], p[1], p[2]);
+    pose->links[i].q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);  // w, x, y, z
   }
-  // Normalises; the checks above are the same as core's, so this cannot fail.
-  const std::string problem = ValidateAndNormalizePose(pose, num_links);
-  SWEPTCCD_CHECK(problem.empty());
+  // The rule is core's (FindPoseProblem); the wording is the service's.
+  const std::optional<PoseProblem> problem = FindPoseProblem(*pose, num_links);
+  if (problem) return ToRejection(*problem);
+  const std::string error = ValidateAndNormalizePose(pose, num_links);
+  SWEPTCCD_CHECK(error.empty());  // Same rule as FindPoseProblem just passed.
   return std::nullopt;
 }
 
-ClientSession::ClientSession(std::string client_id, int num_links)
-    : client_id_(std::move(client_id)), num_links_(num_links) {
+ClientSession::ClientSession(std::string client_id, int num_links, int64_t max_utime_jump_us)
+    : client_id_(std::move(client_id)),
+      num_links_(num_links),
+      max_utime_jump_us_(max_utime_jump_us) {
   SWEPTCCD_CHECK(num_links_ > 0);
+  SWEPTCCD_CHECK(max_utime_jump_us_ > 0);
+}
+
+std::optional<Rejection> ClientSession::CheckOrder(const tracker_pose_t& msg) const {
+  if (!last_ || msg.session > session_) return std::nullopt;  // A new stream.
+  if (msg.session < session_) {
+    return Rejection{rejection_code::kStaleSession,
+                     "session " + std::to_string(msg.session) + " is older than the current " +
+                         std::to_string(session_) +
+                         "; a restarted tracker takes a greater session (e.g. its start time in us)"};
+  }
+  if (msg.seq <= last_->seq) {
+    return Rejection{rejection_code::kNonIncreasingSeq,
+                     "seq " + std::to_string(msg.seq) + " is not greater than " +
+                         std::to_string(last_->seq) +
+                         " of the last accepted pose; number poses strictly increasing"};
+  }
+  if (msg.utime <= last_->pose.utime) {
+    return Rejection{rejection_code::kNonIncreasingUtime,
+                     "utime " + std::to_string(msg.utime) + " is not greater than " +
+                         std::to_string(last_->pose.utime) +
+                         " of the last accepted pose; stamp samples strictly increasing"};
+  }
+  // msg.utime > last utime, so the difference fits in uint64.
+  const uint64_t jump = static_cast<uint64_t>(msg.utime) - static_cast<uint64_t>(last_->pose.utime);
+  if (jump > static_cast<uint64_t>(max_utime_jump_us_)) {
+    return Rejection{rejection_code::kUtimeJump,
+                     "utime " + std::to_string(msg.utime) + " is " + std::to_string(jump) +
+                         " us after the last accepted pose, beyond the " +
+                         std::to_string(max_utime_jump_us_) +
+                         " us horizon; stamp in microseconds, or start a new session"};
+  }
+  return std::nullopt;
 }
 
 std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_t receive_utime,
@@ -89,22 +123,15 @@ std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_
   ++poses_received_;
   Pose pose;
   std::optional<Rejection> rejection = ValidateTrackerPose(msg, num_links_, &pose);
-  if (!rejection && last_) {
-    if (msg.seq <= last_->seq) {
-      rejection = Rejection{rejection_code::kNonIncreasingSeq,
-                            "seq " + std::to_string(msg.seq) + " is not greater than " +
-                                std::to_string(last_->seq) +
-                                " of the last accepted pose; number poses strictly increasing"};
-    } else if (msg.utime <= last_->pose.utime) {
-      rejection = Rejection{rejection_code::kNonIncreasingUtime,
-                            "utime " + std::to_string(msg.utime) + " is not greater than " +
-                                std::to_string(last_->pose.utime) +
-                                " of the last accepted pose; stamp samples strictly increasing"};
-    }
-  }
+  if (!rejection) rejection = CheckOrder(msg);
   if (rejection) {
     ++rejected_;
     return rejection;
+  }
+  if (last_ && msg.session > session_) last_.reset();  // No pair across sessions.
+  if (!last_) {
+    ++streams_started_;
+    session_ = msg.session;
   }
   ++poses_accepted_;
   if (last_) {
@@ -113,14 +140,18 @@ std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_
         static_cast<uint64_t>(msg.seq) - static_cast<uint64_t>(last_->seq) - 1;
     const uint64_t room = static_cast<uint64_t>(INT64_MAX - seq_gaps_);
     seq_gaps_ += static_cast<int64_t>(std::min(missing, room));
-    if (pending_) {
+    if (pending_ && pending_->session == session_) {
       // Latest wins: (A, B) pending and C arrives -> (A, C); (A, B) and
       // (B, C) are answered as one, so one pair is skipped.
       pending_->seq1 = msg.seq;
       pending_->pose1 = pose;
       ++pairs_skipped_;
     } else {
+      // A pair of an older stream still pending is replaced (latest wins,
+      // one pair skipped): no pair spans two sessions.
+      if (pending_) ++pairs_skipped_;
       pending_.emplace();
+      pending_->session = session_;
       pending_->seq0 = last_->seq;
       pending_->pose0 = last_->pose;
       pending_->seq1 = msg.seq;

@@ -24,7 +24,14 @@ inline constexpr char kUnknownClient[] = "unknown_client";
 inline constexpr char kNonIncreasingSeq[] = "non_increasing_seq";
 inline constexpr char kNonIncreasingUtime[] = "non_increasing_utime";
 inline constexpr char kDecodeError[] = "decode_error";
-}  // namespace rejection_code
+inline constexpr char kBadClientId[] = "bad_client_id";    // Breaks the id rule (SPEC section 8).
+inline constexpr char kBadSignature[] = "bad_signature";    // mac missing, wrong, or no key.
+inline constexpr char kStaleSession[] = "stale_session";    // session below the client's current.
+inline constexpr char kUtimeJump[] = "utime_jump";          // utime beyond the horizon.
+}
+
+/// Default horizon of the utime_jump rule: 10 s.
+inline constexpr int64_t kDefaultMaxUtimeJumpUs = 10'000'000;  // namespace rejection_code
 
 /// Why a tracker pose was refused: a code from rejection_code and a message
 /// that names the value, the place and the fix.
@@ -46,6 +53,7 @@ using SteadyClock = std::chrono::steady_clock;
 /// A pair of accepted poses handed to a worker.
 struct PosePair {
   int64_t pair = 0;  // Index among this client's handed-out pairs (0, 1, ...).
+  int64_t session = 0;  // The stream both poses belong to.
   int64_t seq0 = 0, seq1 = 0;
   Pose pose0, pose1;
   int64_t receive_utime = 0;             // Wall clock (us) when pose1 was received.
@@ -53,17 +61,28 @@ struct PosePair {
   int64_t skipped_pairs_total = 0;       // The client's skipped count when handed out.
 };
 
-/// One client's stream. Pairs consecutive accepted poses; at most one pair is
-/// pending (formed, not yet taken) and at most one in flight (taken, not yet
-/// finished). When a pose is accepted while a pair is pending, the pending
-/// pair (A, B) becomes (A, newest): latest wins, and one skipped pair is
-/// counted. So at every moment
-///   poses_accepted - 1 == pairs_taken + pairs_skipped + (pending ? 1 : 0)
-/// once a first pose was accepted: no pair is lost silently. Pairs are taken
-/// strictly in pose order, one at a time.
+/// One client's poses. Pairs consecutive accepted poses of one stream; at
+/// most one pair is pending (formed, not yet taken) and at most one in flight
+/// (taken, not yet finished). When a pose is accepted while a pair is pending,
+/// the pending pair (A, B) becomes (A, newest): latest wins, and one skipped
+/// pair is counted. The first accepted pose of each stream pairs with nothing,
+/// so at every moment
+///   poses_accepted - streams_started == pairs_taken + pairs_skipped + (pending ? 1 : 0):
+/// no pair is lost silently. Pairs are taken strictly in pose order, one at a
+/// time.
+///
+/// Streams (docs/SERVICE.md, "Sessions"): the session remembers the current
+/// `session` of tracker_pose_t. A pose with a greater session starts a new
+/// stream (seq and utime may restart; no pair spans two sessions; a pair
+/// still pending from the old stream is answered); a smaller one is refused
+/// (stale_session); an equal one must have seq and utime strictly greater
+/// than the last accepted pose's, and utime at most `max_utime_jump_us` past
+/// it (utime_jump), so one bogus stamp cannot lock the stream out.
 class ClientSession {
  public:
-  ClientSession(std::string client_id, int num_links);
+  /// `max_utime_jump_us` > 0.
+  ClientSession(std::string client_id, int num_links,
+                int64_t max_utime_jump_us = kDefaultMaxUtimeJumpUs);
 
   /// Offers a message (its client_id is not checked here). Returns the
   /// rejection, or nullopt when the pose was accepted (and possibly paired).
@@ -91,8 +110,15 @@ class ClientSession {
   /// seq numbers missing between consecutive accepted poses (lost or never
   /// sent); the pair of those two poses is still answered.
   int64_t seq_gaps() const { return seq_gaps_; }
+  /// Streams begun: the first accepted pose, then each greater session.
+  int64_t streams_started() const { return streams_started_; }
+  /// The current stream's session; meaningful once a pose was accepted.
+  int64_t session() const { return session_; }
 
  private:
+  // Session, seq, utime and horizon rules against the last accepted pose.
+  std::optional<Rejection> CheckOrder(const tracker_pose_t& msg) const;
+
   struct Accepted {
     int64_t seq = 0;
     Pose pose;
@@ -100,7 +126,9 @@ class ClientSession {
 
   std::string client_id_;
   int num_links_ = 0;
-  std::optional<Accepted> last_;  // Newest accepted pose.
+  int64_t max_utime_jump_us_ = kDefaultMaxUtimeJumpUs;
+  int64_t session_ = 0;           // Of the current stream, once last_ is set.
+  std::optional<Accepted> last_;  // Newest accepted pose of the current stream.
   std::optional<PosePair> pending_;
   bool in_flight_ = false;
   int64_t poses_received_ = 0;
@@ -110,6 +138,7 @@ class ClientSession {
   int64_t pairs_finished_ = 0;
   int64_t pairs_skipped_ = 0;
   int64_t seq_gaps_ = 0;
+  int64_t streams_started_ = 0;
 };
 
 }  // namespace sweptccd

@@ -9,6 +9,10 @@
 #include <utility>
 
 #include "core/errors.h"
+#include "msgs/text.h"
+#include "core/query/result_json.h"
+#include "service/contact_event.h"
+#include "service/percentile.h"
 
 namespace sweptccd {
 
@@ -24,40 +28,13 @@ double MicrosBetween(SteadyClock::time_point a, SteadyClock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
 
-void CopyVec(const Eigen::Vector3d& v, double out[3]) {
-  out[0] = v.x();
-  out[1] = v.y();
-  out[2] = v.z();
-}
-
-contact_record_t ToMsg(const ContactRecord& c) {
-  contact_record_t m;
-  m.link = c.link;
-  m.object = c.object;
-  m.triangle = c.triangle;
-  m.s = c.s;
-  CopyVec(c.point_link, m.point_link);
-  CopyVec(c.point_env, m.point_env);
-  CopyVec(c.normal, m.normal);
-  m.separation = c.separation;
-  return m;
-}
-
-// Quantile of a sample by nearest rank (q in [0, 1]); 0 when empty.
-double Quantile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  const size_t k = std::min(
-      v.size() - 1, static_cast<size_t>(std::llround(q * static_cast<double>(v.size() - 1))));
-  std::nth_element(v.begin(), v.begin() + k, v.end());
-  return v[k];
-}
-
 }  // namespace
 
-CollisionService::Client::Client(ClientConfig c, const Environment& env)
+CollisionService::Client::Client(ClientConfig c, const Environment& env,
+                                 int64_t max_utime_jump_us)
     : config(std::move(c)),
       engine(std::make_unique<CcdEngine>(*config.skeleton, env, config.filter)),
-      session(config.client_id, config.skeleton->num_links()) {}
+      session(config.client_id, config.skeleton->num_links(), max_utime_jump_us) {}
 
 CollisionService::CollisionService(std::shared_ptr<const Environment> environment,
                                    std::vector<ClientConfig> clients, ServiceOptions options,
@@ -78,8 +55,15 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
   const std::string problem = ValidateQueryOptions(options_.query);
   if (!problem.empty()) throw InputError("collision service: " + problem);
   if (!options_.clock_utime) options_.clock_utime = SystemUtime;
+  if (options_.max_utime_jump_us < 1) {
+    throw InputError("collision service: max_utime_jump_us is " +
+                     std::to_string(options_.max_utime_jump_us) + "; use 1 or more");
+  }
   for (ClientConfig& c : clients) {
-    if (c.client_id.empty()) throw InputError("collision service: a client has an empty client_id");
+    if (!IsValidClientId(c.client_id)) {
+      throw InputError("collision service: client id '" + EscapeForDisplay(c.client_id) +
+                       "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+    }
     if (!c.skeleton || c.skeleton->num_links() < 1) {
       throw InputError("collision service: client '" + c.client_id + "' has no skeleton");
     }
@@ -88,7 +72,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
                        "' is registered twice; give every client its own id");
     }
     client_index_[c.client_id] = static_cast<int>(clients_.size());
-    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_));
+    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_, options_.max_utime_jump_us));
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
   workers_.reserve(options_.num_workers);
@@ -111,8 +95,13 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       ++ignored_after_stop_;
       return;
     }
-    auto it = client_index_.find(pose.client_id);
-    if (it == client_index_.end()) {
+    auto it = client_index_.end();
+    if (!IsValidClientId(pose.client_id)) {
+      ++rejected_unattributed_;
+      rejection = Rejection{rejection_code::kBadClientId,
+                            "client_id '" + EscapeForDisplay(pose.client_id) +
+                                "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"};
+    } else if ((it = client_index_.find(pose.client_id)) == client_index_.end()) {
       ++rejected_unattributed_;
       rejection = Rejection{rejection_code::kUnknownClient,
                             "client_id '" + pose.client_id +
@@ -127,7 +116,23 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       }
     }
   }
-  if (rejection) Reject(pose.client_id, pose.seq, *rejection);
+  if (rejection) {
+    // An id that breaks the rule is not echoed in rejection_t.client_id.
+    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection);
+  }
+}
+
+void CollisionService::OnRefused(const std::string& client_id, const Rejection& rejection) {
+  SWEPTCCD_CHECK(client_id.empty() || IsValidClientId(client_id));
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) {
+      ++ignored_after_stop_;
+      return;
+    }
+    ++rejected_unattributed_;
+  }
+  Reject(client_id, -1, rejection);
 }
 
 void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
@@ -154,6 +159,7 @@ void CollisionService::Reject(const std::string& client_id, int64_t seq,
   msg.seq = seq;
   msg.reason = rejection.reason;
   msg.message = rejection.message;
+  msg.suppressed = 0;  // Publication rate limits come with step two of the issue.
   // Logged at a limited rate: at most 10 lines a second, then a count.
   bool log = false;
   int64_t suppressed = 0;
@@ -174,8 +180,8 @@ void CollisionService::Reject(const std::string& client_id, int64_t seq,
   }
   if (suppressed > 0) spdlog::warn("{} rejection log lines suppressed", suppressed);
   if (log) {
-    spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", client_id, seq, rejection.reason,
-                 rejection.message);
+    spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", EscapeForDisplay(client_id), seq,
+                 rejection.reason, EscapeForDisplay(rejection.message, 1024));
   }
   SafePublish([&] { publisher_->PublishRejection(msg); }, "rejection");
 }
@@ -203,12 +209,6 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
   ev.pair = pair.pair;
   ev.utime0 = pair.pose0.utime;
   ev.utime1 = pair.pose1.utime;
-  ev.result = contact_event_t::RESULT_FREE;
-  ev.initially_colliding = false;
-  ev.undecided = false;
-  ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
-  ev.num_contacts = 0;
-  ev.num_links = 0;
   ev.receive_utime = pair.receive_utime;
   ev.queue_us = queue_us;
   ev.skipped_pairs_total = pair.skipped_pairs_total;
@@ -218,46 +218,16 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
   const SteadyClock::time_point start = SteadyClock::now();
   try {
     const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options);
-    if (r.contact) {
-      ev.result = contact_event_t::RESULT_CONTACT;
-      ev.initially_colliding = r.initially_colliding;
-      ev.undecided = r.undecided;
-      ev.s_lo = r.s_lo;
-      ev.s_hi = r.s_hi;
-      ev.t_lo = BracketTimeLo(ev.utime0, ev.utime1, r.s_lo);
-      ev.t_hi = BracketTimeHi(ev.utime0, ev.utime1, r.s_hi);
-      for (const ContactRecord& c : r.contacts) ev.contacts.push_back(ToMsg(c));
-    }
-    for (const LinkBracket& b : r.links) {
-      link_bracket_t m;
-      m.link = b.link;
-      m.s_lo = b.s_lo;
-      m.s_hi = b.s_hi;
-      m.t_lo = BracketTimeLo(ev.utime0, ev.utime1, b.s_lo);
-      m.t_hi = BracketTimeHi(ev.utime0, ev.utime1, b.s_hi);
-      m.initially_colliding = b.initially_colliding;
-      m.undecided = b.undecided;
-      m.has_witness = b.has_witness;
-      m.witness = b.has_witness ? ToMsg(b.witness) : contact_record_t{};
-      ev.links.push_back(m);
-    }
+    FillContactEvent(MakeResultRecord(ev.pair, ev.utime0, ev.utime1, r, options.per_link), &ev);
   } catch (const std::exception& e) {
     // Not expected (the poses were validated); answered, never lost.
-    ev.result = contact_event_t::RESULT_INVALID;
-    ev.error = std::string("query failed: ") + e.what();
+    MarkContactEventInvalid(std::string("query failed: ") + e.what(), &ev);
   } catch (...) {
-    ev.result = contact_event_t::RESULT_INVALID;
-    ev.error = "query failed with an unknown exception";
+    MarkContactEventInvalid("query failed with an unknown exception", &ev);
   }
   if (ev.result == contact_event_t::RESULT_INVALID) {
-    ev.initially_colliding = ev.undecided = false;
-    ev.s_lo = ev.s_hi = ev.t_lo = ev.t_hi = 0;
-    ev.contacts.clear();
-    ev.links.clear();
-    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, ev.error);
+    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, EscapeForDisplay(ev.error, 1024));
   }
-  ev.num_contacts = static_cast<int32_t>(ev.contacts.size());
-  ev.num_links = static_cast<int32_t>(ev.links.size());
   ev.compute_us = MicrosBetween(start, SteadyClock::now());
   return ev;
 }
@@ -322,6 +292,7 @@ status_t CollisionService::Status() const {
   s.utime = NowUtime();
   s.backend = options_.backend_state ? options_.backend_state() : options_.backend;
   s.renderer = options_.renderer;
+  s.security = options_.security;
   std::lock_guard<std::mutex> lock(mutex_);
   s.num_clients = static_cast<int32_t>(clients_.size());
   int32_t pending = 0;
@@ -335,8 +306,8 @@ status_t CollisionService::Status() const {
     s.rejected.push_back(cs.rejected());
     s.seq_gaps.push_back(cs.seq_gaps());
     std::vector<double> lat(c->latencies_us.begin(), c->latencies_us.end());
-    s.latency_median_us.push_back(Quantile(lat, 0.5));
-    s.latency_p99_us.push_back(Quantile(std::move(lat), 0.99));
+    s.latency_median_us.push_back(Percentile(lat, 0.5));
+    s.latency_p99_us.push_back(Percentile(std::move(lat), 0.99));
     if (cs.has_pending()) ++pending;
     dropped += cs.pairs_skipped();
   }

@@ -52,6 +52,11 @@ struct ServiceOptions {
   int latency_window = 1024;
   /// Wall clock in microseconds for utime fields; default: system clock.
   std::function<int64_t()> clock_utime;
+  /// Reported in status_t.security: "signed", or "unsigned" when poses are
+  /// not authenticated (lab bench).
+  std::string security = "signed";
+  /// Horizon of the utime_jump rule per client stream (ClientSession), > 0.
+  int64_t max_utime_jump_us = kDefaultMaxUtimeJumpUs;
 };
 
 /// Owns the client sessions and the worker pool.
@@ -65,7 +70,7 @@ struct ServiceOptions {
 class CollisionService {
  public:
   /// Starts the workers. Throws InputError for bad configuration (no clients,
-  /// empty or duplicate client_id, null skeleton, num_workers < 1, invalid
+  /// a client_id breaking the id rule (1-64 of [A-Za-z0-9_.-]), a duplicate, null skeleton, num_workers < 1, invalid
   /// query options, latency_window < 1). `environment` and `publisher` must
   /// outlive the service.
   CollisionService(std::shared_ptr<const Environment> environment,
@@ -83,6 +88,11 @@ class CollisionService {
   /// A message on the pose channel that could not be decoded: publishes a
   /// "decode_error" rejection and counts it.
   void OnUndecodable(const std::string& channel, const std::string& problem);
+
+  /// A pose refused by the transport before decoding (bad_client_id,
+  /// bad_signature): publishes the rejection and counts it as unattributed
+  /// (its sender is unknown). `client_id` must be empty or follow the id rule.
+  void OnRefused(const std::string& client_id, const Rejection& rejection);
 
   /// Blocks until no pair is pending or in flight and every answer has been
   /// published. For tests and orderly shutdown.
@@ -109,7 +119,7 @@ class CollisionService {
     std::unique_ptr<CcdEngine> engine;
     ClientSession session;
     std::deque<double> latencies_us;  // Newest at the back.
-    Client(ClientConfig c, const Environment& env);
+    Client(ClientConfig c, const Environment& env, int64_t max_utime_jump_us);
   };
 
   void WorkerLoop();

@@ -8,6 +8,9 @@
 #include <memory>
 #include <string>
 
+#include "msgs/channels.h"
+#include "msgs/checked_decode.h"
+#include "msgs/signing.h"
 #include "service/publisher.h"
 
 namespace lcm {
@@ -20,14 +23,30 @@ class CollisionService;
 
 /// Channel names (docs/SERVICE.md).
 struct LcmChannels {
-  std::string pose = "SWEPTCCD_POSE";        // tracker_pose_t, in.
-  std::string contact = "SWEPTCCD_CONTACT";  // contact_event_t, out.
-  std::string reject = "SWEPTCCD_REJECT";    // rejection_t, out.
-  std::string status = "SWEPTCCD_STATUS";    // status_t, out.
+  std::string pose = kPoseChannel;        // tracker_pose_t, in.
+  std::string contact = kContactChannel;  // contact_event_t, out.
+  std::string reject = kRejectChannel;    // rejection_t, out.
+  std::string status = kStatusChannel;    // status_t, out.
+};
+
+/// How the transport authenticates what it receives and signs what it sends.
+struct TransportSecurity {
+  /// true: every pose must carry the HMAC of its client's key (KeyFor), and
+  /// everything published is signed with the service key. false (lab bench):
+  /// nothing is verified and the mac of what is published is all zero.
+  bool signed_mode = true;
+  KeyRing keys;
+  WireLimits limits;  // Every incoming message is checked against these.
 };
 
 /// Publishes on LCM and, once Subscribe()d, feeds the pose channel to a
 /// CollisionService.
+///
+/// Each incoming datagram is, in order: checked against its byte count and
+/// the wire limits (CheckWire; else "decode_error"), its client_id checked
+/// against the id rule ("bad_client_id"), in signed mode its mac verified
+/// with the client's key ("bad_signature"), and only then decoded and handed
+/// to CollisionService::OnPose.
 ///
 /// Threading: the Publish* methods are thread-safe (serialised by a mutex).
 /// Incoming messages are delivered on the thread that calls
@@ -37,8 +56,9 @@ struct LcmChannels {
 class LcmTransport : public Publisher {
  public:
   /// `lcm` must be good() and outlive this object. Throws InputError when
-  /// `lcm` is null or not good.
-  LcmTransport(lcm::LCM* lcm, LcmChannels channels = {});
+  /// `lcm` is null or not good, or when signed mode has no service key (nor
+  /// room key) to sign with.
+  LcmTransport(lcm::LCM* lcm, LcmChannels channels = {}, TransportSecurity security = {});
   ~LcmTransport() override;
 
   LcmTransport(const LcmTransport&) = delete;

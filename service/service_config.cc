@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/errors.h"
+#include "msgs/text.h"
 
 namespace sweptccd {
 
@@ -33,7 +34,12 @@ T Get(const YAML::Node& node, const std::string& where) {
 
 void CheckKeys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
   for (const auto& kv : map) {
-    const std::string key = kv.first.as<std::string>();
+    // A key may be any YAML node ("? [a, b]: 1"); as<std::string>() would
+    // throw YAML's own exception for a non-scalar one (found by fuzz_config).
+    if (!kv.first.IsScalar()) {
+      throw InputError(where + ": a key must be a plain name, got '" + YAML::Dump(kv.first) + "'");
+    }
+    const std::string key = kv.first.Scalar();
     if (!known.count(key)) throw InputError(where + ": unknown key '" + key + "'");
   }
 }
@@ -47,7 +53,73 @@ std::vector<std::string> StringList(const YAML::Node& node, const std::string& w
   return out;
 }
 
+SecurityConfig ParseSecurity(const YAML::Node& node, const std::string& at,
+                             const std::string& base_dir) {
+  if (!node.IsMap()) throw InputError(at + "security: expected a mapping");
+  CheckKeys(node, {"mode", "room_key", "service_key", "client_keys", "max_utime_jump_s"},
+            at + "security");
+  SecurityConfig sc;
+  if (node["mode"]) sc.mode = Get<std::string>(node["mode"], at + "security.mode");
+  if (node["room_key"]) {
+    sc.room_key = Resolve(base_dir, Get<std::string>(node["room_key"], at + "security.room_key"));
+  }
+  if (node["service_key"]) {
+    sc.service_key =
+        Resolve(base_dir, Get<std::string>(node["service_key"], at + "security.service_key"));
+  }
+  if (const YAML::Node keys = node["client_keys"]) {
+    if (!keys.IsMap()) throw InputError(at + "security.client_keys: expected a mapping id: file");
+    for (const auto& kv : keys) {
+      const std::string id = Get<std::string>(kv.first, at + "security.client_keys");
+      sc.client_keys[id] =
+          Resolve(base_dir, Get<std::string>(kv.second, at + "security.client_keys." + id));
+    }
+  }
+  if (node["max_utime_jump_s"]) {
+    sc.max_utime_jump_s = Get<double>(node["max_utime_jump_s"], at + "security.max_utime_jump_s");
+  }
+  return sc;
+}
+
+void ValidateSecurity(const ServiceConfig& c) {
+  const SecurityConfig& sc = c.security;
+  if (sc.mode != "signed" && sc.mode != "unsigned") {
+    throw InputError("configuration: security.mode must be signed or unsigned, got '" +
+                     EscapeForDisplay(sc.mode) + "'");
+  }
+  if (!(sc.max_utime_jump_s > 0 && sc.max_utime_jump_s <= 1e6)) {
+    throw InputError("configuration: security.max_utime_jump_s must be in (0, 1e6] seconds");
+  }
+  for (const auto& [id, path] : sc.client_keys) {
+    if (!IsValidClientId(id)) {
+      throw InputError("configuration: security.client_keys: '" + EscapeForDisplay(id) +
+                       "' is not a client id (1-64 of A-Z a-z 0-9 _ . -)");
+    }
+  }
+  if (sc.mode == "unsigned") return;
+  if (sc.room_key.empty() && sc.service_key.empty()) {
+    throw InputError("configuration: signed mode needs security.room_key or security.service_key "
+                     "(make one with `sweptccd keygen --out FILE`), or security.mode: unsigned");
+  }
+  for (const ClientSpec& spec : c.clients) {
+    if (sc.room_key.empty() && !sc.client_keys.count(spec.id)) {
+      throw InputError("configuration: client '" + spec.id + "' has no key; add it under "
+                       "security.client_keys or set security.room_key");
+    }
+  }
+}
+
 }  // namespace
+
+TransportSecurity LoadTransportSecurity(const SecurityConfig& sc) {
+  TransportSecurity security;
+  security.signed_mode = sc.mode != "unsigned";
+  if (!security.signed_mode) return security;
+  if (!sc.room_key.empty()) security.keys.SetRoomKey(LoadKeyFile(sc.room_key));
+  if (!sc.service_key.empty()) security.keys.SetServiceKey(LoadKeyFile(sc.service_key));
+  for (const auto& [id, path] : sc.client_keys) security.keys.SetClientKey(id, LoadKeyFile(path));
+  return security;
+}
 
 ServiceConfig ParseServiceConfig(const std::string& text, const std::string& source,
                                  const std::string& base_dir) {
@@ -62,7 +134,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
-             "status_period_s", "log_level", "clients"},
+             "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
+             "max_links"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
@@ -89,7 +162,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       c.query.max_intervals = Get<int64_t>(q["max_intervals"], at + "query.max_intervals");
     }
   }
-  if (root["backend"]) c.backend = Get<std::string>(root["backend"], at + "backend");
+  if (root["backend"]) {
+    const std::string name = Get<std::string>(root["backend"], at + "backend");
+    c.backend = gpu::ParseBackendKind(name, at + "backend");
+  }
   if (root["gpu_device"]) c.gpu_device = Get<int>(root["gpu_device"], at + "gpu_device");
   if (root["require_hardware"]) {
     c.require_hardware = Get<bool>(root["require_hardware"], at + "require_hardware");
@@ -99,6 +175,11 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     c.status_period_s = Get<double>(root["status_period_s"], at + "status_period_s");
   }
   if (root["log_level"]) c.log_level = Get<std::string>(root["log_level"], at + "log_level");
+  if (root["security"]) c.security = ParseSecurity(root["security"], at, base_dir);
+  if (root["max_mesh_bytes"]) {
+    c.max_mesh_bytes = Get<uint64_t>(root["max_mesh_bytes"], at + "max_mesh_bytes");
+  }
+  if (root["max_links"]) c.max_links = Get<int>(root["max_links"], at + "max_links");
   if (const YAML::Node clients = root["clients"]) {
     if (!clients.IsSequence()) throw InputError(at + "clients: expected a list");
     for (size_t i = 0; i < clients.size(); ++i) {
@@ -141,13 +222,17 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   if (c.clients.empty()) throw InputError("configuration: no clients (give 'clients' or --client)");
   std::set<std::string> ids;
   for (const ClientSpec& s : c.clients) {
-    if (s.id.empty()) throw InputError("configuration: a client has an empty id");
+    if (!IsValidClientId(s.id)) {
+      throw InputError("configuration: client id '" + EscapeForDisplay(s.id) +
+                       "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+    }
     if (!ids.insert(s.id).second) throw InputError("configuration: duplicate client id '" + s.id + "'");
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
-  if (c.backend != "cpu" && c.backend != "gpu" && c.backend != "auto") {
-    throw InputError("configuration: backend must be cpu, gpu or auto, got '" + c.backend + "'");
+  if (c.max_mesh_bytes == 0) throw InputError("configuration: max_mesh_bytes must be >= 1 byte");
+  if (c.max_links < 1) {
+    throw InputError("configuration: max_links must be >= 1, got " + std::to_string(c.max_links));
   }
   if (c.gpu_device < -1) {
     throw InputError("configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "
@@ -155,6 +240,7 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   const std::string problem = ValidateQueryOptions(c.query);
   if (!problem.empty()) throw InputError("configuration: query: " + problem);
+  ValidateSecurity(c);
 }
 
 }  // namespace sweptccd

@@ -2,9 +2,13 @@
 // The daemon's configuration: a YAML file (deploy/sweptccd.yaml documents
 // every key) with command-line overrides. Typed options, validated at load.
 
+#include <map>
 #include <string>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
 
@@ -18,18 +22,30 @@ struct ClientSpec {
   std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
 };
 
+/// The `security:` block (docs/SERVICE.md, "Signed messages").
+struct SecurityConfig {
+  std::string mode = "signed";  // signed, or unsigned for a lab bench.
+  std::string room_key;         // Key file: clients without their own key, and the service.
+  std::string service_key;      // Key file that signs what the service publishes; default room_key.
+  std::map<std::string, std::string> client_keys;  // Client id -> key file.
+  double max_utime_jump_s = 10;  // utime_jump horizon, seconds, > 0.
+};
+
 struct ServiceConfig {
   std::string lcm_url = "udpm://239.255.76.67:7667?ttl=0";
   LcmChannels channels;
   std::vector<std::string> environment;  // Mesh files, in object order.
   QueryOptions query;
-  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
   int gpu_device = -1;           // EGL device index; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
   double status_period_s = 1.0;
   std::string log_level = "info";
+  uint64_t max_mesh_bytes = kDefaultMaxMeshBytes;  // Cap on each mesh file, before and after gunzip.
+  int max_links = kDefaultMaxLinks;                // Cap on each client's skeleton.
   std::vector<ClientSpec> clients;
+  SecurityConfig security;
 };
 
 /// Reads a YAML configuration. Relative paths are taken relative to the
@@ -43,7 +59,13 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
 
 /// Checks a configuration after overrides: environment and clients present,
 /// unique client ids, workers >= 1, status period > 0, query options valid,
-/// backend cpu, gpu or auto. Throws InputError naming the problem.
+/// client ids following the id rule, the security
+/// block (mode, a key for every client and for the service in signed mode).
+/// Throws InputError naming the problem.
 void ValidateServiceConfig(const ServiceConfig& config);
+
+/// Loads the key files named in `security` (LoadKeyFile's checks: mode 600,
+/// 64 hex digits). Unsigned mode loads nothing. Throws InputError.
+TransportSecurity LoadTransportSecurity(const SecurityConfig& security);
 
 }  // namespace sweptccd

@@ -7,21 +7,24 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
 
+#include "core/errors.h"
+#include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
-#include "core/errors.h"
-#include "core/gpu/backend.h"
-#include "core/geometry/mesh.h"
 #include "mocap/mocap_import.h"
 
 namespace sweptccd {
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
-  app->add_option("--data", o->data_dir, "Folder with env/ and mocap/ (default: ../shared/data)");
+  app->add_option("--data", o->data_dir,
+                  "Folder with env/ and mocap/ (default: the project's data/, " SWEPTCCD_DATA_DIR
+                  ")");
   app->add_option("--clip", o->clips, "BVH clips in mocap/ to replay");
   app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip")
       ->check(CLI::Range(1, 100000000));
@@ -35,6 +38,9 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
       ->check(CLI::IsMember({"gpu", "hardware", "off"}));
   app->add_option("--gpu-device", o->gpu_device, "EGL device index for the GPU backend");
   app->add_option("--markdown", o->markdown_path, "Also write the tables as Markdown");
+  app->add_option("--max-mesh-bytes", o->mesh.max_bytes,
+                  "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+      ->check(CLI::PositiveNumber);
 }
 
 namespace {
@@ -86,8 +92,16 @@ struct SceneSpec {
   Eigen::Vector2d centre{0, 0};      // Horizontal centre of the walk.
 };
 
-TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m) {
-  TriangleMesh mesh = LoadMeshFile(dir + "/env/" + m.file);
+// A data file by its plain name: as named when present, else its gzip
+// (data/ ships NAME.gz; a larger folder may hold either).
+std::string DataFile(const std::string& path) {
+  std::error_code ec;
+  return std::filesystem::exists(path, ec) ? path : path + ".gz";
+}
+
+TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
+                        const MeshLoadOptions& options) {
+  TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file), options);
   for (Eigen::Vector3f& v : mesh.vertices) {
     v = (v.cast<double>() * m.scale + m.offset).cast<float>();
   }
@@ -247,7 +261,7 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
 
 int RunBenchCommand(const BenchCommandOptions& options) {
   try {
-    const std::string dir = options.data_dir.empty() ? SWEPTCCD_SHARED_DATA : options.data_dir;
+    const std::string dir = options.data_dir.empty() ? SWEPTCCD_DATA_DIR : options.data_dir;
     // Placements chosen by looking at the scenes: the floor heights are the
     // large flat areas; the walk is centred on the furnished part.
     const std::vector<SceneSpec> scenes = {
@@ -265,7 +279,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     std::unique_ptr<gpu::Backend> gpu_backend;
     if (options.gpu != "off") {
       gpu::BackendOptions bo;
-      bo.backend = "gpu";
+      bo.backend = gpu::BackendKind::kGpu;
       bo.device_index = options.gpu_device;
       bo.require_hardware = options.gpu == "hardware";
       gpu_backend = std::make_unique<gpu::Backend>(bo);
@@ -275,7 +289,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     std::vector<Row> rows;
     for (const SceneSpec& scene : scenes) {
       std::vector<TriangleMesh> meshes;
-      for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m));
+      for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m, options.mesh));
       const long rss0 = ResidentKiB();
       const auto t0 = Clock::now();
       Environment env;
@@ -289,7 +303,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
-        MocapClip clip = ImportBvhFile(dir + "/mocap/" + clip_name, mo);
+        MocapClip clip = ImportBvhFile(DataFile(dir + "/mocap/" + clip_name), mo);
         // Resample to the tracker rate by frame skipping.
         const int step = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s *
                                                                           options.rate_hz))));

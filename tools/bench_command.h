@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "core/geometry/mesh.h"
+
 namespace CLI {
 class App;
 }
@@ -11,7 +13,7 @@ class App;
 namespace sweptccd {
 
 struct BenchCommandOptions {
-  std::string data_dir;  // Folder with env/ and mocap/ (default: ../shared/data beside the source).
+  std::string data_dir;  // Folder with env/ and mocap/ (default: the project's data/).
   std::vector<std::string> clips = {"cmu_02_01_walk.bvh",
                                     "cmu_02_03_run_jog.bvh",
                                     "cmu_13_41_jump.bvh",
@@ -28,6 +30,7 @@ struct BenchCommandOptions {
   std::string gpu = "gpu";
   int gpu_device = -1;
   std::string markdown_path;  // Also write the table as Markdown here.
+  MeshLoadOptions mesh;       // --max-mesh-bytes.
 };
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* options);

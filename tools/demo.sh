@@ -18,17 +18,21 @@ out=${DEMO_OUT:-$build/demo}
 mkdir -p "$out"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-scene=data/morse_apartment.ply
+scene=data/env/morse_apartment.ply.gz
 
 # The apartment is Z-up; walk 1 m off the clip's origin, where it meets a
 # table, and 2 cm up (the clip's soles otherwise dip 3 mm into the floor, and
 # the first contact would be a foot on the floor at the start).
-"$bin/sweptccd" import-bvh --bvh data/demo/cmu_02_01_walk.bvh --up z --rate 30 --offset 0 -1 0.02 \
-  --utime-start 1000000 --skeleton-out "$out/walk_skeleton.json" \
+"$bin/sweptccd" import-bvh --bvh data/mocap/cmu_02_01_walk.bvh.gz --up z --rate 30 \
+  --offset 0 -1 0.02 --utime-start 1000000 --skeleton-out "$out/walk_skeleton.json" \
   --poses-out "$out/walk_poses.jsonl" 2> "$out/import.log"
 
+# Signed messages: one room key (mode 600) shared by daemon, tracker and monitor.
+rm -f "$out/room.key"
+"$bin/sweptccd" keygen --out "$out/room.key"
 "$bin/sweptccd-service" --lcm-url "$url" --env "$scene" --backend auto \
-  --client "walker=$out/walk_skeleton.json" --log-level info 2> "$out/daemon.log" &
+  --client "walker=$out/walk_skeleton.json" --room-key "$out/room.key" --log-level info \
+  2> "$out/daemon.log" &
 daemon=$!
 monitor=
 trap 'kill -KILL $daemon $monitor 2>/dev/null || true' EXIT
@@ -38,12 +42,13 @@ echo "== daemon ready: $(grep -o 'backend .*' "$out/daemon.log" | head -1 || ech
 # The monitor prints each contact event as it arrives (and a summary at the end).
 # (Output through tee in a process substitution, so that $! is the monitor.)
 "$bin/sweptccd" monitor --lcm-url "$url" --skeleton "$out/walk_skeleton.json" --timeout 60 \
+  --key "$out/room.key" \
   > >(tee "$out/monitor.log") &
 monitor=$!
 wait_for "$out/monitor.log" listening
 echo "== replaying the walk at 30 Hz (86 samples, about 3 s) =="
 "$bin/sweptccd" simulate-tracker --lcm-url "$url" --poses "$out/walk_poses.jsonl" \
-  --skeleton "$out/walk_skeleton.json" --client walker
+  --skeleton "$out/walk_skeleton.json" --client walker --key "$out/room.key"
 # Let the last answers arrive (each takes well under a millisecond), then stop
 # the monitor (it prints its summary) and the daemon (it drains and exits).
 sleep 1

@@ -16,7 +16,7 @@
 namespace sweptccd {
 namespace {
 
-const std::string kData = SWEPTCCD_SHARED_DATA;
+const std::string kData = SWEPTCCD_DATA_DIR;
 
 void BM_SegmentTriangleDistance(benchmark::State& state) {
   std::mt19937_64 rng(1);
@@ -32,14 +32,14 @@ void BM_SegmentTriangleDistance(benchmark::State& state) {
 BENCHMARK(BM_SegmentTriangleDistance);
 
 void BM_BvhBuildBunny(benchmark::State& state) {
-  const TriangleMesh mesh = LoadMeshFile(kData + "/env/stanford_bunny.obj");
+  const TriangleMesh mesh = LoadMeshFile(kData + "/env/stanford_bunny.obj.gz");
   for (auto _ : state) benchmark::DoNotOptimize(TriangleBvh(mesh));
   state.counters["triangles"] = static_cast<double>(mesh.num_triangles());
 }
 BENCHMARK(BM_BvhBuildBunny)->Unit(benchmark::kMillisecond);
 
 void BM_SweptCapsule(benchmark::State& state) {
-  const MocapClip clip = ImportBvhFile(kData + "/mocap/boxing_toes.bvh");
+  const MocapClip clip = ImportBvhFile(kData + "/mocap/boxing_toes.bvh.gz");
   const PairMotion motion(clip.skeleton, clip.poses[100], clip.poses[103],
                           MotionModel::kArticulated);
   Eigen::Vector3d a, b;
@@ -55,10 +55,11 @@ BENCHMARK(BM_SweptCapsule);
 
 // One pair of a 30 Hz walk through the grey & white room (143k triangles).
 void BM_QueryWalkGreyRoom(benchmark::State& state) {
-  static const Environment env = Environment::LoadFiles({kData + "/env/bitterli_grey_white_room.ply"});
+  static const Environment env =
+      Environment::LoadFiles({kData + "/env/bitterli_grey_white_room.ply.gz"});
   MocapImportOptions mo;
   mo.frame_step = 4;
-  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh", mo);
+  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh.gz", mo);
   TranslateClip(&clip, Eigen::Vector3d(2.3 - 0.57, 0.0, -1.5));
   const CcdEngine engine(clip.skeleton, env);
   size_t k = 0;

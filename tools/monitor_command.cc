@@ -21,10 +21,14 @@
 
 #include "core/errors.h"
 #include "core/avatar/skeleton.h"
+#include "msgs/checked_decode.h"
+#include "msgs/signing.h"
+#include "msgs/text.h"
+#include "service/daemon/stop_signal.h"
+#include "service/percentile.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
-#include "tools/stop_signal.h"
 
 namespace sweptccd {
 namespace {
@@ -44,58 +48,28 @@ struct ClientTally {
 
 constexpr size_t kMaxLatencies = 100000;
 
-double Percentile(const std::deque<double>& d, double q) {
-  std::vector<double> v(d.begin(), d.end());
-  if (v.empty()) return 0;
-  const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())));
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
-}
-
-// Decodes an LCM message; nullopt (with *problem) for wrong fingerprints and
-// truncated or malformed bytes. The generated decoders resize arrays from
-// untrusted lengths, so they may throw: caught here.
-template <typename Msg>
-std::optional<Msg> Decode(const lcm::ReceiveBuffer* rbuf, std::string* problem) {
-  Msg msg;
-  try {
-    if (msg.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) >= 0) return msg;
-    *problem = "wrong fingerprint or truncated message";
-  } catch (const std::exception& e) {
-    *problem = std::string("malformed message: ") + e.what();
-  }
-  return std::nullopt;
-}
 
 class Monitor {
  public:
-  Monitor(const MonitorCommandOptions& options, std::optional<Skeleton> skeleton)
-      : o_(options), skeleton_(std::move(skeleton)) {}
+  Monitor(const MonitorCommandOptions& options, std::optional<Skeleton> skeleton,
+          std::optional<MacKey> key)
+      : o_(options), skeleton_(std::move(skeleton)), key_(std::move(key)) {}
 
   // LCM callbacks (called from handle() on the main thread). Nothing may
   // escape into LCM's C code: every exception is caught and counted.
   void OnContact(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
     Guard(channel, [&] {
-      std::string problem;
-      const auto e = Decode<contact_event_t>(rbuf, &problem);
-      if (!e) return Undecodable(channel, problem);
-      Contact(*e);
+      if (const auto e = Decode<contact_event_t>(rbuf, channel)) Contact(*e);
     });
   }
   void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
     Guard(channel, [&] {
-      std::string problem;
-      const auto s = Decode<status_t>(rbuf, &problem);
-      if (!s) return Undecodable(channel, problem);
-      Status(*s);
+      if (const auto s = Decode<status_t>(rbuf, channel)) Status(*s);
     });
   }
   void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
     Guard(channel, [&] {
-      std::string problem;
-      const auto r = Decode<rejection_t>(rbuf, &problem);
-      if (!r) return Undecodable(channel, problem);
-      Reject(*r);
+      if (const auto r = Decode<rejection_t>(rbuf, channel)) Reject(*r);
     });
   }
 
@@ -105,11 +79,15 @@ class Monitor {
                 {"lcm_url", url},
                 {"contact_channel", o_.contact_channel},
                 {"status_channel", o_.status_channel},
-                {"reject_channel", o_.reject_channel}});
+                {"reject_channel", o_.reject_channel},
+                {"verifying", key_.has_value()}});
     } else {
       Line(fmt::format("monitor: listening on {} (contact {}, status {}, reject {})",
                        url.empty() ? "LCM's default URL" : url, o_.contact_channel,
                        o_.status_channel, o_.reject_channel));
+    }
+    if (!key_) {
+      spdlog::warn("monitor: no --key: nothing is verified; every message is shown UNVERIFIED");
     }
   }
 
@@ -123,7 +101,7 @@ class Monitor {
       free += t.free;
       invalid += t.invalid;
       rejected += t.rejected;
-      const double median = Percentile(t.latency_us, 0.5);
+      const double median = Percentile(std::vector<double>(t.latency_us.begin(), t.latency_us.end()), 0.5);
       if (o_.json) {
         Emit(json{{"type", "summary"},
                   {"client", id},
@@ -152,12 +130,14 @@ class Monitor {
                 {"rejected", rejected},
                 {"status", status_messages_},
                 {"undecodable", undecodable_},
+                {"unverified", unverified_},
                 {"elapsed_s", elapsed_s}});
     } else {
       Line(fmt::format(
           "monitor: {} events ({} contact, {} free, {} invalid), {} rejections, "
-          "{} status messages, {} undecodable, {:.3f} s",
-          events, contact, free, invalid, rejected, status_messages_, undecodable_, elapsed_s));
+          "{} status messages, {} undecodable, {} unverified, {:.3f} s",
+          events, contact, free, invalid, rejected, status_messages_, undecodable_, unverified_,
+          elapsed_s));
     }
   }
 
@@ -175,13 +155,31 @@ class Monitor {
     }
   }
 
-  void Undecodable(const std::string& channel, const std::string& problem) {
-    ++undecodable_;
-    spdlog::warn("monitor: undecodable message on {}: {}", channel, problem);
+  // Checked decoding (msgs/checked_decode.h), then the mac against --key:
+  // sets verified_ for the lines this message prints.
+  template <typename Msg>
+  std::optional<Msg> Decode(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    DecodeResult<Msg> r = DecodeChecked<Msg>(rbuf->data, rbuf->data_size, WireLimits{});
+    if (!r.ok()) {
+      ++undecodable_;
+      spdlog::warn("monitor: undecodable message on {}: {}, {} bytes", EscapeForDisplay(channel),
+                   r.problem, rbuf->data_size);
+      return std::nullopt;
+    }
+    verified_ = key_ && VerifyEncoded(rbuf->data, rbuf->data_size, *key_);
+    if (!verified_) ++unverified_;
+    return std::move(r.message);
   }
 
-  // Client ids come from the network: shown as "-" when empty.
-  static std::string Name(const std::string& id) { return id.empty() ? "-" : id; }
+  // A line or JSON object of a message: marked when its mac did not verify.
+  void Show(const std::string& line) { Line(verified_ ? line : "UNVERIFIED " + line); }
+  void EmitMsg(json j) {
+    j["verified"] = verified_;
+    Emit(j);
+  }
+
+  // Strings come from the network: escaped, and "-" when empty.
+  static std::string Name(const std::string& id) { return id.empty() ? "-" : EscapeForDisplay(id); }
 
   std::string LinkName(int32_t link) const {
     if (skeleton_ && link >= 0 && link < skeleton_->num_links()) return skeleton_->link(link).name;
@@ -254,7 +252,7 @@ class Monitor {
         j["contacts"] = contacts;
       }
       if (e.result == contact_event_t::RESULT_INVALID) j["error"] = e.error;
-      Emit(j);
+      EmitMsg(j);
       return;
     }
     const std::string head =
@@ -266,29 +264,30 @@ class Monitor {
       for (int32_t l : links) link_list += (link_list.empty() ? "" : ",") + LinkName(l);
       for (int32_t ob : objects)
         object_list += (object_list.empty() ? "" : ",") + std::to_string(ob);
-      Line(fmt::format("{} t {:.1f}..{:.1f} us links {} object {} separation {:.5f} m {}{}{}", head,
+      Show(fmt::format("{} t {:.1f}..{:.1f} us links {} object {} separation {:.5f} m {}{}{}", head,
                        e.t_lo, e.t_hi, link_list.empty() ? "-" : link_list,
                        object_list.empty() ? "-" : object_list, separation, timing,
                        e.initially_colliding ? " initially_colliding" : "",
                        e.undecided ? " undecided" : ""));
     } else if (e.result == contact_event_t::RESULT_FREE) {
-      Line(fmt::format("{} {}", head, timing));
+      Show(fmt::format("{} {}", head, timing));
     } else {
-      Line(fmt::format("{} {} error: {}", head, timing, e.error));
+      Show(fmt::format("{} {} error: {}", head, timing, EscapeForDisplay(e.error, 1024)));
     }
   }
 
   void Reject(const rejection_t& r) {
     ++tally_[r.client_id].rejected;
     if (o_.json) {
-      Emit(json{{"type", "reject"},
+      EmitMsg(json{{"type", "reject"},
                 {"client", r.client_id},
                 {"seq", r.seq},
                 {"reason", r.reason},
                 {"message", r.message},
                 {"utime", r.utime}});
     } else {
-      Line(fmt::format("reject {} seq {} {}: {}", Name(r.client_id), r.seq, r.reason, r.message));
+      Show(fmt::format("reject {} seq {} {}: {}", Name(r.client_id), r.seq,
+                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024)));
     }
   }
 
@@ -297,7 +296,7 @@ class Monitor {
     const size_t n = static_cast<size_t>(std::max(0, s.num_clients));
     for (size_t i = 0; i < n; ++i) {
       if (o_.json) {
-        Emit(json{{"type", "status"},
+        EmitMsg(json{{"type", "status"},
                   {"client", s.client_id[i]},
                   {"poses_received", s.poses_received[i]},
                   {"pairs_answered", s.pairs_answered[i]},
@@ -308,7 +307,7 @@ class Monitor {
                   {"latency_p99_us", s.latency_p99_us[i]},
                   {"utime", s.utime}});
       } else {
-        Line(fmt::format(
+        Show(fmt::format(
             "status {} poses {} answered {} skipped {} rejected {} seq_missing {} latency median "
             "{:.0f} us p99 {:.0f} us",
             Name(s.client_id[i]), s.poses_received[i], s.pairs_answered[i], s.pairs_skipped[i],
@@ -316,16 +315,18 @@ class Monitor {
       }
     }
     if (o_.json) {
-      Emit(json{{"type", "service"},
+      EmitMsg(json{{"type", "service"},
                 {"backend", s.backend},
                 {"renderer", s.renderer},
+                {"security", s.security},
                 {"queue_depth", s.queue_depth},
                 {"dropped_total", s.dropped_total},
                 {"rejected_unattributed", s.rejected_unattributed},
                 {"utime", s.utime}});
     } else {
-      Line(fmt::format("status service backend {} queue {} dropped {} unattributed {}", s.backend,
-                       s.queue_depth, s.dropped_total, s.rejected_unattributed));
+      Show(fmt::format("status service backend {} security {} queue {} dropped {} unattributed {}",
+                       EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
+                       s.dropped_total, s.rejected_unattributed));
     }
   }
 
@@ -340,6 +341,9 @@ class Monitor {
 
   const MonitorCommandOptions& o_;
   std::optional<Skeleton> skeleton_;
+  std::optional<MacKey> key_;  // --key; none: nothing is verified.
+  bool verified_ = false;      // Of the message being shown.
+  int64_t unverified_ = 0;
   std::map<std::string, ClientTally> tally_;
   int64_t contact_total_ = 0;
   int64_t status_messages_ = 0;
@@ -362,11 +366,16 @@ void AddMonitorOptions(CLI::App* app, MonitorCommandOptions* o) {
                   "Exit after this many seconds (default: until SIGINT/SIGTERM)");
   app->add_flag("--all", o->all, "Print free events too (always counted)");
   app->add_flag("--json", o->json, "One JSON object per line, with a \"type\" field");
+  app->add_option("--key", o->key_path,
+                  "Key file of the service (mode 600): verify every message; what does not "
+                  "verify is shown UNVERIFIED (json: \"verified\": false)");
 }
 
 int RunMonitorCommand(const MonitorCommandOptions& o) {
   std::optional<Skeleton> skeleton;
+  std::optional<MacKey> key;
   try {
+    if (!o.key_path.empty()) key = LoadKeyFile(o.key_path);
     if (o.count < 0) throw InputError("monitor: --count must be >= 0 (0: no limit)");
     if (!(o.timeout_s >= 0) || !std::isfinite(o.timeout_s)) {
       throw InputError("monitor: --timeout must be >= 0 seconds (0: no limit)");
@@ -382,7 +391,7 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
     return 2;
   }
   StopSignal stop;
-  Monitor monitor(o, std::move(skeleton));
+  Monitor monitor(o, std::move(skeleton), std::move(key));
   lcm.subscribe(o.contact_channel, &Monitor::OnContact, &monitor);
   lcm.subscribe(o.status_channel, &Monitor::OnStatus, &monitor);
   lcm.subscribe(o.reject_channel, &Monitor::OnReject, &monitor);

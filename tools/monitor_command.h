@@ -22,6 +22,8 @@
 #include <cstdint>
 #include <string>
 
+#include "msgs/channels.h"
+
 namespace CLI {
 class App;
 }
@@ -30,9 +32,10 @@ namespace sweptccd {
 
 struct MonitorCommandOptions {
   std::string lcm_url;  // Empty: LCM's default (LCM_DEFAULT_URL or udpm).
-  std::string contact_channel = "SWEPTCCD_CONTACT";
-  std::string status_channel = "SWEPTCCD_STATUS";
-  std::string reject_channel = "SWEPTCCD_REJECT";
+  std::string contact_channel = kContactChannel;
+  std::string status_channel = kStatusChannel;
+  std::string reject_channel = kRejectChannel;
+  std::string key_path;  // Service key file; empty: nothing is verified.
   std::string skeleton_path;  // Optional: link names instead of indices.
   int64_t count = 0;          // Exit after this many contact events; 0: no limit.
   double timeout_s = 0;       // Exit after this many seconds; 0: until SIGINT/SIGTERM.

@@ -23,10 +23,10 @@ setup_loopback_multicast() {
 }
 
 # import_walk SWEPTCCD SOURCE_DIR RATE_HZ WORK: the bundled CMU walk (real
-# mocap, byte-identical to ../shared/data/mocap/cmu_02_01_walk.bvh) as
+# mocap, data/mocap/cmu_02_01_walk.bvh.gz) as
 # WORK/skeleton.json and WORK/poses.jsonl, placed in the bundled apartment.
 import_walk() {
-  "$1" import-bvh --bvh "$2/data/demo/cmu_02_01_walk.bvh" --up z --rate "$3" \
+  "$1" import-bvh --bvh "$2/data/mocap/cmu_02_01_walk.bvh.gz" --up z --rate "$3" \
     --offset 0 -1 0 --utime-start 1000000 \
     --skeleton-out "$4/skeleton.json" --poses-out "$4/poses.jsonl"
 }

@@ -23,20 +23,18 @@ int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd query: " + problem);
-    const std::string backend_problem = gpu::ValidateBackendName(options.backend);
-    if (!backend_problem.empty()) throw InputError("sweptccd query: --" + backend_problem);
     if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
     std::vector<NamedPath> inputs = {{"--skeleton", options.skeleton_path},
                                      {"--poses", options.poses_path},
                                      {"--filter", options.filter_path}};
     for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
     RefuseClashingPaths(inputs, {{"--output", options.output_path}});
-    const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path);
+    const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
     std::ifstream poses(options.poses_path, std::ios::binary);
     if (!poses) throw InputError(options.poses_path + ": cannot open the pose stream file");
 
     const auto load_start = std::chrono::steady_clock::now();
-    const Environment env = Environment::LoadFiles(options.env_paths);
+    const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);
     spdlog::info("environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s",
                  env.num_objects(), env.num_triangles(), env.memory_bytes() / 1048576.0,
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
@@ -64,7 +62,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     backend_options.device_index = options.gpu_device;
     backend_options.require_hardware = options.require_hardware;
     gpu::Backend backend(backend_options);
-    if (options.backend != "cpu") std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
+    if (options.backend != gpu::BackendKind::kCpu) {
+      std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
+    }
     backend.Attach(&engine);
     PoseStreamReader reader(poses, skeleton.num_links());
     int64_t pairs = 0, invalid = 0, contacts = 0;

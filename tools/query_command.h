@@ -4,6 +4,9 @@
 #include <string>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 
 namespace sweptccd {
@@ -13,12 +16,14 @@ struct QueryCommandOptions {
   std::string poses_path;
   std::vector<std::string> env_paths;
   std::string output_path;  // Empty: standard output.
-  std::string backend = "auto";  // cpu, gpu or auto (core/gpu/backend.h).
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
   int gpu_device = -1;           // EGL device index; -1: the first that works.
   bool require_hardware = false;
   std::string filter_path;
   std::vector<std::string> ignore_rules;  // LINK:OBJECT
   QueryOptions query;
+  MeshLoadOptions mesh;              // --max-mesh-bytes.
+  int max_links = kDefaultMaxLinks;  // --max-links.
 };
 
 /// Runs the command. Returns the exit status: 0 when the inputs could be

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
 #include "core/query/ccd_query.h"
 
 namespace CLI {
@@ -33,6 +35,8 @@ struct RenderCommandOptions {
   double clip_radius_m = 4;       // Scene triangles farther from the target are not drawn.
   double max_separation_m = 0.5;  // Timeline: separations clamped here.
   int swept_steps = 12;           // In-between times drawn per link.
+  MeshLoadOptions mesh;              // --max-mesh-bytes.
+  int max_links = kDefaultMaxLinks;  // --max-links.
 };
 
 void AddRenderOptions(CLI::App* app, RenderCommandOptions* options);

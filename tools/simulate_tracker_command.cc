@@ -8,6 +8,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <memory>
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -17,6 +19,7 @@
 #include "core/errors.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "msgs/signing.h"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "tools/stop_signal.h"
 
@@ -25,61 +28,96 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// One link as the file gives it: [px, py, pz, qw, qx, qy, qz], numbers only.
-bool ReadLink(const nlohmann::json& l, LinkPose* out) {
-  if (!l.is_array() || l.size() != 7) return false;
-  double v[7];
-  for (int j = 0; j < 7; ++j) {
-    if (!l[j].is_number()) return false;
-    v[j] = l[j].get<double>();
-  }
-  out->p = Eigen::Vector3d(v[0], v[1], v[2]);
-  // Sent as written (not normalised): the daemon validates and normalises,
-  // exactly as `sweptccd query` does with the same file.
-  out->q = Eigen::Quaterniond(v[3], v[4], v[5], v[6]);
-  return true;
-}
+// Where the samples of one pass (loop) come from. Not thread-safe.
+class SampleSource {
+ public:
+  virtual ~SampleSource() = default;
+  /// Starts a pass at the first selected sample (a pose file is re-opened).
+  virtual void Rewind() = 0;
+  /// The next sample of this pass, or nullopt at its end.
+  virtual std::optional<Pose> Next() = 0;
+  /// Lines skipped in the first pass because they are no pose.
+  virtual int64_t skipped() const { return 0; }
+};
 
-// Reads a SPEC pose stream. Unlike `sweptccd query` (which reports a bad line
-// as an invalid pair and goes on), a line that cannot become a message (not
-// JSON, no integer utime, links not N arrays of 7 numbers) is refused here:
-// the simulator exists to send what the file says. Numeric validity (zero
-// quaternions, decreasing utimes) is left to the daemon to judge.
-std::vector<Pose> ReadPoseStream(const std::string& path, int* num_links) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path + ": cannot open the pose stream");
-  std::vector<Pose> poses;
-  std::string line;
-  for (int line_no = 1; std::getline(in, line); ++line_no) {
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const std::string where = path + ": line " + std::to_string(line_no) + ": ";
-    nlohmann::json doc = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
-    if (doc.is_discarded()) throw InputError(where + "not a JSON object");
-    if (!doc.is_object() || !doc.contains("utime") || !doc["utime"].is_number_integer()) {
-      throw InputError(where + "expected {\"utime\": INTEGER, \"links\": [...]}");
+// A BVH clip imported in memory (bounded by the importer's own limits).
+class ClipSource : public SampleSource {
+ public:
+  explicit ClipSource(std::vector<Pose> poses) : poses_(std::move(poses)) {}
+  void Rewind() override { next_ = 0; }
+  std::optional<Pose> Next() override {
+    if (next_ >= poses_.size()) return std::nullopt;
+    return poses_[next_++];
+  }
+
+ private:
+  std::vector<Pose> poses_;
+  size_t next_ = 0;
+};
+
+// A SPEC pose file streamed through the core's PoseLineReader: the same blank
+// lines, line cap and utime parsing as `sweptccd query`; at most one line in
+// memory. A counted line that is no pose (not JSON, a wrong link count, over
+// the line cap) cannot become a message: it is skipped with a warning (the
+// first kMaxWarnings of them, then only counted). Poses are sent as written
+// (not normalised): the daemon validates and normalises them, exactly as
+// `query` does with the same file. --start / --frames count the poses.
+class PoseFileSource : public SampleSource {
+ public:
+  PoseFileSource(std::string path, int num_links, int64_t start, int64_t frames)
+      : path_(std::move(path)),
+        num_links_(num_links),
+        max_line_bytes_(DefaultMaxPoseLineBytes(num_links)),
+        start_(start),
+        frames_(frames) {}
+
+  void Rewind() override {
+    in_ = std::make_unique<std::ifstream>(path_, std::ios::binary);
+    if (!*in_) throw InputError(path_ + ": cannot open the pose stream");
+    // The same cap every pass (without --skeleton: the cap for kDefaultMaxLinks).
+    reader_ = std::make_unique<PoseLineReader>(*in_, num_links_, max_line_bytes_);
+    returned_ = 0;
+    ++pass_;
+    for (int64_t k = 0; k < start_ && NextPose(); ++k) {
     }
-    const nlohmann::json& links = doc.contains("links") ? doc["links"] : nlohmann::json();
-    if (!links.is_array() || links.empty())
-      throw InputError(where + "\"links\" must be a non-empty array");
-    if (*num_links < 0) *num_links = static_cast<int>(links.size());
-    if (static_cast<int>(links.size()) != *num_links) {
-      throw InputError(where + std::to_string(links.size()) + " links, expected " +
-                       std::to_string(*num_links) + " (the skeleton's / the first line's count)");
-    }
-    Pose pose;
-    pose.utime = doc["utime"].get<int64_t>();
-    pose.links.resize(links.size());
-    for (size_t i = 0; i < links.size(); ++i) {
-      if (!ReadLink(links[i], &pose.links[i])) {
-        throw InputError(where + "link " + std::to_string(i) +
-                         " must be [px, py, pz, qw, qx, qy, qz] (7 numbers)");
+  }
+
+  std::optional<Pose> Next() override {
+    if (frames_ >= 0 && returned_ >= frames_) return std::nullopt;
+    std::optional<Pose> pose = NextPose();
+    if (pose) ++returned_;
+    return pose;
+  }
+
+  int64_t skipped() const override { return skipped_; }
+
+ private:
+  static constexpr int64_t kMaxWarnings = 5;
+
+  std::optional<Pose> NextPose() {
+    while (std::optional<PoseLine> line = reader_->Next()) {
+      if (line->pose) {
+        num_links_ = reader_->num_links();  // Fixed by the first pose without --skeleton.
+        return std::move(line->pose);
+      }
+      if (pass_ > 1) continue;
+      if (++skipped_ <= kMaxWarnings) {
+        spdlog::warn("{}: {} (skipped: no pose to send{})", path_, line->error,
+                     skipped_ == kMaxWarnings ? "; further skipped lines are only counted" : "");
       }
     }
-    poses.push_back(std::move(pose));
+    if (reader_->bad()) throw InputError(path_ + ": error while reading the pose stream");
+    return std::nullopt;
   }
-  if (poses.empty()) throw InputError(path + ": no poses");
-  return poses;
-}
+
+  std::string path_;
+  int num_links_;
+  uint64_t max_line_bytes_;
+  int64_t start_, frames_;
+  std::unique_ptr<std::ifstream> in_;
+  std::unique_ptr<PoseLineReader> reader_;
+  int64_t returned_ = 0, skipped_ = 0, pass_ = 0;
+};
 
 void CheckOptions(const SimulateTrackerCommandOptions& o) {
   auto bad = [](const std::string& what) { throw InputError("simulate-tracker: " + what); };
@@ -135,6 +173,14 @@ struct ClientState {
   std::optional<tracker_pose_t> held;  // A late sample waiting for the next one.
 };
 
+// The seeded random choices and what they did.
+struct RoundCounters {
+  explicit RoundCounters(uint64_t seed) : rng(seed) {}
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> unit{0.0, 1.0};
+  int64_t dropped = 0, late = 0;
+};
+
 }  // namespace
 
 void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) {
@@ -182,53 +228,112 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
   app->add_option("--seq-start", o->seq_start, "seq of the first sample (default 0)");
   app->add_flag("--rebase-utime", o->rebase_utime,
                 "utimes start at the wall clock now (spacing kept) instead of the file's");
+  app->add_option("--key", o->key_path,
+                  "Key file (mode 600) that signs every pose; without it poses go unsigned");
+  app->add_option("--session", o->session,
+                  "Stream session, >= 0 (default: the wall clock in microseconds at start, so a "
+                  "restarted tracker starts a new stream)");
 }
 
-int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
-  std::vector<Pose> samples;
-  std::vector<ClientState> clients;
-  int num_links = -1;
-  try {
-    CheckOptions(o);
-    if (!o.skeleton_path.empty()) num_links = LoadSkeletonFile(o.skeleton_path).num_links();
-    if (!o.bvh.bvh_path.empty()) {
-      MocapClip clip = ImportBvhClip(o.bvh);
-      if (num_links >= 0 && num_links != clip.skeleton.num_links()) {
-        throw InputError(o.skeleton_path + ": " + std::to_string(num_links) + " links, but " +
-                         o.bvh.bvh_path + " imports as " +
-                         std::to_string(clip.skeleton.num_links()));
-      }
-      samples = std::move(clip.poses);
-    } else {
-      samples = ReadPoseStream(o.poses_path, &num_links);
-      // --start / --frames select poses (import-bvh's frames).
-      const size_t start = o.bvh.start_frame < 0 ? 0 : static_cast<size_t>(o.bvh.start_frame);
-      if (start >= samples.size()) {
-        throw InputError(o.poses_path + ": --start " + std::to_string(start) + " but only " +
-                         std::to_string(samples.size()) + " poses");
-      }
-      samples.erase(samples.begin(), samples.begin() + static_cast<std::ptrdiff_t>(start));
-      if (o.bvh.frame_count >= 0 && static_cast<size_t>(o.bvh.frame_count) < samples.size()) {
-        samples.resize(static_cast<size_t>(o.bvh.frame_count));
-      }
-      if (samples.empty()) throw InputError("simulate-tracker: --frames 0 leaves no pose to send");
-    }
-    for (Pose& p : samples) p.utime += static_cast<int64_t>(o.bvh.utime_start);
-    const std::vector<std::string> ids = ClientIds(o);
-    Eigen::Vector3d offset_W(0, 0, 0), spacing_W(0, 0, 0);
-    if (o.bvh.offset.size() == 3) offset_W = {o.bvh.offset[0], o.bvh.offset[1], o.bvh.offset[2]};
-    if (o.spacing.size() == 3) spacing_W = {o.spacing[0], o.spacing[1], o.spacing[2]};
-    for (size_t i = 0; i < ids.size(); ++i) {
-      ClientState c;
-      c.id = ids[i];
-      c.offset_W = offset_W + static_cast<double>(i) * spacing_W;
-      clients.push_back(std::move(c));
-    }
-  } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 2;
-  }
+namespace {
 
+// The source of the samples: a BVH clip imported whole, or a pose file
+// streamed pass by pass. Throws InputError.
+std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o) {
+  int num_links = -1;
+  if (!o.skeleton_path.empty()) num_links = LoadSkeletonFile(o.skeleton_path).num_links();
+  if (o.bvh.bvh_path.empty()) {
+    // --start / --frames select poses (import-bvh's frames).
+    auto source = std::make_unique<PoseFileSource>(o.poses_path, num_links,
+                                                   std::max(0, o.bvh.start_frame),
+                                                   o.bvh.frame_count);
+    if (o.bvh.frame_count == 0) {
+      throw InputError("simulate-tracker: --frames 0 leaves no pose to send");
+    }
+    return source;
+  }
+  MocapClip clip = ImportBvhClip(o.bvh);
+  if (num_links >= 0 && num_links != clip.skeleton.num_links()) {
+    throw InputError(o.skeleton_path + ": " + std::to_string(num_links) + " links, but " +
+                     o.bvh.bvh_path + " imports as " +
+                     std::to_string(clip.skeleton.num_links()));
+  }
+  return std::make_unique<ClipSource>(std::move(clip.poses));
+}
+
+std::vector<ClientState> MakeClients(const SimulateTrackerCommandOptions& o) {
+  const std::vector<std::string> ids = ClientIds(o);
+  Eigen::Vector3d offset_W(0, 0, 0), spacing_W(0, 0, 0);
+  if (o.bvh.offset.size() == 3) offset_W = {o.bvh.offset[0], o.bvh.offset[1], o.bvh.offset[2]};
+  if (o.spacing.size() == 3) spacing_W = {o.spacing[0], o.spacing[1], o.spacing[2]};
+  std::vector<ClientState> clients;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    ClientState c;
+    c.id = ids[i];
+    c.offset_W = offset_W + static_cast<double>(i) * spacing_W;
+    clients.push_back(std::move(c));
+  }
+  return clients;
+}
+
+// What the first pass learns about the stream, for the later passes.
+struct StreamShape {
+  int64_t n = 0;  // Samples in a pass.
+  int64_t first_utime = 0, last_utime = 0;
+  int64_t loop_span_us = 0;  // Added to the utimes of each later pass.
+};
+
+// Publishes one sample for every client (drop, late hold, then the held one).
+void SendRound(const SimulateTrackerCommandOptions& o, const Pose& sample, int64_t utime,
+               int64_t session, int64_t seq, std::vector<ClientState>* clients, RoundCounters* counters,
+               const std::function<void(const tracker_pose_t&)>& publish) {
+  for (ClientState& c : *clients) {
+    const bool drop = o.drop_p > 0 && counters->unit(counters->rng) < o.drop_p;
+    const bool hold = o.late_p > 0 && counters->unit(counters->rng) < o.late_p;
+    if (drop) {
+      ++counters->dropped;
+      continue;
+    }
+    tracker_pose_t m;
+    m.utime = utime;
+    m.client_id = c.id;
+    m.session = session;
+    m.seq = seq;
+    m.num_links = static_cast<int32_t>(sample.links.size());
+    for (const LinkPose& l : sample.links) {
+      const Eigen::Vector3d p_W = l.p + c.offset_W;
+      m.position.push_back({p_W.x(), p_W.y(), p_W.z()});
+      m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
+    }
+    // At most one sample of a client is held at a time. (A sample held at the
+    // end of the run is sent after the last round, after nothing newer.)
+    if (hold && !c.held) {
+      c.held = std::move(m);
+      continue;
+    }
+    publish(m);
+    if (c.held) {
+      publish(*c.held);
+      c.held.reset();
+      ++counters->late;
+    }
+  }
+}
+
+// The first pass has ended: the stream's shape fixes the later passes.
+void FinishFirstPass(const SimulateTrackerCommandOptions& o, StreamShape* shape) {
+  const int64_t n = shape->n;
+  const int64_t interval_us =
+      n > 1 ? std::max<int64_t>(1, (shape->last_utime - shape->first_utime) / (n - 1))
+            : static_cast<int64_t>(std::llround(1e6 / (o.bvh.rate_hz > 0 ? o.bvh.rate_hz : 30.0)));
+  shape->loop_span_us = shape->last_utime - shape->first_utime + interval_us;
+}
+
+// Plays the passes, reading each sample just before it is due (so a pose file
+// is streamed: memory does not grow with its length). Returns the exit status.
+int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const MacKey* key,
+         std::vector<ClientState>* clients_ptr) {
+  std::vector<ClientState>& clients = *clients_ptr;
   lcm::LCM lcm(o.lcm_url);
   if (!lcm.good()) {
     std::fprintf(stderr, "error: simulate-tracker: --lcm-url '%s': LCM cannot open it\n",
@@ -236,23 +341,16 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     return 2;
   }
   StopSignal stop;
-
-  const int64_t n = static_cast<int64_t>(samples.size());
-  const int64_t first_utime = samples.front().utime;
-  const int64_t interval_us =
-      n > 1 ? std::max<int64_t>(1, (samples.back().utime - first_utime) / (n - 1))
-            : static_cast<int64_t>(std::llround(1e6 / (o.bvh.rate_hz > 0 ? o.bvh.rate_hz : 30.0)));
-  const int64_t loop_span_us = samples.back().utime - first_utime + interval_us;
-  const int64_t rebase_us = o.rebase_utime ? WallClockUtime() - first_utime : 0;
   // A pose file with --rate: a fixed publication period; otherwise the utimes'.
   const bool fixed_rate = o.poses_path.empty() ? false : o.bvh.rate_hz > 0;
-
-  std::mt19937_64 rng(o.seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  int64_t sent = 0, dropped = 0, late = 0;
+  RoundCounters counters(o.seed);
+  int64_t sent = 0;
   bool publish_failed = false;
   auto publish = [&](const tracker_pose_t& m) {
-    if (lcm.publish(o.channel, &m) != 0) publish_failed = true;
+    const std::vector<uint8_t> bytes = EncodeSigned(m, key);
+    if (lcm.publish(o.channel, bytes.data(), static_cast<unsigned int>(bytes.size())) != 0) {
+      publish_failed = true;
+    }
     ++sent;
   };
 
@@ -261,62 +359,56 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
                                     ? t0 + std::chrono::duration_cast<Clock::duration>(
                                                std::chrono::duration<double>(o.duration_s))
                                     : Clock::time_point::max();
+  const int64_t session = o.session >= 0 ? o.session : WallClockUtime();
+  StreamShape shape;
+  int64_t rebase_us = 0;
   int64_t loops_done = 0, rounds = 0;
   bool stopped = false;
   for (int64_t loop = 0; (o.loops == 0 || loop < o.loops) && !stopped; ++loop) {
-    for (int64_t k = 0; k < n && !stopped; ++k) {
-      const Pose& sample = samples[static_cast<size_t>(k)];
-      const int64_t utime = sample.utime + loop * loop_span_us;
-      const double due_s = fixed_rate ? static_cast<double>(loop * n + k) / o.bvh.rate_hz / o.speed
-                                      : static_cast<double>(utime - first_utime) * 1e-6 / o.speed;
-      const double jitter_s = o.jitter_us > 0 ? unit(rng) * o.jitter_us * 1e-6 : 0.0;
+    if (loop > 0) source->Rewind();
+    int64_t k = 0;
+    // A later pass plays at most the first pass's count (seq stays increasing).
+    for (; (loop == 0 || k < shape.n) && !stopped; ++k) {
+      std::optional<Pose> sample = source->Next();
+      if (!sample) break;
+      sample->utime += static_cast<int64_t>(o.bvh.utime_start);
+      if (loop == 0) {
+        if (k == 0) shape.first_utime = sample->utime;
+        if (k == 0 && o.rebase_utime) rebase_us = WallClockUtime() - shape.first_utime;
+        shape.last_utime = sample->utime;
+        shape.n = k + 1;
+      }
+      const int64_t utime = sample->utime + loop * shape.loop_span_us;
+      const double due_s =
+          fixed_rate ? static_cast<double>(loop * shape.n + k) / o.bvh.rate_hz / o.speed
+                     : static_cast<double>(utime - shape.first_utime) * 1e-6 / o.speed;
+      const double jitter_s =
+          o.jitter_us > 0 ? counters.unit(counters.rng) * o.jitter_us * 1e-6 : 0.0;
       const Clock::time_point due = t0 + std::chrono::duration_cast<Clock::duration>(
                                              std::chrono::duration<double>(due_s + jitter_s));
-      if (due > end) {
-        stopped = true;
-        break;
-      }
-      if (stop.WaitUntil(due)) {
+      if (due > end || stop.WaitUntil(due)) {
         stopped = true;
         break;
       }
       ++rounds;
-      for (ClientState& c : clients) {
-        const bool drop = o.drop_p > 0 && unit(rng) < o.drop_p;
-        const bool hold = o.late_p > 0 && unit(rng) < o.late_p;
-        if (drop) {
-          ++dropped;
-          continue;
-        }
-        tracker_pose_t m;
-        m.utime = utime + rebase_us;
-        m.client_id = c.id;
-        m.seq = o.seq_start + loop * n + k;
-        m.num_links = static_cast<int32_t>(sample.links.size());
-        for (const LinkPose& l : sample.links) {
-          const Eigen::Vector3d p_W = l.p + c.offset_W;
-          m.position.push_back({p_W.x(), p_W.y(), p_W.z()});
-          m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
-        }
-        // At most one sample of a client is held at a time; the very last
-        // sample of the run is never held (nothing would come after it).
-        const bool last = (o.loops != 0 && loop == o.loops - 1 && k == n - 1);
-        if (hold && !c.held && !last) {
-          c.held = std::move(m);
-          continue;
-        }
-        publish(m);
-        if (c.held) {
-          publish(*c.held);
-          c.held.reset();
-          ++late;
-        }
+      SendRound(o, *sample, utime + rebase_us, session, o.seq_start + loop * shape.n + k,
+                &clients,
+                &counters, publish);
+    }
+    if (loop == 0) {
+      if (shape.n == 0 && !stopped) {
+        throw InputError(o.poses_path + ": no pose to send" +
+                         (o.bvh.start_frame > 0
+                              ? " from --start " + std::to_string(o.bvh.start_frame)
+                              : std::string()));
       }
+      FinishFirstPass(o, &shape);
     }
     if (!stopped) ++loops_done;
   }
-  // A sample still held (stopped early, or every later sample dropped): sent
-  // now, after nothing newer, so the daemon accepts it: not counted as late.
+  // A sample still held (stopped early, the last one, or every later sample
+  // dropped): sent now, after nothing newer, so the daemon accepts it: not
+  // counted as late.
   for (ClientState& c : clients) {
     if (c.held) {
       publish(*c.held);
@@ -326,10 +418,10 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
   std::printf(
       "simulate-tracker: sent %lld, dropped %lld, late %lld (%zu clients x %lld samples, "
-      "%lld loop(s), %.3f s)\n",
-      static_cast<long long>(sent), static_cast<long long>(dropped), static_cast<long long>(late),
-      clients.size(), static_cast<long long>(rounds), static_cast<long long>(loops_done),
-      elapsed_s);
+      "%lld loop(s), %.3f s), skipped %lld malformed line(s)\n",
+      static_cast<long long>(sent), static_cast<long long>(counters.dropped),
+      static_cast<long long>(counters.late), clients.size(), static_cast<long long>(rounds),
+      static_cast<long long>(loops_done), elapsed_s, static_cast<long long>(source->skipped()));
   std::fflush(stdout);
   if (publish_failed) {
     std::fprintf(stderr, "error: simulate-tracker: LCM publish on %s failed\n", o.channel.c_str());
@@ -337,5 +429,35 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
   }
   return 0;
 }
+
+}  // namespace
+
+int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
+  std::unique_ptr<SampleSource> source;
+  std::vector<ClientState> clients;
+  std::optional<MacKey> key;
+  try {
+    CheckOptions(o);
+    if (o.session < -1) throw InputError("simulate-tracker: --session must be >= 0");
+    if (!o.key_path.empty()) key = LoadKeyFile(o.key_path);
+    source = MakeSource(o);
+    clients = MakeClients(o);
+    source->Rewind();  // A pose file that cannot be opened is refused before LCM starts.
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+  if (!key) {
+    std::fprintf(stderr, "simulate-tracker: no --key: poses are sent UNSIGNED (a daemon in signed "
+                         "mode refuses them)\n");
+  }
+  try {
+    return Play(o, source.get(), key ? &*key : nullptr, &clients);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}
+
 
 }  // namespace sweptccd

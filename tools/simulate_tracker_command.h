@@ -19,11 +19,19 @@
 // its seq and utime are older than the last one the daemon accepted: the
 // daemon rejects it as non_increasing_seq). The random choices come from one
 // generator seeded with `seed`: the same flags give the same messages.
+//
+// A pose file is streamed: each sample is read (core PoseLineReader: query's
+// blank lines, utime parsing and line cap) just before it is due, so memory
+// does not grow with the file and a FIFO plays as it is written; the first
+// pass fixes `samples` and loop_span, later passes re-open the file. A line
+// that is no pose is skipped with a warning and counted (SPEC 2: an invalid
+// pose is not fatal); poses are sent as written, for the daemon to validate.
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "msgs/channels.h"
 #include "tools/import_bvh_command.h"
 
 namespace CLI {
@@ -34,7 +42,9 @@ namespace sweptccd {
 
 struct SimulateTrackerCommandOptions {
   std::string lcm_url;  // Empty: LCM's default (LCM_DEFAULT_URL or udpm).
-  std::string channel = "SWEPTCCD_POSE";
+  std::string channel = kPoseChannel;
+  std::string key_path;  // Signs every pose; empty: unsigned.
+  int64_t session = -1;  // tracker_pose_t.session; -1: the wall clock (us) at start.
   std::string poses_path;               // A SPEC pose stream (JSON Lines), or
   ImportBvhCommandOptions bvh;          // bvh.bvh_path: a BVH clip (import-bvh's options).
   std::string skeleton_path;            // Optional: checks the link count.

@@ -7,6 +7,9 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 
+#include "core/errors.h"
+#include "core/gpu/backend.h"
+#include "msgs/signing.h"
 #include "tools/bench_command.h"
 #include "tools/import_bvh_command.h"
 #include "tools/monitor_command.h"
@@ -38,8 +41,17 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"articulated", "independent"}));
   query->add_option("--eps", q.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   query->add_option("--delta", q.query.delta_m, "Distance tolerance, metres (default 1e-3)");
-  query->add_option("--backend", q.backend,
-                    "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
+  // Parsed into the enum as the flag is read: a bad name is a parse error.
+  query->add_option_function<std::string>(
+      "--backend",
+      [&q](const std::string& name) {
+        try {
+          q.backend = sweptccd::gpu::ParseBackendKind(name, "--backend");
+        } catch (const sweptccd::InputError& e) {
+          throw CLI::ValidationError(e.what());
+        }
+      },
+      "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
   query->add_option("--gpu-device", q.gpu_device, "EGL device index for the GPU backend");
   query->add_flag("--require-hardware", q.require_hardware,
                   "GPU backend: refuse software renderers (llvmpipe)");
@@ -52,6 +64,11 @@ int main(int argc, char** argv) {
                     "repeat");
   query->add_option("--max-intervals", q.query.max_intervals,
                     "Work limit per pair (interval tests) before answering undecided");
+  query->add_option("--max-mesh-bytes", q.mesh.max_bytes,
+                    "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+      ->check(CLI::PositiveNumber);
+  query->add_option("--max-links", q.max_links, "Largest skeleton, links (default 256)")
+      ->check(CLI::PositiveNumber);
 
   sweptccd::BenchCommandOptions b;
   CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");
@@ -77,6 +94,11 @@ int main(int argc, char** argv) {
       app.add_subcommand("monitor", "Print the contact events, status and rejections of the daemon");
   sweptccd::AddMonitorOptions(monitor, &mon);
 
+  std::string keygen_out;
+  CLI::App* keygen = app.add_subcommand(
+      "keygen", "Write a new random HMAC key (64 hex digits, mode 600) for signed messages");
+  keygen->add_option("--out", keygen_out, "Key file to create (never overwritten)")->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -98,5 +120,14 @@ int main(int argc, char** argv) {
   if (render->parsed()) return sweptccd::RunRenderCommand(rn);
   if (simulate->parsed()) return sweptccd::RunSimulateTrackerCommand(st);
   if (monitor->parsed()) return sweptccd::RunMonitorCommand(mon);
+  if (keygen->parsed()) {
+    try {
+      sweptccd::WriteNewKeyFile(keygen_out);
+      return 0;
+    } catch (const sweptccd::InputError& e) {
+      std::fprintf(stderr, "error: keygen: %s\n", e.what());
+      return 2;
+    }
+  }
   return 1;
 }

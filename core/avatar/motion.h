@@ -41,7 +41,11 @@ class PairMotion {
 
   /// World pose X_WL of every link at normalised time s in [0, 1].
   void PosesAt(double s, std::vector<LinkPose>* X_WL) const;
-  /// World pose of one link at s (composes its ancestors for `articulated`).
+  /// World pose of one link at s (composes its ancestors for `articulated`,
+  /// except at s = 0, 0.5 and 1, whose poses PosesAt computed once at
+  /// construction: the swept capsule of every link over the whole pair needs
+  /// exactly those, so a culled link costs O(1), not O(chain depth)). The
+  /// same bits either way (the same operations in the same order).
   LinkPose PoseAt(int link, double s) const;
   /// World segment (A, B) of a link at s.
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
@@ -102,6 +106,9 @@ class PairMotion {
   std::vector<int> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
+  // `articulated`: every link's pose at s = 0, 0.5 and 1 (PosesAt), so
+  // PoseAt at those times is a look-up; empty for `independent`.
+  std::vector<LinkPose> poses_at_ends_[3];
 };
 
 }  // namespace sweptccd

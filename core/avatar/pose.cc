@@ -1,32 +1,85 @@
 #include "core/avatar/pose.h"
 
+#include <cctype>
 #include <cmath>
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "core/avatar/skeleton.h"
+
 namespace sweptccd {
 
-std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
-  if (static_cast<int>(pose->links.size()) != num_links) {
-    return "expected " + std::to_string(num_links) + " link poses, got " +
-           std::to_string(pose->links.size());
+std::string PoseProblem::Describe(int num_links) const {
+  const std::string at = "link " + std::to_string(link) + ": ";
+  switch (kind) {
+    case Kind::kLinkCount:
+      return "expected " + std::to_string(num_links) + " link poses, got " +
+             std::to_string(static_cast<int64_t>(value));
+    case Kind::kNonFinite:
+      return at + "non-finite number";
+    case Kind::kPositionOutOfRange:
+      return at + "position beyond 1e9 m";
+    case Kind::kZeroQuaternion:
+      return at + "quaternion norm " + std::to_string(value) + " is below 1e-6";
+  }
+  return at + "invalid";  // Not reached: every kind is handled above.
+}
+
+namespace {
+
+// The first problem of one link pose, or nullopt.
+std::optional<PoseProblem> FindLinkProblem(const LinkPose& lp, int link) {
+  PoseProblem problem;
+  problem.link = link;
+  const double q[4] = {lp.q.w(), lp.q.x(), lp.q.y(), lp.q.z()};
+  for (int k = 0; k < 7; ++k) {
+    const double v = k < 3 ? lp.p[k] : q[k - 3];
+    if (!std::isfinite(v)) {
+      problem.kind = PoseProblem::Kind::kNonFinite;
+      problem.in_orientation = k >= 3;
+      problem.component = k < 3 ? k : k - 3;
+      problem.value = v;
+      return problem;
+    }
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(lp.p[k]) > kMaxCoordinate) {
+      problem.kind = PoseProblem::Kind::kPositionOutOfRange;
+      problem.component = k;
+      problem.value = lp.p[k];
+      return problem;
+    }
+  }
+  // stableNorm: the plain norm overflows for components near 1e200.
+  const double norm = lp.q.coeffs().stableNorm();
+  if (!(norm >= kMinQuaternionNorm)) {
+    problem.kind = PoseProblem::Kind::kZeroQuaternion;
+    problem.value = norm;
+    return problem;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<PoseProblem> FindPoseProblem(const Pose& pose, int num_links) {
+  if (static_cast<int>(pose.links.size()) != num_links) {
+    PoseProblem problem;
+    problem.kind = PoseProblem::Kind::kLinkCount;
+    problem.value = static_cast<double>(pose.links.size());
+    return problem;
   }
   for (int i = 0; i < num_links; ++i) {
-    LinkPose& lp = pose->links[i];
-    if (!lp.p.allFinite() || !lp.q.coeffs().allFinite()) {
-      return "link " + std::to_string(i) + ": non-finite number";
-    }
-    // stableNorm: the plain norm overflows for components near 1e200.
-    if (lp.p.cwiseAbs().maxCoeff() > kMaxCoordinate) {
-      return "link " + std::to_string(i) + ": position beyond 1e9 m";
-    }
-    const double norm = lp.q.coeffs().stableNorm();
-    if (!(norm >= kMinQuaternionNorm)) {
-      return "link " + std::to_string(i) + ": quaternion norm " + std::to_string(norm) +
-             " is below 1e-6";
-    }
-    lp.q.coeffs() /= norm;
+    if (std::optional<PoseProblem> problem = FindLinkProblem(pose.links[i], i)) return problem;
   }
+  return std::nullopt;
+}
+
+std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
+  if (const std::optional<PoseProblem> problem = FindPoseProblem(*pose, num_links)) {
+    return problem->Describe(num_links);
+  }
+  for (LinkPose& lp : pose->links) lp.q.coeffs() /= lp.q.coeffs().stableNorm();
   return {};
 }
 
@@ -50,7 +103,8 @@ bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
 
 }  // namespace
 
-std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error) {
+std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
+                                           std::string* error) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(line);
@@ -73,13 +127,17 @@ std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::s
     *error = "missing 'links' array";
     return std::nullopt;
   }
-  if (static_cast<int>(jl->size()) != num_links) {
+  if (num_links < 0 && jl->empty()) {
+    *error = "'links' is empty";
+    return std::nullopt;
+  }
+  if (num_links >= 0 && static_cast<int64_t>(jl->size()) != num_links) {
     *error = "'links' has " + std::to_string(jl->size()) + " entries, the skeleton has " +
              std::to_string(num_links);
     return std::nullopt;
   }
-  pose.links.resize(num_links);
-  for (int i = 0; i < num_links; ++i) {
+  pose.links.resize(jl->size());
+  for (size_t i = 0; i < jl->size(); ++i) {
     const nlohmann::json& e = (*jl)[i];
     if (!e.is_array() || e.size() != 7) {
       *error = "link " + std::to_string(i) + ": expected [px, py, pz, qw, qx, qy, qz]";
@@ -96,7 +154,13 @@ std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::s
     pose.links[i].p = Eigen::Vector3d(v[0], v[1], v[2]);
     pose.links[i].q = Eigen::Quaterniond(v[3], v[4], v[5], v[6]);
   }
-  std::string problem = ValidateAndNormalizePose(&pose, num_links);
+  return pose;
+}
+
+std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error) {
+  std::optional<Pose> pose = ParsePoseLineAsWritten(line, num_links, error);
+  if (!pose) return std::nullopt;
+  std::string problem = ValidateAndNormalizePose(&*pose, num_links);
   if (!problem.empty()) {
     *error = problem;
     return std::nullopt;
@@ -115,14 +179,79 @@ std::string PoseToJsonLine(const Pose& pose) {
   return doc.dump();
 }
 
-std::optional<PairOutcome> PoseStreamReader::Next() {
-  std::string line;
-  while (std::getline(in_, line)) {
+uint64_t DefaultMaxPoseLineBytes(int num_links) {
+  const uint64_t links = static_cast<uint64_t>(num_links < 0 ? kDefaultMaxLinks : num_links);
+  return 4096 + links * 7 * 64;
+}
+
+namespace {
+
+// Reads one line (to '\n' or the end) through the stream buffer, keeping at
+// most max_bytes of it in *line. Returns false at the end of the stream with
+// nothing read. *too_long: the line had more bytes; *blank: only whitespace.
+bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
+                     bool* blank) {
+  line->clear();
+  *too_long = false;
+  *blank = true;
+  std::streambuf* buf = in.rdbuf();
+  bool any = false;
+  for (;;) {
+    const int c = buf->sbumpc();
+    if (c == std::char_traits<char>::eof()) {
+      in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
+      return any;
+    }
+    any = true;
+    if (c == '\n') return true;
+    if (*blank && !std::isspace(c)) *blank = false;
+    if (line->size() < max_bytes) {
+      line->push_back(static_cast<char>(c));
+    } else {
+      *too_long = true;
+    }
+  }
+}
+
+}  // namespace
+
+PoseLineReader::PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes)
+    : in_(in),
+      num_links_(num_links),
+      max_line_bytes_(max_line_bytes > 0 ? max_line_bytes : DefaultMaxPoseLineBytes(num_links)) {}
+
+std::optional<PoseLine> PoseLineReader::Next() {
+  bool too_long = false, blank = true;
+  while (in_.good() && ReadBoundedLine(in_, max_line_bytes_, &line_, &too_long, &blank)) {
     ++line_number_;
-    if (line.find_first_not_of(" \t\r\n\f\v") == std::string::npos) continue;  // Blank.
-    std::string error;
-    std::optional<Pose> pose = ParsePoseLine(line, num_links_, &error);
-    if (!pose) error = "line " + std::to_string(line_number_) + ": " + error;
+    if (blank) continue;
+    PoseLine out;
+    out.line_number = line_number_;
+    if (too_long) {
+      out.error = "longer than the cap of " + std::to_string(max_line_bytes_) +
+                  " bytes for a pose of " + std::to_string(num_links_) +
+                  " links (skipped to its end)";
+    } else {
+      out.pose = ParsePoseLineAsWritten(line_, num_links_, &out.error);
+      if (out.pose && num_links_ < 0) num_links_ = static_cast<int>(out.pose->links.size());
+    }
+    if (!out.pose) out.error = "line " + std::to_string(line_number_) + ": " + out.error;
+    return out;
+  }
+  return std::nullopt;
+}
+
+std::optional<PairOutcome> PoseStreamReader::Next() {
+  while (std::optional<PoseLine> line = lines_.Next()) {
+    std::string error = line->error;
+    std::optional<Pose> pose = std::move(line->pose);
+    if (pose) {
+      const std::string problem = ValidateAndNormalizePose(&*pose, num_links_);
+      if (!problem.empty()) {
+        error = "line " + std::to_string(line->line_number) + ": " + problem;
+        pose.reset();
+      }
+    }
     std::optional<PairOutcome> outcome = pairer_.Feed(std::move(pose), error);
     if (outcome) return outcome;
     first_line_error_ = error;  // Only the first counted line yields no record.

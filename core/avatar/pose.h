@@ -31,13 +31,90 @@ inline constexpr double kMinQuaternionNorm = 1e-6;
 /// anything for a tracked body.
 inline constexpr double kMaxCoordinate = 1e9;
 
-/// Checks finiteness and quaternion norms and normalises the quaternions.
-/// Returns an empty string when valid, else a message naming the link.
+/// Why a pose is invalid under SPEC section 2: the one rule, shared by
+/// `sweptccd query` (pose lines) and the collision service (tracker
+/// messages), each wording it for its own users.
+struct PoseProblem {
+  enum class Kind {
+    kLinkCount,           // `value` is the number of link poses given.
+    kNonFinite,           // `value` is the NaN or infinity.
+    kPositionOutOfRange,  // `value` is the coordinate, |value| > kMaxCoordinate.
+    kZeroQuaternion,      // `value` is the norm, below kMinQuaternionNorm.
+  };
+  Kind kind = Kind::kLinkCount;
+  int link = -1;                // The link index; -1 for kLinkCount.
+  bool in_orientation = false;  // kNonFinite: in the quaternion, not the position.
+  /// kNonFinite, kPositionOutOfRange: index in [x y z] or in [w x y z].
+  int component = -1;
+  double value = 0;
+
+  /// The wording of `sweptccd query`'s records, e.g. "link 2: non-finite
+  /// number" (`num_links` is what the skeleton has).
+  std::string Describe(int num_links) const;
+};
+
+/// The first problem of `pose` for a skeleton of `num_links` links, or
+/// nullopt: the link count, then link by link its non-finite numbers
+/// (position x, y, z, then quaternion w, x, y, z), a coordinate beyond
+/// kMaxCoordinate, a quaternion norm below kMinQuaternionNorm. Pure.
+std::optional<PoseProblem> FindPoseProblem(const Pose& pose, int num_links);
+
+/// Checks `pose` (FindPoseProblem) and, when valid, normalises its
+/// quaternions. Returns an empty string when valid, else the problem as
+/// PoseProblem::Describe words it (the pose is then left as it was).
 std::string ValidateAndNormalizePose(Pose* pose, int num_links);
 
 /// Parses one pose line `{"utime": ..., "links": [[px,py,pz,qw,qx,qy,qz], ...]}`
 /// and validates it. On failure returns nullopt and sets `*error`.
 std::optional<Pose> ParsePoseLine(const std::string& line, int num_links, std::string* error);
+
+/// The structural half of ParsePoseLine: a JSON object with an integral
+/// `utime` (1000000.0 accepted) and `num_links` arrays of 7 numbers, returned
+/// as written (not validated, quaternions not normalised). `num_links` < 0
+/// accepts any non-empty `links` array. On failure returns nullopt and sets
+/// `*error` (the same words as ParsePoseLine).
+std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
+                                           std::string* error);
+
+/// The longest pose line the readers hold, by default: 7 numbers of up to 64
+/// bytes each (a double needs at most 24, plus separators) per link, plus
+/// 4 KiB for the rest. `num_links` < 0 (unknown) counts kDefaultMaxLinks.
+uint64_t DefaultMaxPoseLineBytes(int num_links);
+
+/// One counted (non-blank) line of a pose stream.
+struct PoseLine {
+  int64_t line_number = 0;   // 1-based, blank lines included.
+  std::optional<Pose> pose;  // As written (ParsePoseLineAsWritten), or empty.
+  std::string error;         // "line N: why" when `pose` is empty.
+};
+
+/// Reads a SPEC pose stream line by line, holding at most one line of at most
+/// `max_line_bytes` bytes (0: DefaultMaxPoseLineBytes(num_links)). Blank lines
+/// (only whitespace) are skipped and not counted. A longer line is read to its
+/// newline without being kept and yields an error ("longer than the cap"),
+/// like any other malformed line (SPEC 2: an invalid pose, not a fatal error).
+/// `num_links` < 0: the first line that parses fixes the count. Holds a
+/// reference to the stream. Not thread-safe.
+class PoseLineReader {
+ public:
+  PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes = 0);
+
+  /// The next counted line, or nullopt at the end of the stream.
+  std::optional<PoseLine> Next();
+  /// True when reading failed (not at the end of the stream).
+  bool bad() const { return in_.bad(); }
+  /// The link count lines are checked against (-1 until one line parsed when
+  /// constructed with -1).
+  int num_links() const { return num_links_; }
+  uint64_t max_line_bytes() const { return max_line_bytes_; }
+
+ private:
+  std::istream& in_;
+  int num_links_;
+  uint64_t max_line_bytes_;
+  int64_t line_number_ = 0;
+  std::string line_;
+};
 
 /// Serialises a pose as one SPEC pose line (no newline).
 std::string PoseToJsonLine(const Pose& pose);
@@ -67,12 +144,14 @@ class PosePairer {
   std::optional<Pose> anchor_;
 };
 
-/// A SPEC pose stream file read line by line: blank lines are not counted,
-/// each counted line is parsed (ParsePoseLine) and paired (PosePairer). Holds
-/// a reference to the stream. Not thread-safe.
+/// A SPEC pose stream file read line by line (PoseLineReader: blank lines not
+/// counted, lines over `max_line_bytes` (0: the default cap) invalid), each
+/// counted line validated (ValidateAndNormalizePose, so as ParsePoseLine) and
+/// paired (PosePairer). Holds a reference to the stream. Not thread-safe.
 class PoseStreamReader {
  public:
-  PoseStreamReader(std::istream& in, int num_links) : in_(in), num_links_(num_links) {}
+  PoseStreamReader(std::istream& in, int num_links, uint64_t max_line_bytes = 0)
+      : lines_(in, num_links, max_line_bytes), num_links_(num_links) {}
 
   /// The next record, or nullopt at the end of the stream.
   std::optional<PairOutcome> Next();
@@ -80,12 +159,11 @@ class PoseStreamReader {
   /// parsed, as "line N: ..."; empty when it could.
   const std::string& first_line_error() const { return first_line_error_; }
   /// True when reading failed (not at the end of the stream).
-  bool bad() const { return in_.bad(); }
+  bool bad() const { return lines_.bad(); }
 
  private:
-  std::istream& in_;
+  PoseLineReader lines_;
   int num_links_;
-  int64_t line_number_ = 0;
   PosePairer pairer_;
   std::string first_line_error_;
 };

@@ -1,11 +1,13 @@
 #include "core/avatar/skeleton.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/avatar/pose.h"
 
@@ -154,7 +156,7 @@ Eigen::Vector3d ParseVec3(const nlohmann::json& j, const std::string& who, const
 
 }  // namespace
 
-Skeleton ParseSkeletonJson(const std::string& text, const std::string& source) {
+Skeleton ParseSkeletonJson(const std::string& text, const std::string& source, int max_links) {
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);
@@ -176,6 +178,10 @@ Skeleton ParseSkeletonJson(const std::string& text, const std::string& source) {
     throw InputError(source + ": missing 'links' array");
   }
   const nlohmann::json& jl = doc["links"];
+  if (jl.size() > static_cast<size_t>(std::max(max_links, 1))) {
+    throw InputError(source + ": " + std::to_string(jl.size()) + " links, above the limit of " +
+                     std::to_string(max_links) + "; raise it with --max-links (daemon: max_links)");
+  }
   std::vector<Link> links(jl.size());
   std::vector<std::string> parent_names(jl.size());
   std::vector<bool> has_parent(jl.size(), false);
@@ -219,13 +225,10 @@ Skeleton ParseSkeletonJson(const std::string& text, const std::string& source) {
   return Skeleton::FromLinks(std::move(name), std::move(links), source);
 }
 
-Skeleton LoadSkeletonFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the skeleton file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw InputError(path + ": error while reading the skeleton file");
-  return ParseSkeletonJson(buffer.str(), path);
+Skeleton LoadSkeletonFile(const std::string& path, int max_links) {
+  const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "skeleton file",
+                                           "a skeleton file is at most a few MiB of JSON");
+  return ParseSkeletonJson(text, path, max_links);
 }
 
 std::string SkeletonToJson(const Skeleton& skeleton) {

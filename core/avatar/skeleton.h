@@ -43,12 +43,23 @@ class Skeleton {
   std::vector<int> order_;
 };
 
-/// Parses a SPEC skeleton JSON document. `source` names it in errors (a path).
-/// Throws InputError naming the source, the link and the problem.
-Skeleton ParseSkeletonJson(const std::string& text, const std::string& source);
+/// Default limit on a skeleton's link count: the engine's cost per pair grows
+/// with the link count (docs/DESIGN.md, "Cost bound for large skeletons"), so
+/// a file cannot make every query arbitrarily slow. Raised with `--max-links`
+/// (query, render) or `max_links` (daemon).
+inline constexpr int kDefaultMaxLinks = 256;
 
-/// Reads and parses a skeleton file. Throws InputError ("PATH: problem").
-Skeleton LoadSkeletonFile(const std::string& path);
+/// Parses a SPEC skeleton JSON document. `source` names it in errors (a path).
+/// A document with more than `max_links` (>= 1) links is refused before any
+/// link is read. Throws InputError naming the source, the link and the
+/// problem.
+Skeleton ParseSkeletonJson(const std::string& text, const std::string& source,
+                           int max_links = kDefaultMaxLinks);
+
+/// Reads and parses a skeleton file of at most kMaxJsonFileBytes
+/// (core/bounded_file.h) and at most `max_links` links. Throws InputError
+/// ("PATH: problem").
+Skeleton LoadSkeletonFile(const std::string& path, int max_links = kDefaultMaxLinks);
 
 /// Serialises a skeleton back to SPEC JSON (used by importers and tests).
 std::string SkeletonToJson(const Skeleton& skeleton);

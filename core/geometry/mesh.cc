@@ -13,22 +13,25 @@
 #include <sstream>
 #include <vector>
 
+#include "core/bounded_file.h"
 #include "core/errors.h"
+#include "core/geometry/mesh_precheck.h"
 
 namespace sweptccd {
 
-std::string ReadFileMaybeGzip(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw InputError(path + ": error while reading the file");
-  std::string raw = buffer.str();
-  if (raw.size() < 2 || static_cast<unsigned char>(raw[0]) != 0x1f ||
-      static_cast<unsigned char>(raw[1]) != 0x8b) {
-    return raw;
-  }
-  // gzip: inflate with zlib (windowBits 15 + 32 detects the gzip header).
+namespace {
+
+const char kRaiseMeshCap[] =
+    "raise it with --max-mesh-bytes (daemon: max_mesh_bytes) if the file is real";
+
+std::string CapMessage(const std::string& path, const char* what, uint64_t max_bytes) {
+  return path + ": " + what + " more than the cap of " + std::to_string(max_bytes) + " bytes; " +
+         kRaiseMeshCap;
+}
+
+// Inflates gzip data (windowBits 15 + 32 detects the gzip header), stopping
+// as soon as the output would pass max_bytes.
+std::string Gunzip(std::string& raw, const std::string& path, uint64_t max_bytes) {
   z_stream zs;
   std::memset(&zs, 0, sizeof(zs));
   if (inflateInit2(&zs, 15 + 32) != Z_OK) throw InputError(path + ": zlib initialisation failed");
@@ -42,13 +45,16 @@ std::string ReadFileMaybeGzip(const std::string& path) {
     zs.avail_out = sizeof(chunk);
     ret = inflate(&zs, Z_NO_FLUSH);
     if (ret != Z_OK && ret != Z_STREAM_END) {
+      const std::string why = zs.msg ? std::string(zs.msg) : "zlib error " + std::to_string(ret);
       inflateEnd(&zs);
-      throw InputError(path + ": corrupt or truncated gzip data (" +
-                       (zs.msg ? std::string(zs.msg) : std::string("zlib error ") +
-                                                           std::to_string(ret)) +
-                       ")");
+      throw InputError(path + ": corrupt or truncated gzip data (" + why + ")");
     }
-    out.append(chunk, sizeof(chunk) - zs.avail_out);
+    const uint64_t got = sizeof(chunk) - zs.avail_out;
+    if (out.size() + got > max_bytes) {
+      inflateEnd(&zs);
+      throw InputError(CapMessage(path, "the gzip data inflates to", max_bytes));
+    }
+    out.append(chunk, got);
     if (ret != Z_STREAM_END && zs.avail_in == 0 && zs.avail_out != 0) {
       inflateEnd(&zs);
       throw InputError(path + ": truncated gzip data");
@@ -56,6 +62,20 @@ std::string ReadFileMaybeGzip(const std::string& path) {
   }
   inflateEnd(&zs);
   return out;
+}
+
+}  // namespace
+
+std::string ReadFileMaybeGzip(const std::string& path, uint64_t max_bytes) {
+  // The file itself is held under the same cap (and below 4 GiB: zlib's
+  // avail_in is 32 bits).
+  std::string raw = ReadFileBounded(path, std::min<uint64_t>(max_bytes, 0xffffffffu), "file",
+                                    kRaiseMeshCap);
+  if (raw.size() < 2 || static_cast<unsigned char>(raw[0]) != 0x1f ||
+      static_cast<unsigned char>(raw[1]) != 0x8b) {
+    return raw;
+  }
+  return Gunzip(raw, path, max_bytes);
 }
 
 namespace {
@@ -76,162 +96,6 @@ std::string FormatHint(const std::string& path) {
   const std::string ext = dot == std::string::npos ? "" : name.substr(dot + 1);
   if (ext == "obj" || ext == "ply" || ext == "stl") return ext;
   return "";
-}
-
-// PLY is checked before assimp sees it: assimp 5.2 loops forever on a header
-// without end_header, and reads past or misreads a truncated body
-// (assimp/assimp#5310, #5341). The check parses the header and walks the body
-// without interpreting it: binary bodies must hold every announced element,
-// ASCII bodies at least one line per element.
-void CheckPly(const std::string& data, const std::string& path) {
-  if (data.compare(0, 3, "ply") != 0) return;  // Not a PLY: assimp will say so.
-  constexpr size_t kMaxHeader = 1 << 20;
-  size_t end = std::string::npos;
-  for (size_t at = data.find("end_header"); at != std::string::npos && at < kMaxHeader;
-       at = data.find("end_header", at + 1)) {
-    if (at == 0 || data[at - 1] != '\n') continue;
-    size_t after = at + 10;
-    while (after < data.size() && data[after] == ' ') ++after;
-    if (after < data.size() && data[after] == '\r') ++after;
-    if (after < data.size() && data[after] == '\n') {
-      end = after + 1;
-      break;
-    }
-    if (after == data.size()) {
-      end = after;
-      break;
-    }
-  }
-  if (end == std::string::npos) {
-    throw InputError(path + ": the PLY header has no end_header line (truncated or corrupt)");
-  }
-  struct Property {
-    int size = 0;        // Scalar size, or list item size.
-    int count_size = 0;  // > 0 for a list.
-  };
-  struct Element {
-    std::string name;
-    uint64_t count = 0;
-    std::vector<Property> properties;
-  };
-  auto type_size = [&](const std::string& t) {
-    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
-    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-    if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" ||
-        t == "float32") {
-      return 4;
-    }
-    if (t == "double" || t == "float64") return 8;
-    throw InputError(path + ": the PLY header names an unknown property type '" + t + "'");
-  };
-  std::istringstream header(data.substr(0, end));
-  std::string line, format;
-  std::vector<Element> elements;
-  while (std::getline(header, line)) {
-    std::istringstream words(line);
-    std::string key;
-    words >> key;
-    if (key == "format") {
-      words >> format;
-    } else if (key == "element") {
-      Element e;
-      long double count = -1;
-      words >> e.name >> count;
-      if (!words || count < 0 || count > 1e15) {
-        throw InputError(path + ": bad PLY element line '" + line + "'");
-      }
-      e.count = static_cast<uint64_t>(count);
-      elements.push_back(e);
-    } else if (key == "property") {
-      if (elements.empty()) throw InputError(path + ": PLY property before any element");
-      std::string type;
-      words >> type;
-      Property prop;
-      if (type == "list") {
-        std::string count_type, item_type;
-        words >> count_type >> item_type;
-        prop.count_size = type_size(count_type);
-        prop.size = type_size(item_type);
-      } else {
-        prop.size = type_size(type);
-      }
-      elements.back().properties.push_back(prop);
-    }
-  }
-  const bool little = format == "binary_little_endian";
-  if (little || format == "binary_big_endian") {
-    const unsigned char* bytes = reinterpret_cast<const unsigned char*>(data.data());
-    size_t pos = end;
-    for (const Element& e : elements) {
-      if (e.properties.empty()) continue;
-      for (uint64_t k = 0; k < e.count; ++k) {
-        for (const Property& prop : e.properties) {
-          uint64_t items = 1;
-          if (prop.count_size > 0) {
-            if (pos + prop.count_size > data.size()) items = 0;
-            else {
-              items = 0;
-              for (int b = 0; b < prop.count_size; ++b) {
-                const int shift = 8 * (little ? b : prop.count_size - 1 - b);
-                items |= static_cast<uint64_t>(bytes[pos + b]) << shift;
-              }
-              if (prop.count_size == 4 && (items >> 31)) {
-                throw InputError(path + ": corrupt PLY list length in element '" + e.name + "' " +
-                                 std::to_string(k));
-              }
-            }
-            pos += prop.count_size;
-          }
-          pos += items * prop.size;
-          if (pos > data.size()) {
-            throw InputError(path + ": the binary PLY data is truncated: it ends inside element '" +
-                             e.name + "' " + std::to_string(k) + " of " +
-                             std::to_string(e.count));
-          }
-        }
-      }
-    }
-  } else if (format == "ascii") {
-    // Walk the tokens: one per scalar, a count and that many items per list.
-    size_t pos = end;
-    auto next_token = [&](std::string* token) {
-      while (pos < data.size() && std::isspace(static_cast<unsigned char>(data[pos]))) ++pos;
-      const size_t start = pos;
-      while (pos < data.size() && !std::isspace(static_cast<unsigned char>(data[pos]))) ++pos;
-      if (token != nullptr) token->assign(data, start, pos - start);
-      return pos > start;
-    };
-    std::string token;
-    for (const Element& e : elements) {
-      if (e.properties.empty()) continue;
-      for (uint64_t k = 0; k < e.count; ++k) {
-        for (const Property& prop : e.properties) {
-          uint64_t items = 1;
-          if (prop.count_size > 0) {
-            if (!next_token(&token)) items = ~uint64_t{0};
-            else {
-              char* stop = nullptr;
-              const long long n = std::strtoll(token.c_str(), &stop, 10);
-              if (stop == token.c_str() || *stop != '\0' || n < 0) {
-                throw InputError(path + ": bad PLY list length '" + token + "' in element '" +
-                                 e.name + "' " + std::to_string(k));
-              }
-              items = static_cast<uint64_t>(n);
-            }
-          }
-          for (uint64_t i = 0; i < items; ++i) {
-            if (!next_token(nullptr)) {
-              throw InputError(path + ": the ASCII PLY data is truncated: it ends inside element '" +
-                               e.name + "' " + std::to_string(k) + " of " +
-                               std::to_string(e.count));
-            }
-          }
-        }
-      }
-    }
-  } else {
-    throw InputError(path + ": the PLY header has no valid format line (got '" + format + "')");
-  }
 }
 
 void AppendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent,
@@ -259,14 +123,18 @@ void AppendNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& par
 
 }  // namespace
 
-TriangleMesh LoadMeshFile(const std::string& path) {
+TriangleMesh LoadMeshFile(const std::string& path, const MeshLoadOptions& options) {
   const std::string hint = FormatHint(path);
   if (hint.empty()) {
     throw InputError(path + ": unknown mesh format (expected .obj, .ply or .stl, optionally .gz)");
   }
-  const std::string data = ReadFileMaybeGzip(path);
+  if (options.max_bytes == 0 || options.max_line_bytes == 0) {
+    throw InputError(path + ": the mesh size caps must be > 0 bytes");
+  }
+  const std::string data = ReadFileMaybeGzip(path, options.max_bytes);
   if (data.empty()) throw InputError(path + ": the file is empty");
-  if (hint == "ply") CheckPly(data, path);
+  // assimp must never see a file that fails these checks.
+  PrecheckMeshData(data, hint, path, options.max_line_bytes);
   Assimp::Importer importer;
   // No post-processing: polygons stay polygons (we fan-split them ourselves in
   // file order) and degenerate triangles are kept.

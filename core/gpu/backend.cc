@@ -7,32 +7,45 @@
 
 namespace sweptccd::gpu {
 
-std::string ValidateBackendName(const std::string& backend) {
-  if (backend == "cpu" || backend == "gpu" || backend == "auto") return {};
-  return "backend must be cpu, gpu or auto, got '" + backend + "'";
+BackendKind ParseBackendKind(const std::string& name, const std::string& where) {
+  if (name == "cpu") return BackendKind::kCpu;
+  if (name == "gpu") return BackendKind::kGpu;
+  if (name == "auto") return BackendKind::kAuto;
+  throw InputError(where + " must be cpu, gpu or auto, got '" + name + "'");
+}
+
+const char* BackendKindName(BackendKind kind) {
+  switch (kind) {
+    case BackendKind::kCpu:
+      return "cpu";
+    case BackendKind::kGpu:
+      return "gpu";
+    case BackendKind::kAuto:
+      return "auto";
+  }
+  return "auto";  // Not reached: every enumerator is handled above.
 }
 
 Backend::Backend(const BackendOptions& options) {
-  const std::string problem = ValidateBackendName(options.backend);
-  if (!problem.empty()) throw InputError(problem);
-  if (options.backend == "cpu") {
+  const bool automatic = options.backend == BackendKind::kAuto;
+  if (options.backend == BackendKind::kCpu) {
     reason_ = "cpu (requested)";
     return;
   }
   GlContextOptions context_options;
   context_options.device_index = options.device_index;
-  context_options.require_hardware = options.require_hardware || options.backend == "auto";
+  context_options.require_hardware = options.require_hardware || automatic;
   try {
     context_ = std::make_shared<GlContext>(context_options);
   } catch (const GpuError& e) {
-    if (options.backend == "auto") {
+    if (automatic) {
       reason_ = std::string("cpu (auto: no hardware EGL device; ") + e.what() + ")";
     } else {
       reason_ = std::string("cpu (gpu requested but unavailable: ") + e.what() + ")";
     }
     return;
   }
-  reason_ = "gpu (" + std::string(options.backend == "auto" ? "auto: hardware EGL device" : "requested") +
+  reason_ = "gpu (" + std::string(automatic ? "auto: hardware EGL device" : "requested") +
             "; " + context_->info().Summary() + ")";
 }
 

@@ -16,14 +16,26 @@ namespace sweptccd::gpu {
 
 class GpuEnvironment;
 
+/// Which backend answers queries (`--backend`, the daemon's `backend` key).
+enum class BackendKind {
+  kCpu,   // The CPU engine only.
+  kGpu,   // The GPU swept-volume test; the CPU when no context can be had.
+  kAuto,  // The GPU on a hardware EGL device, else the CPU.
+};
+
+/// Parses "cpu", "gpu" or "auto" (the only place the names are read).
+/// Throws InputError("WHERE must be cpu, gpu or auto, got 'NAME'"), `where`
+/// naming the flag or key (e.g. "--backend", "FILE: backend").
+BackendKind ParseBackendKind(const std::string& name, const std::string& where);
+
+/// "cpu", "gpu" or "auto".
+const char* BackendKindName(BackendKind kind);
+
 struct BackendOptions {
-  std::string backend = "auto";  // cpu, gpu or auto.
+  BackendKind backend = BackendKind::kAuto;
   int device_index = -1;         // EGL device to use; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers (auto always does).
 };
-
-/// Empty when `backend` is cpu, gpu or auto, else the problem.
-std::string ValidateBackendName(const std::string& backend);
 
 class Backend {
  public:
@@ -32,7 +44,7 @@ class Backend {
   /// require_hardware. auto: the GPU only on a hardware device, else the CPU.
   /// A GPU that cannot be had is not an error: the CPU is chosen and
   /// reason() says why (the caller shows it once: `query` on stderr, the
-  /// daemon in its log). Throws InputError for a bad name.
+  /// daemon in its log). Does not throw for a missing GPU.
   explicit Backend(const BackendOptions& options);
   ~Backend();
 

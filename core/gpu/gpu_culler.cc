@@ -219,7 +219,7 @@ float RoundUp(double x) {
 // The float capsule that contains the double one: endpoints rounded to
 // nearest, the radius grown by their displacement and rounded up, the box
 // rounded outwards.
-GpuCapsule ToGpu(const CullCapsule& c) {
+GpuCapsule ToGpu(const LinkCapsule& c) {
   GpuCapsule g{};
   double moved = 0;
   for (int k = 0; k < 3; ++k) {
@@ -343,7 +343,7 @@ GpuCuller::GpuCuller(std::shared_ptr<const GpuEnvironment> environment,
   s.masks.assign(static_cast<size_t>(std::max(1, num_links)) * s.mask_words, 0u);
   for (int l = 0; l < num_links; ++l) {
     for (int o = 0; o < env_->num_objects(); ++o) {
-      if (filter.Ignores(l, o)) s.masks[l * s.mask_words + o / 32] |= 1u << (o % 32);
+      if (filter.Ignores(LinkIndex(l), ObjectIndex(o))) s.masks[l * s.mask_words + o / 32] |= 1u << (o % 32);
     }
   }
   env_->context().Run([&s] {
@@ -376,7 +376,7 @@ GpuCuller::~GpuCuller() {
 int64_t GpuCuller::round_trips() const { return state_->round_trips; }
 int64_t GpuCuller::capsules_tested() const { return state_->capsules; }
 
-bool GpuCuller::Cull(const std::vector<CullCapsule>& capsules,
+bool GpuCuller::Cull(const std::vector<LinkCapsule>& capsules,
                      std::vector<uint8_t>* may_touch) const {
   State& s = *state_;
   may_touch->assign(capsules.size(), 1);
@@ -386,7 +386,7 @@ bool GpuCuller::Cull(const std::vector<CullCapsule>& capsules,
   // Capsules a float cannot hold (not finite, beyond 1e30) are never cleared.
   std::vector<uint8_t> unusable(capsules.size(), 0);
   for (size_t i = 0; i < capsules.size(); ++i) {
-    const CullCapsule& c = capsules[i];
+    const LinkCapsule& c = capsules[i];
     if (c.link < 0 || c.link >= s.num_links) return false;
     const double extent = std::max({c.a.cwiseAbs().maxCoeff(), c.b.cwiseAbs().maxCoeff(), c.radius});
     if (!(extent <= 1e30) || !(c.radius >= 0)) {

@@ -49,7 +49,7 @@ class GpuCuller : public CapsuleCuller {
             int num_links);
   ~GpuCuller() override;
 
-  bool Cull(const std::vector<CullCapsule>& capsules,
+  bool Cull(const std::vector<LinkCapsule>& capsules,
             std::vector<uint8_t>* may_touch) const override;
 
   /// Round trips made and capsules tested so far (all threads).

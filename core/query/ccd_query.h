@@ -14,6 +14,7 @@
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/typed_index.h"
 
 namespace sweptccd {
 
@@ -35,8 +36,8 @@ std::string ValidateQueryOptions(const QueryOptions& options);
 
 /// One witness: where a link is closest to (or inside) the environment.
 struct ContactRecord {
-  int link = -1;
-  int object = -1;
+  LinkIndex link;
+  ObjectIndex object;
   uint32_t triangle = 0;  // Index within the object, file order after the fan split.
   double s = 0;
   Eigen::Vector3d point_link{0, 0, 0};  // On the link's segment, world frame.
@@ -47,7 +48,7 @@ struct ContactRecord {
 
 /// A bracket for one link (per-link mode), with G1-G3 for that link alone.
 struct LinkBracket {
-  int link = -1;
+  LinkIndex link;
   double s_lo = 0, s_hi = 0;
   bool initially_colliding = false;
   bool undecided = false;
@@ -85,7 +86,8 @@ double BracketTimeLo(int64_t utime0, int64_t utime1, double s);
 /// The time of s rounded up (for t_hi).
 double BracketTimeHi(int64_t utime0, int64_t utime1, double s);
 
-/// Answers queries for one skeleton against one environment. Holds references:
+/// Answers queries for one skeleton against one environment (the engine's
+/// parts are mapped in docs/DESIGN.md, "core/query"). Holds references:
 /// the skeleton and environment must outlive it. Query is const and
 /// thread-safe (each call uses its own scratch memory).
 class CcdEngine {
@@ -107,12 +109,12 @@ class CcdEngine {
   /// Exact separation of `link` at s (distance to the nearest unfiltered
   /// triangle minus the radius), searching only within `search_radius` of the
   /// capsule surface; returns false when nothing is that close.
-  bool Separation(const PairMotion& motion, int link, double s, double search_radius,
+  bool Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
                   ContactRecord* record) const;
 
   /// Whether `link` touches (separation <= `slack`, metres) at s. Stops at the
   /// first triangle found, so it is cheaper than Separation.
-  bool TouchesAt(const PairMotion& motion, int link, double s, double slack) const;
+  bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const;
 
   const Skeleton& skeleton() const { return skeleton_; }
   const Environment& environment() const { return env_; }

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "core/scene/environment.h"
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/avatar/skeleton.h"
 
@@ -16,20 +17,20 @@ CollisionFilter::CollisionFilter(int num_links, int num_objects)
       num_objects_(num_objects),
       ignored_(static_cast<size_t>(num_links) * num_objects, false) {}
 
-void CollisionFilter::Ignore(int link, int object) {
+void CollisionFilter::Ignore(LinkIndex link, ObjectIndex object) {
   for (int l = 0; l < num_links_; ++l) {
-    if (link != -1 && l != link) continue;
+    if (link.is_valid() && l != link.value()) continue;
     for (int o = 0; o < num_objects_; ++o) {
-      if (object != -1 && o != object) continue;
+      if (object.is_valid() && o != object.value()) continue;
       ignored_[static_cast<size_t>(l) * num_objects_ + o] = true;
     }
   }
 }
 
-bool CollisionFilter::IgnoresAll(int link) const {
+bool CollisionFilter::IgnoresAll(LinkIndex link) const {
   // An empty filter (default constructed) ignores nothing.
   if (ignored_.empty()) return false;
-  for (int o = 0; o < num_objects_; ++o) {
+  for (ObjectIndex o(0); o < num_objects_; ++o) {
     if (!Ignores(link, o)) return false;
   }
   return true;
@@ -46,25 +47,27 @@ bool ParseIndex(const std::string& s, int* out) {
   return true;
 }
 
-int ResolveLink(const std::string& text, const Skeleton& skeleton, const std::string& where) {
-  if (text == "*") return -1;
+LinkIndex ResolveLink(const std::string& text, const Skeleton& skeleton,
+                      const std::string& where) {
+  if (text == "*") return kAllLinks;
   int i = skeleton.FindLink(text);
-  if (i >= 0) return i;
-  if (ParseIndex(text, &i) && i < skeleton.num_links()) return i;
+  if (i >= 0) return LinkIndex(i);
+  if (ParseIndex(text, &i) && i < skeleton.num_links()) return LinkIndex(i);
   throw InputError(where + ": unknown link '" + text + "' (give a link name, an index below " +
                    std::to_string(skeleton.num_links()) + ", or *)");
 }
 
-int ResolveObject(const std::string& text, const Environment& env, const std::string& where) {
-  if (text == "*") return -1;
+ObjectIndex ResolveObject(const std::string& text, const Environment& env,
+                          const std::string& where) {
+  if (text == "*") return kAllObjects;
   int i;
   if (ParseIndex(text, &i)) {
-    if (i < env.num_objects()) return i;
+    if (i < env.num_objects()) return ObjectIndex(i);
     throw InputError(where + ": object index " + text + " is out of range (there are " +
                      std::to_string(env.num_objects()) + " objects)");
   }
   i = env.FindObject(text);
-  if (i >= 0) return i;
+  if (i >= 0) return ObjectIndex(i);
   throw InputError(where + ": unknown object '" + text + "' (give an index, a file as given, or *)");
 }
 
@@ -95,8 +98,8 @@ CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::st
     if (!r.is_object() || !r.contains("link") || !r.contains("object")) {
       throw InputError(where + ": each rule needs \"link\" and \"object\"");
     }
-    const int link = ResolveLink(JsonToKey(r["link"], where, "link"), skeleton, where);
-    const int object = ResolveObject(JsonToKey(r["object"], where, "object"), env, where);
+    const LinkIndex link = ResolveLink(JsonToKey(r["link"], where, "link"), skeleton, where);
+    const ObjectIndex object = ResolveObject(JsonToKey(r["object"], where, "object"), env, where);
     filter.Ignore(link, object);
   }
   return filter;
@@ -104,11 +107,9 @@ CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::st
 
 CollisionFilter CollisionFilter::FromFile(const std::string& path, const Skeleton& skeleton,
                                           const Environment& env) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the filter file");
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  return FromJson(buffer.str(), path, skeleton, env);
+  const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "filter file",
+                                           "a filter file is at most a few MiB of JSON");
+  return FromJson(text, path, skeleton, env);
 }
 
 void CollisionFilter::AddRule(const std::string& rule, const Skeleton& skeleton,

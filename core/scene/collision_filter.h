@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "core/typed_index.h"
+
 namespace sweptccd {
 
 class Environment;
@@ -15,12 +17,16 @@ class CollisionFilter {
   CollisionFilter() = default;
   CollisionFilter(int num_links, int num_objects);
 
-  /// Ignores contacts between `link` and `object`; -1 for either means all.
-  void Ignore(int link, int object);
-  bool Ignores(int link, int object) const {
-    return !ignored_.empty() && ignored_[static_cast<size_t>(link) * num_objects_ + object];
+  /// Ignores contacts between `link` and `object`; kAllLinks or kAllObjects
+  /// (an invalid index) for either means all.
+  void Ignore(LinkIndex link, ObjectIndex object);
+  /// Precondition: both indices valid and in range.
+  bool Ignores(LinkIndex link, ObjectIndex object) const {
+    return !ignored_.empty() &&
+           ignored_[static_cast<size_t>(link.value()) * num_objects_ + object.value()];
   }
-  bool IgnoresAll(int link) const;
+  /// Whether `link` ignores every object (then it is never tested).
+  bool IgnoresAll(LinkIndex link) const;
 
   /// Parses `{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"}]}`.
   /// Links by name or index ("*" = all), objects by index, name (path) or "*".

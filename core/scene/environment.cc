@@ -11,9 +11,10 @@ uint64_t Environment::NextContentId() {
   return next++;
 }
 
-Environment Environment::LoadFiles(const std::vector<std::string>& paths) {
+Environment Environment::LoadFiles(const std::vector<std::string>& paths,
+                                   const MeshLoadOptions& options) {
   Environment env;
-  for (const std::string& path : paths) env.AddMesh(LoadMeshFile(path), path);
+  for (const std::string& path : paths) env.AddMesh(LoadMeshFile(path, options), path);
   return env;
 }
 

@@ -21,8 +21,10 @@ class Environment {
  public:
   Environment() = default;
 
-  /// Loads each file as one object, in order. Throws InputError naming the file.
-  static Environment LoadFiles(const std::vector<std::string>& paths);
+  /// Loads each file as one object, in order, under `options`' size caps.
+  /// Throws InputError naming the file.
+  static Environment LoadFiles(const std::vector<std::string>& paths,
+                               const MeshLoadOptions& options = {});
 
   /// Adds a mesh as the next object (builds its BVH).
   void AddMesh(const TriangleMesh& mesh, const std::string& name);

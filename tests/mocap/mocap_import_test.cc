@@ -1,6 +1,7 @@
 #include "mocap/mocap_import.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,23 +10,25 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
 
-#include "core/errors.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/errors.h"
+#include "core/geometry/mesh.h"
 
 namespace sweptccd {
 namespace {
 
 namespace fs = std::filesystem;
 
-const std::string kMocapDir = std::string(SWEPTCCD_SHARED_DATA) + "/mocap";
+const std::string kMocapDir = std::string(SWEPTCCD_DATA_DIR) + "/mocap";
 
 std::string ClipPath(const std::string& file) { return kMocapDir + "/" + file; }
 
@@ -33,7 +36,10 @@ std::vector<std::string> ListClips() {
   std::vector<std::string> clips;
   std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(kMocapDir, ec)) {
-    if (entry.is_regular_file() && entry.path().extension() == ".bvh") {
+    const std::string name = entry.path().filename().string();
+    const bool bvh = name.size() > 4 && name.compare(name.size() - 4, 4, ".bvh") == 0;
+    const bool bvh_gz = name.size() > 7 && name.compare(name.size() - 7, 7, ".bvh.gz") == 0;
+    if (entry.is_regular_file() && (bvh || bvh_gz)) {
       clips.push_back(entry.path().string());
     }
   }
@@ -41,12 +47,8 @@ std::vector<std::string> ListClips() {
   return clips;
 }
 
-std::string ReadText(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+// The file's text, gunzipped when it is gzip (the shipped clips are).
+std::string ReadText(const std::string& path) { return ReadFileMaybeGzip(path); }
 
 int LinkIndex(const MocapClip& clip, const std::string& name) {
   const int i = clip.skeleton.FindLink(name);
@@ -88,7 +90,7 @@ const std::vector<std::pair<std::string, std::string>> kConnected = {
 
 TEST(mocap_import, MocapFolderHasClips) {
   ASSERT_TRUE(fs::is_directory(kMocapDir)) << kMocapDir << " is missing";
-  EXPECT_FALSE(ListClips().empty()) << "no .bvh file in " << kMocapDir;
+  EXPECT_FALSE(ListClips().empty()) << "no .bvh or .bvh.gz file in " << kMocapDir;
 }
 
 TEST(mocap_import, LinkNames) {
@@ -100,7 +102,7 @@ TEST(mocap_import, LinkNames) {
   EXPECT_EQ(kMocapNumLinks, 16);
 }
 
-// Every clip of the shared folder imports into a plausible, connected avatar.
+// Every clip of the data folder imports into a plausible, connected avatar.
 class mocap_every_clip : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(mocap_every_clip, ImportsPlausibleConnectedAvatar) {
@@ -174,14 +176,16 @@ TEST_P(mocap_every_clip, ImportsPlausibleConnectedAvatar) {
 }
 
 std::string ClipTestName(const ::testing::TestParamInfo<std::string>& info) {
-  std::string name = fs::path(info.param).stem().string();
+  fs::path file = fs::path(info.param).filename();
+  if (file.extension() == ".gz") file = file.stem();
+  std::string name = file.stem().string();
   for (char& c : name) {
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   }
   return name;
 }
 
-INSTANTIATE_TEST_SUITE_P(SharedData, mocap_every_clip, ::testing::ValuesIn(ListClips()),
+INSTANTIATE_TEST_SUITE_P(RealData, mocap_every_clip, ::testing::ValuesIn(ListClips()),
                          ClipTestName);
 GTEST_ALLOW_UNINSTANTIATED_PARAMETERIZED_TEST(mocap_every_clip);  // MocapFolderHasClips fails then.
 
@@ -196,28 +200,28 @@ TEST(mocap_import, JointMappingPerConvention) {
     std::vector<std::string> joints;
   };
   const std::vector<Case> cases = {
-      {"boxing_toes.bvh",
+      {"boxing_toes.bvh.gz",
        3069,
        0,
        0.01,
        {"Hips", "Ab", "Chest", "Head", "LeftShoulder", "LeftElbow", "LeftWrist", "RightShoulder",
         "RightElbow", "RightWrist", "LeftHip", "LeftKnee", "LeftAnkle", "RightHip", "RightKnee",
         "RightAnkle"}},
-      {"cmu_01_01_playground_forward_jumps.bvh",
+      {"cmu_01_01_playground_forward_jumps.bvh.gz",
        2752,
        1,
        0.05644,
        {"LowerBack", "Spine", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand", "RightArm",
         "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg",
         "RightFoot"}},
-      {"cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
+      {"cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz",
        885,
        0,
        0.05644,
        {"LowerBack", "Spine", "Neck", "Head", "LeftArm", "LeftForeArm", "LeftHand", "RightArm",
         "RightForeArm", "RightHand", "LeftUpLeg", "LeftLeg", "LeftFoot", "RightUpLeg", "RightLeg",
         "RightFoot"}},
-      {"cmu_02_01_walk.bvh",
+      {"cmu_02_01_walk.bvh.gz",
        344,
        1,
        0.01,
@@ -267,11 +271,11 @@ TEST(mocap_import, JointMappingPerConvention) {
 // The left hip (lThigh joint) is p_hip + R_hip (o_lButtock + o_lThigh)
 //   = (64.652050, 87.029111, -160.063881) cm.
 TEST(mocap_import, HandCheckedPoseCmu0201Frame1) {
-  const MocapClip clip = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"));
+  const MocapClip clip = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"));
   MocapImportOptions explicit_start;
   explicit_start.start_frame = 1;
   explicit_start.frame_count = 2;
-  const MocapClip same = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"), explicit_start);
+  const MocapClip same = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"), explicit_start);
   ASSERT_EQ(same.poses.size(), 2u);
   const Pose& pose = clip.poses[0];
   EXPECT_EQ(pose.utime, 0);
@@ -305,7 +309,8 @@ TEST(mocap_import, HandCheckedPoseCmu0201Frame1) {
 // the bone that ends at their joint (LeftHand OFFSET is along +x, Head's is
 // (0.10407, 1.76136, -0.12397)).
 TEST(mocap_import, ZeroEndSitesGetFixedLengths) {
-  const MocapClip clip = ImportBvhFile(ClipPath("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh"));
+  const MocapClip clip =
+      ImportBvhFile(ClipPath("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz"));
   EXPECT_TRUE(
       clip.skeleton.link(LinkIndex(clip, "hand_l")).b_L.isApprox(Eigen::Vector3d(0.08, 0, 0)));
   EXPECT_TRUE(
@@ -319,7 +324,7 @@ TEST(mocap_import, ZeroEndSitesGetFixedLengths) {
 
 // The extra frame line of boxing_toes.bvh is ignored; its frame 0 is kept.
 TEST(mocap_import, ReadsExactlyTheAnnouncedFrames) {
-  const MocapClip clip = ImportBvhFile(ClipPath("boxing_toes.bvh"));
+  const MocapClip clip = ImportBvhFile(ClipPath("boxing_toes.bvh.gz"));
   EXPECT_EQ(clip.poses.size(), 3069u);
   EXPECT_DOUBLE_EQ(clip.frame_time_s, 0.01);
   EXPECT_EQ(clip.poses.back().utime, 3068 * 10000);
@@ -330,8 +335,8 @@ TEST(mocap_import, UpAxisZ) {
   y_up.frame_count = 40;
   MocapImportOptions z_up = y_up;
   z_up.up_axis = 'z';
-  const MocapClip a = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"), y_up);
-  const MocapClip b = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"), z_up);
+  const MocapClip a = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"), y_up);
+  const MocapClip b = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"), z_up);
   ASSERT_EQ(a.poses.size(), 40u);
   ASSERT_EQ(b.poses.size(), 40u);
   Eigen::Matrix3d C;
@@ -351,15 +356,15 @@ TEST(mocap_import, UpAxisZ) {
   EXPECT_LT(Extent(b, b.poses.front(), 1), 1.0);
   MocapImportOptions upper = z_up;
   upper.up_axis = 'Z';
-  EXPECT_EQ(ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"), upper).poses[3].links[5].p,
+  EXPECT_EQ(ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"), upper).poses[3].links[5].p,
             b.poses[3].links[5].p);
 }
 
 TEST(mocap_import, FrameStepSubsamples) {
-  const MocapClip full = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh"));
+  const MocapClip full = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh.gz"));
   MocapImportOptions options;
   options.frame_step = 3;
-  const MocapClip sub = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh"), options);
+  const MocapClip sub = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh.gz"), options);
   ASSERT_EQ(sub.poses.size(), (full.poses.size() + 2) / 3);
   EXPECT_DOUBLE_EQ(sub.frame_time_s, 3 * full.frame_time_s);
   for (size_t k = 0; k < sub.poses.size(); ++k) {
@@ -373,7 +378,7 @@ TEST(mocap_import, FrameStepSubsamples) {
   // Start and count select a window before subsampling.
   options.start_frame = 10;
   options.frame_count = 7;
-  const MocapClip window = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh"), options);
+  const MocapClip window = ImportBvhFile(ClipPath("cmu_13_41_jump.bvh.gz"), options);
   ASSERT_EQ(window.poses.size(), 3u);                                // File frames 10, 13, 16.
   EXPECT_EQ(window.poses[2].links[0].p, full.poses[15].links[0].p);  // full starts at frame 1.
   EXPECT_EQ(window.poses[0].utime, 0);
@@ -382,7 +387,7 @@ TEST(mocap_import, FrameStepSubsamples) {
 TEST(mocap_import, StartFrameZeroKeepsTheReferencePose) {
   MocapImportOptions options;
   options.start_frame = 0;
-  const MocapClip clip = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh"), options);
+  const MocapClip clip = ImportBvhFile(ClipPath("cmu_02_01_walk.bvh.gz"), options);
   EXPECT_EQ(clip.poses.size(), 344u);
   // Frame 0: root rotation 0 -> the pelvis frame is the identity.
   EXPECT_NEAR(std::abs(clip.poses[0].links[0].q.w()), 1.0, 1e-12);
@@ -393,7 +398,7 @@ TEST(mocap_import, RadiusOverrideAndTranslate) {
   options.radius_override_m["head"] = 0.12;
   options.radius_override_m["foot_l"] = 0.03;
   options.frame_count = 5;
-  MocapClip clip = ImportBvhFile(ClipPath("cmu_07_01_walk.bvh"), options);
+  MocapClip clip = ImportBvhFile(ClipPath("cmu_07_01_walk.bvh.gz"), options);
   EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "head")).radius, 0.12);
   EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "foot_l")).radius, 0.03);
   EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "foot_r")).radius, 0.045);
@@ -409,14 +414,14 @@ TEST(mocap_import, RadiusOverrideAndTranslate) {
   }
   options.radius_override_m["tail"] = 0.1;
   try {
-    ImportBvhFile(ClipPath("cmu_07_01_walk.bvh"), options);
+    ImportBvhFile(ClipPath("cmu_07_01_walk.bvh.gz"), options);
     ADD_FAILURE() << "no exception";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("tail"), std::string::npos) << e.what();
   }
   options.radius_override_m.erase("tail");
   options.radius_override_m["hand_l"] = -1;
-  EXPECT_THROW(ImportBvhFile(ClipPath("cmu_07_01_walk.bvh"), options), InputError);
+  EXPECT_THROW(ImportBvhFile(ClipPath("cmu_07_01_walk.bvh.gz"), options), InputError);
 }
 
 // ---------------------------------------------------------------------------
@@ -690,6 +695,47 @@ TEST(mocap_import, MissingFileNamesThePath) {
   EXPECT_THROW(ImportBvhFile(kMocapDir), InputError);
 }
 
+// A gzip-compressed clip (as shipped in data/mocap) imports exactly as its
+// plain text does; a damaged gzip stream is refused naming the file.
+TEST(mocap_import, GzipFileImportsAsItsPlainText) {
+  const std::string gz = ClipPath("cmu_02_03_run_jog.bvh.gz");
+  const std::string text = ReadText(gz);
+  ASSERT_EQ(text.rfind("HIERARCHY", 0), 0u) << gz << " does not gunzip to BVH text";
+  const std::string dir = ::testing::TempDir() + "/mocap_gzip_" + std::to_string(::getpid());
+  fs::create_directories(dir);
+  const std::string plain = dir + "/run_jog.bvh";
+  std::ofstream(plain, std::ios::binary) << text;
+  const MocapClip a = ImportBvhFile(gz);
+  const MocapClip b = ImportBvhFile(plain);
+  ASSERT_EQ(a.poses.size(), b.poses.size());
+  ASSERT_GT(a.poses.size(), 100u);
+  EXPECT_EQ(a.source_joints, b.source_joints);
+  // Named after the file without .bvh.gz, as b is without .bvh.
+  EXPECT_EQ(a.skeleton.name(), "cmu_02_03_run_jog");
+  EXPECT_EQ(b.skeleton.name(), "run_jog");
+  EXPECT_EQ(SkeletonToJson(a.skeleton),
+            SkeletonToJson(Skeleton::FromLinks("cmu_02_03_run_jog", b.skeleton.links(), plain)));
+  for (size_t f = 0; f < a.poses.size(); ++f) {
+    for (size_t i = 0; i < a.poses[f].links.size(); ++i) {
+      ASSERT_EQ(a.poses[f].links[i].p, b.poses[f].links[i].p) << f << " " << i;
+      ASSERT_EQ(a.poses[f].links[i].q.coeffs(), b.poses[f].links[i].q.coeffs()) << f << " " << i;
+    }
+  }
+  // The first half of the compressed bytes: a truncated gzip stream.
+  std::ifstream in(gz, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string cut = dir + "/cut.bvh.gz";
+  std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  try {
+    ImportBvhFile(cut);
+    ADD_FAILURE() << "no exception";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(cut + ": ", 0), 0u) << e.what();
+    EXPECT_NE(std::string(e.what()).find("gzip"), std::string::npos) << e.what();
+  }
+  fs::remove_all(dir);
+}
+
 // Truncated or damaged files never crash: every prefix of the tiny clip, and
 // seeded random byte edits, either import or throw InputError.
 TEST(mocap_import, TruncationsAndGarbageNeverCrash) {
@@ -743,7 +789,7 @@ TEST(mocap_import, TruncationsAndGarbageNeverCrash) {
   EXPECT_GT(accepted, 0);  // Some edits only change a value.
 
   // Random cuts of a real clip.
-  const std::string real = ReadText(ClipPath("cmu_02_03_run_jog.bvh"));
+  const std::string real = ReadText(ClipPath("cmu_02_03_run_jog.bvh.gz"));
   ASSERT_FALSE(real.empty());
   for (int trial = 0; trial < 40; ++trial) {
     const size_t n = rng() % (real.size() - 2000);  // Well before the last frame.

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <limits>
+#include <random>
 
 #include "service_test_util.h"
 
@@ -24,7 +25,7 @@ class ClientSessionTest : public ::testing::Test {
   // Invariant of ClientSession: no pair is lost silently.
   void ExpectAccounted() {
     if (session_.poses_accepted() == 0) return;
-    EXPECT_EQ(session_.poses_accepted() - 1,
+    EXPECT_EQ(session_.poses_accepted() - session_.streams_started(),
               session_.pairs_taken() + session_.pairs_skipped() + (session_.has_pending() ? 1 : 0));
   }
 
@@ -126,7 +127,8 @@ TEST_F(ClientSessionTest, LatestWinsReplacesThePendingPairAndCountsSkips) {
   EXPECT_EQ(third.seq0, 4);
   EXPECT_EQ(third.seq1, 5);
   session_.FinishPair();
-  EXPECT_EQ(session_.poses_accepted() - 1, session_.pairs_finished() + session_.pairs_skipped());
+  EXPECT_EQ(session_.poses_accepted() - session_.streams_started(),
+            session_.pairs_finished() + session_.pairs_skipped());
 }
 
 TEST_F(ClientSessionTest, LatestWinsBeforeAnyPairWasTaken) {
@@ -238,6 +240,160 @@ TEST_F(ClientSessionTest, RejectionMessagesNameTheValue) {
   r = ValidateTrackerPose(m, 2, &pose);
   ASSERT_TRUE(r);
   EXPECT_NE(r->message.find("link 1"), std::string::npos) << r->message;
+}
+
+// Sessions (docs/SERVICE.md): a restarted tracker numbers from 0 again under
+// a greater session and is not locked out.
+tracker_pose_t InSession(int64_t session, int64_t seq, int64_t utime) {
+  tracker_pose_t m = MakePose("a", seq, utime, test::Height(seq));
+  m.session = session;
+  return m;
+}
+
+TEST_F(ClientSessionTest, GreaterSessionStartsANewStreamWithoutAPairAcross) {
+  ASSERT_FALSE(Offer(InSession(5, 100, 9'000'000)));
+  ASSERT_FALSE(Offer(InSession(5, 101, 9'010'000)));
+  ASSERT_TRUE(session_.ready());
+  PosePair old = session_.TakePair();
+  EXPECT_EQ(old.session, 5);
+  session_.FinishPair();
+  // Restart: seq and utime from 0 again.
+  ASSERT_FALSE(Offer(InSession(6, 0, 1'000)));
+  EXPECT_FALSE(session_.ready());  // No pair (101 of session 5, 0 of session 6).
+  EXPECT_EQ(session_.session(), 6);
+  ASSERT_FALSE(Offer(InSession(6, 1, 2'000)));
+  ASSERT_TRUE(session_.ready());
+  const PosePair p = session_.TakePair();
+  EXPECT_EQ(p.session, 6);
+  EXPECT_EQ(p.seq0, 0);
+  EXPECT_EQ(p.seq1, 1);
+  session_.FinishPair();
+  EXPECT_EQ(session_.streams_started(), 2);
+  EXPECT_EQ(session_.seq_gaps(), 0);  // Not 0 - 101 across sessions.
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, SmallerSessionIsRefusedAsStale) {
+  ASSERT_FALSE(Offer(InSession(7, 0, 1'000)));
+  const auto r = Offer(InSession(6, 1, 2'000));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kStaleSession);
+  EXPECT_NE(r->message.find("session 6 is older than the current 7"), std::string::npos)
+      << r->message;
+  EXPECT_EQ(session_.rejected(), 1);
+  ASSERT_FALSE(Offer(InSession(7, 1, 2'000)));  // The current stream goes on.
+  ExpectAccounted();
+}
+
+TEST_F(ClientSessionTest, UtimeJumpBeyondTheHorizonIsRefused) {
+  ASSERT_FALSE(Offer(InSession(1, 0, 1'000)));
+  // INT64_MAX would lock the stream out for good; it is refused instead.
+  auto r = Offer(InSession(1, 1, INT64_MAX));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kUtimeJump);
+  r = Offer(InSession(1, 2, 1'000 + kDefaultMaxUtimeJumpUs + 1));
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->reason, rejection_code::kUtimeJump);
+  EXPECT_FALSE(Offer(InSession(1, 3, 1'000 + kDefaultMaxUtimeJumpUs)));  // At the horizon.
+  ExpectAccounted();
+}
+
+TEST(ClientSessionHorizon, IsConfigurable) {
+  ClientSession session("a", 2, 500);
+  const auto now = SteadyClock::now();
+  ASSERT_FALSE(session.OnPose(MakePose("a", 0, 1'000, 1.0), 0, now));
+  EXPECT_TRUE(session.OnPose(MakePose("a", 1, 1'501, 1.0), 0, now));
+  EXPECT_FALSE(session.OnPose(MakePose("a", 2, 1'500, 1.0), 0, now));
+}
+
+TEST_F(ClientSessionTest, PendingPairOfAnOldSessionIsReplacedNotExtended) {
+  ASSERT_FALSE(Offer(InSession(1, 0, 1'000)));
+  ASSERT_FALSE(Offer(InSession(1, 1, 2'000)));  // (0, 1) pending, not taken.
+  ASSERT_FALSE(Offer(InSession(2, 0, 500)));     // New stream: (0, 1) still pending.
+  ASSERT_TRUE(session_.has_pending());
+  ASSERT_FALSE(Offer(InSession(2, 1, 600)));     // (0, 1) of session 1 replaced by (0, 1) of 2.
+  ASSERT_TRUE(session_.ready());
+  const PosePair p = session_.TakePair();
+  EXPECT_EQ(p.session, 2);
+  EXPECT_EQ(p.pose0.utime, 500);
+  EXPECT_EQ(p.pose1.utime, 600);
+  EXPECT_EQ(session_.pairs_skipped(), 1);
+  ExpectAccounted();
+}
+
+// The service and `sweptccd query` apply one pose rule (core's
+// FindPoseProblem): for random tracker messages with spoiled numbers, the
+// service accepts exactly when core accepts the same numbers as a pose line,
+// the normalised poses are bit-identical, and the rejection names the link
+// core names.
+TEST(TrackerPoseValidation, SameRuleAsThePoseLinesOfTheCli) {
+  std::mt19937_64 rng(4242);
+  const double specials[] = {std::numeric_limits<double>::quiet_NaN(),
+                             std::numeric_limits<double>::infinity(),
+                             -std::numeric_limits<double>::infinity(),
+                             2e9, -1e9, 1e9, 1e-7, 0, 1e200};
+  std::uniform_real_distribution<double> u(-2, 2);
+  for (int trial = 0; trial < 4000; ++trial) {
+    SCOPED_TRACE("trial " + std::to_string(trial));
+    tracker_pose_t m = MakePose("a", 0, 1'000'000, u(rng), u(rng));
+    for (int spoil = static_cast<int>(rng() % 3); spoil > 0; --spoil) {
+      const size_t link = rng() % 2, k = rng() % 7;
+      const double v = specials[rng() % std::size(specials)];
+      if (k < 3) m.position[link][k] = v;
+      if (k >= 3) m.orientation[link][k - 3] = v;
+      if (rng() % 4 == 0) m.orientation[link] = {v * 1e-9, 0, 0, 0};
+    }
+    Pose from_message;
+    const std::optional<Rejection> rejection = ValidateTrackerPose(m, 2, &from_message);
+    Pose from_line;
+    from_line.utime = m.utime;
+    from_line.links.resize(2);
+    for (int i = 0; i < 2; ++i) {
+      const auto& p = m.position[i];
+      const auto& q = m.orientation[i];
+      from_line.links[i].p = {p[0], p[1], p[2]};
+      from_line.links[i].q = Eigen::Quaterniond(q[0], q[1], q[2], q[3]);
+    }
+    const std::string core_error = ValidateAndNormalizePose(&from_line, 2);
+    ASSERT_EQ(rejection.has_value(), !core_error.empty())
+        << (rejection ? rejection->message : core_error);
+    if (rejection) {
+      const std::string link = core_error.substr(0, core_error.find(':'));  // "link N"
+      EXPECT_EQ(rejection->message.rfind(link + ":", 0), 0u)
+          << rejection->message << " vs " << core_error;
+      continue;
+    }
+    for (int i = 0; i < 2; ++i) {
+      EXPECT_EQ(from_message.links[i].p, from_line.links[i].p);
+      EXPECT_EQ(from_message.links[i].q.coeffs(), from_line.links[i].q.coeffs());
+    }
+  }
+}
+
+// The wording of each kind of problem: the value, the place, the fix.
+TEST(TrackerPoseValidation, RejectionWordingPerProblem) {
+  Pose pose;
+  tracker_pose_t m = MakePose("a", 0, 1, 1.0);
+  m.position[1][2] = std::numeric_limits<double>::infinity();
+  auto r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 1: position[2] is inf; send finite numbers");
+  m = MakePose("a", 0, 1, 1.0);
+  m.orientation[0][1] = std::numeric_limits<double>::quiet_NaN();
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 0: orientation[1] is nan; send finite numbers");
+  m = MakePose("a", 0, 1, 1.0);
+  m.position[0][0] = -2e9;
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 0: position[0] is -2000000000 m, beyond 1e9 m; send metres in the "
+                        "world frame");
+  m = MakePose("a", 0, 1, 1.0);
+  m.orientation[1] = {0, 0, 0, 0};
+  r = ValidateTrackerPose(m, 2, &pose);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->message, "link 1: quaternion norm 0 is below 1e-6; send a rotation as [w x y z]");
 }
 
 }  // namespace

@@ -245,6 +245,35 @@ TEST_F(CollisionServiceTest, BadClientNeverDisturbsAnother) {
   EXPECT_EQ(service->rejected_unattributed(), kPoses + 1);
 }
 
+// Finding 4 of the hostile-network issue: a client id with a newline and
+// ANSI escapes forged log lines. It is refused before any lookup, never
+// echoed in rejection_t.client_id, and shown escaped.
+TEST_F(CollisionServiceTest, ClientIdBreakingTheRuleIsRefusedAndNotEchoed) {
+  auto service = Make({"a"}, 1);
+  service->OnPose(Sample("a\n[12:00:00.000] [info] \x1b[31mcontact", 0));
+  service->OnPose(Sample(std::string(65, 'a'), 0));
+  service->OnRefused("a", Rejection{rejection_code::kBadSignature, "forged"});
+  service->WaitUntilIdle();
+  const auto rejections = publisher_.rejections();
+  ASSERT_EQ(rejections.size(), 3u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_EQ(rejections[i].reason, rejection_code::kBadClientId);
+    EXPECT_EQ(rejections[i].client_id, "");
+    EXPECT_EQ(rejections[i].message.find('\n'), std::string::npos);
+    EXPECT_EQ(rejections[i].message.find('\x1b'), std::string::npos);
+  }
+  EXPECT_NE(rejections[0].message.find("a\\n[12:00:00.000] [info] \\x1b[31mcontact"),
+            std::string::npos)
+      << rejections[0].message;
+  EXPECT_EQ(rejections[2].reason, rejection_code::kBadSignature);
+  EXPECT_EQ(rejections[2].client_id, "a");
+  EXPECT_EQ(rejections[2].seq, -1);
+  EXPECT_EQ(service->rejected_unattributed(), 3);
+  const status_t s = service->Status();
+  EXPECT_EQ(s.rejected[0], 0);  // Not alice's: the sender is unknown.
+  EXPECT_EQ(s.security, "signed");
+}
+
 TEST_F(CollisionServiceTest, StopFinishesAndPublishesInFlightAndPendingWork) {
   auto service = Make({"a"}, 1);
   publisher_.CloseGate();
@@ -313,6 +342,12 @@ TEST_F(CollisionServiceTest, BadConfigurationIsRefused) {
   ClientConfig unnamed = c;
   unnamed.client_id = "";
   EXPECT_THROW(CollisionService(env_, {unnamed}, options, &publisher_), InputError);
+  ClientConfig spaced = c;
+  spaced.client_id = "a b";
+  EXPECT_THROW(CollisionService(env_, {spaced}, options, &publisher_), InputError);
+  ServiceOptions no_horizon;
+  no_horizon.max_utime_jump_us = 0;
+  EXPECT_THROW(CollisionService(env_, {c}, no_horizon, &publisher_), InputError);
   ClientConfig no_skeleton = c;
   no_skeleton.skeleton = nullptr;
   EXPECT_THROW(CollisionService(env_, {no_skeleton}, options, &publisher_), InputError);

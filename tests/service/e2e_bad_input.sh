@@ -14,16 +14,22 @@ sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
+env_ply="$src/data/env/morse_apartment.ply.gz"
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$env_ply" "$work"
+"$sweptccd" keygen --out "$work/room.key"
 "$service" --lcm-url "$url" --env "$env_ply" --client "alice=$work/skeleton.json" \
-  --client "bob=$work/skeleton.json" --log-level info 2> "$work/daemon.log" &
+  --client "bob=$work/skeleton.json" --room-key "$work/room.key" --log-level info \
+  2> "$work/daemon.log" &
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
-"$tool" badinput "$url" alice bob "$work/poses.jsonl" "$work/expected.jsonl"
+"$tool" --key "$work/room.key" badinput "$url" alice bob "$work/poses.jsonl" "$work/expected.jsonl"
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
+# The forged id (newline, ESC) reaches the log only escaped (when not
+# suppressed by the log rate): no raw ESC byte, no line the id started.
+if grep -q $'\x1b' "$work/daemon.log"; then echo "e2e_bad_input: raw ESC in the log" >&2; exit 1; fi
+if grep -q '^.\[31mforged' "$work/daemon.log"; then echo "e2e_bad_input: forged log line" >&2; exit 1; fi
 echo "e2e_bad_input: passed"

@@ -12,18 +12,20 @@ sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
+env_ply="$src/data/env/morse_apartment.ply.gz"
 import_walk "$sweptccd" "$src" 90 "$work"
 query_walk "$sweptccd" "$env_ply" "$work"
 ids=(c0 c1 c2 c3 c4 c5 c6 c7)
 client_flags=()
 for id in "${ids[@]}"; do client_flags+=(--client "$id=$work/skeleton.json"); done
-"$service" --lcm-url "$url" --env "$env_ply" "${client_flags[@]}" --log-level info \
-  2> "$work/daemon.log" &
+# The one end-to-end run in unsigned mode (a lab bench): it must say so.
+"$service" --lcm-url "$url" --env "$env_ply" "${client_flags[@]}" --security-mode unsigned \
+  --log-level info 2> "$work/daemon.log" &
 daemon=$!
 collector=
 trap 'kill -KILL $daemon $collector 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
+grep -q "UNSIGNED MODE" "$work/daemon.log"
 timeout 60 "$tool" collect "$url" "$work/poses.jsonl" "$work/expected.jsonl" "$sweptccd" \
   "$work/skeleton.json" "$env_ply" "$work/collect.ready" 30 "${ids[@]}" > "$work/collect.out" 2>&1 &
 collector=$!

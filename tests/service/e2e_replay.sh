@@ -14,14 +14,15 @@ sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
+env_ply="$src/data/env/morse_apartment.ply.gz"
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$env_ply" "$work"
 pids=()
 trap 'for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null || true; done' EXIT
+"$sweptccd" keygen --out "$work/room.key"
 start_daemon() {  # LOG
   "$service" --lcm-url "$url" --env "$env_ply" --client "alice=$work/skeleton.json" \
-    --log-level info 2> "$1" &
+    --room-key "$work/room.key" --log-level info 2> "$1" &
   daemon=$!; pids+=("$daemon")
   wait_for "$1" ready
 }
@@ -29,7 +30,7 @@ stop_daemon() {  # LOG
   kill -TERM "$daemon"; wait "$daemon"; grep -q stopped "$1"
 }
 collect() {  # NAME: collector in the background, waits until it is subscribed
-  timeout 60 "$tool" collect "$url" "$work/poses.jsonl" "$work/expected.jsonl" "$sweptccd" \
+  timeout 60 "$tool" --key "$work/room.key" collect "$url" "$work/poses.jsonl" "$work/expected.jsonl" "$sweptccd" \
     "$work/skeleton.json" "$env_ply" "$work/$1.ready" 30 alice > "$work/$1.out" 2>&1 &
   collector=$!; pids+=("$collector")
   wait_for "$work/$1.ready" ready
@@ -48,7 +49,7 @@ for _ in $(seq 100); do
 done
 grep -q E2E_PROBE "$work/poses.lcmlog" || { echo "e2e_replay: lcm-logger records nothing" >&2; exit 1; }
 collect live
-"$tool" publish "$url" "$work/poses.jsonl" 30 alice
+"$tool" --key "$work/room.key" publish "$url" "$work/poses.jsonl" 30 alice
 wait "$collector" || { cat "$work/live.out" >&2; exit 1; }
 cat "$work/live.out"
 kill -INT "$logger"; wait "$logger" || true

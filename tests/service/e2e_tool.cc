@@ -13,6 +13,11 @@
 //   e2e_tool probe URL CHANNEL
 //     Publishes a few bytes on CHANNEL once (to see that a logger listens).
 //
+//   e2e_tool crash URL CHANNEL TYPE
+//     Publishes on CHANNEL the 36-byte datagram that crashed lcm-gen 1.3.1's
+//     decoders: TYPE's fingerprint (pose, contact, status or reject), a
+//     utime, and a first string length of INT32_MIN.
+//
 //   e2e_tool collect URL POSES.jsonl EXPECTED.jsonl SWEPTCCD SKELETON ENV
 //                    READY_FILE TIMEOUT_S ID...
 //     Subscribes to contact events, touches READY_FILE once subscribed, and
@@ -31,6 +36,12 @@
 //     right reason, client and seq, BAD_ID (one accepted pose) gets no event,
 //     and every GOOD_ID event equals EXPECTED.
 //
+// Every mode takes `--key FILE` first (e2e_tool --key FILE MODE ...): poses
+// are then signed with that key (a daemon in signed mode refuses others) and
+// every message received from the daemon must verify with it; without it
+// poses go unsigned and nothing is verified. badinput then also checks
+// bad_signature. Received messages are decoded through DecodeChecked.
+//
 // Exit 0 when every check passes; every wait is bounded.
 
 #include <lcm/lcm-cpp.hpp>
@@ -43,24 +54,58 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "core/errors.h"
+#include "msgs/channels.h"
+#include "msgs/checked_decode.h"
+#include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
 namespace {
 
+using sweptccd::kContactChannel;
+using sweptccd::kPoseChannel;
+using sweptccd::kRejectChannel;
+
+std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose, verifies every answer.
+
+// Publishes a pose signed with --key (unsigned without it).
+void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
+  const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(m, g_key ? &*g_key : nullptr);
+  lcm.publish(kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+}
+
+// Decodes what the daemon publishes through DecodeChecked and, with --key,
+// verifies each message's mac (a failure ends the run: exit 1).
 struct Receiver {
   std::vector<sweptccd::contact_event_t> events;
   std::vector<sweptccd::rejection_t> rejections;
-  void On(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::contact_event_t* e) {
-    events.push_back(*e);
+  template <class T>
+  static T Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    sweptccd::DecodeResult<T> r = sweptccd::DecodeChecked<T>(rbuf->data, rbuf->data_size, {});
+    if (!r.ok()) {
+      std::fprintf(stderr, "e2e_tool: undecodable message on %s: %s\n", channel.c_str(),
+                   r.problem.c_str());
+      std::exit(1);
+    }
+    if (g_key && !sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key)) {
+      std::fprintf(stderr, "e2e_tool: a message on %s does not verify\n", channel.c_str());
+      std::exit(1);
+    }
+    return std::move(*r.message);
   }
-  void OnReject(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::rejection_t* r) {
-    rejections.push_back(*r);
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    events.push_back(Checked<sweptccd::contact_event_t>(rbuf, channel));
+  }
+  void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    rejections.push_back(Checked<sweptccd::rejection_t>(rbuf, channel));
   }
 };
 
@@ -78,6 +123,7 @@ sweptccd::tracker_pose_t MakePose(const nlohmann::json& p, const std::string& id
   sweptccd::tracker_pose_t m;
   m.utime = p["utime"].get<int64_t>();
   m.client_id = id;
+  m.session = 1;
   m.seq = seq;
   m.num_links = static_cast<int32_t>(p["links"].size());
   for (const auto& l : p["links"]) {
@@ -112,8 +158,7 @@ int Publish(int argc, char** argv) {
   auto next = std::chrono::steady_clock::now();
   for (size_t k = 0; k < poses.size(); ++k) {
     for (int c = 5; c < argc; ++c) {
-      sweptccd::tracker_pose_t m = MakePose(poses[k], argv[c], static_cast<int64_t>(k));
-      lcm.publish("SWEPTCCD_POSE", &m);
+      Send(lcm, MakePose(poses[k], argv[c], static_cast<int64_t>(k)));
     }
     next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
     std::this_thread::sleep_until(next);
@@ -128,13 +173,12 @@ int Lockstep(int argc, char** argv) {
   lcm::LCM lcm(argv[2]);
   if (!lcm.good()) return 2;
   Receiver rx;
-  lcm.subscribe("SWEPTCCD_CONTACT", &Receiver::On, &rx);
+  lcm.subscribe(kContactChannel, &Receiver::On, &rx);
   const std::vector<nlohmann::json> poses = ReadLines(argv[4]);
   const std::vector<nlohmann::json> expected = ReadLines(argv[5]);
   int mismatches = 0;
   for (size_t k = 0; k < poses.size(); ++k) {
-    sweptccd::tracker_pose_t m = MakePose(poses[k], argv[3], static_cast<int64_t>(k));
-    lcm.publish("SWEPTCCD_POSE", &m);
+    Send(lcm, MakePose(poses[k], argv[3], static_cast<int64_t>(k)));
     if (k == 0) continue;  // The first pose only anchors the stream.
     for (int waited_ms = 0; rx.events.size() < k && waited_ms < 10000; waited_ms += 10) {
       lcm.handleTimeout(10);
@@ -167,6 +211,23 @@ int Probe(int argc, char** argv) {
   return lcm.publish(argv[3], bytes, sizeof bytes) == 0 ? 0 : 1;
 }
 
+int Crash(int argc, char** argv) {
+  if (argc != 5) return 2;
+  lcm::LCM lcm(argv[2]);
+  if (!lcm.good()) return 2;
+  const std::string type = argv[4];
+  int64_t hash = 0;
+  if (type == "pose") hash = sweptccd::tracker_pose_t::getHash();
+  if (type == "contact") hash = sweptccd::contact_event_t::getHash();
+  if (type == "status") hash = sweptccd::status_t::getHash();
+  if (type == "reject") hash = sweptccd::rejection_t::getHash();
+  if (hash == 0) return 2;
+  std::vector<uint8_t> bytes(36, 0);
+  for (int i = 0; i < 8; ++i) bytes[i] = static_cast<uint8_t>(static_cast<uint64_t>(hash) >> (56 - 8 * i));
+  bytes[16] = 0x80;  // int32 INT32_MIN, big-endian.
+  return lcm.publish(argv[3], bytes.data(), 36) == 0 ? 0 : 1;
+}
+
 int Collect(int argc, char** argv) {
   if (argc < 11) return 2;
   lcm::LCM lcm(argv[2]);
@@ -179,7 +240,7 @@ int Collect(int argc, char** argv) {
   std::vector<std::string> ids(argv + 10, argv + argc);
   const int64_t last = static_cast<int64_t>(poses.size()) - 1;
   Receiver rx;
-  lcm.subscribe("SWEPTCCD_CONTACT", &Receiver::On, &rx);
+  lcm.subscribe(kContactChannel, &Receiver::On, &rx);
   { std::ofstream ready(argv[8]); ready << "ready\n"; }
   std::map<std::string, std::vector<sweptccd::contact_event_t>> by_id;
   const auto deadline = std::chrono::steady_clock::now() +
@@ -290,8 +351,8 @@ int BadInput(int argc, char** argv) {
   const std::vector<nlohmann::json> poses = ReadLines(argv[5]);
   const std::vector<nlohmann::json> expected = ReadLines(argv[6]);
   Receiver rx;
-  lcm.subscribe("SWEPTCCD_CONTACT", &Receiver::On, &rx);
-  lcm.subscribe("SWEPTCCD_REJECT", &Receiver::OnReject, &rx);
+  lcm.subscribe(kContactChannel, &Receiver::On, &rx);
+  lcm.subscribe(kRejectChannel, &Receiver::OnReject, &rx);
 
   // The bad client's accepted anchor: seq 10, utime 5000000.
   struct Bad {
@@ -299,6 +360,7 @@ int BadInput(int argc, char** argv) {
     int64_t seq;
     sweptccd::tracker_pose_t msg;
     std::vector<uint8_t> raw;  // Published as is when not empty.
+    bool unsigned_msg = false;  // Published without a mac.
   };
   const double nan = std::numeric_limits<double>::quiet_NaN();
   auto base = [&](int64_t seq, int64_t utime) {
@@ -357,6 +419,37 @@ int BadInput(int argc, char** argv) {
     buf.resize(buf.size() / 2);
     cases.push_back({"decode_error", "", -1, {}, buf});
   }
+  {
+    // 36 bytes with a client_id length of INT32_MIN: crashed lcm-gen's decoder.
+    std::vector<uint8_t> crash(36, 0);
+    const uint64_t hash = static_cast<uint64_t>(sweptccd::tracker_pose_t::getHash());
+    for (int i = 0; i < 8; ++i) crash[i] = static_cast<uint8_t>(hash >> (56 - 8 * i));
+    crash[16] = 0x80;
+    cases.push_back({"decode_error", "", -1, {}, crash});
+  }
+  {
+    // A pose claiming 2^26 links in a few bytes: refused before allocating.
+    sweptccd::tracker_pose_t m = base(17, 5700000);
+    m.num_links = 0;
+    m.position.clear();
+    m.orientation.clear();
+    std::vector<uint8_t> buf = sweptccd::EncodeSigned(m, g_key ? &*g_key : nullptr);
+    const size_t at = 8 + 8 + 4 + bad.size() + 1 + 8 + 8;
+    buf[at] = 0x04;
+    cases.push_back({"decode_error", "", -1, {}, buf});
+  }
+  cases.push_back({"bad_client_id", "", -1, MakePose(poses[0], "x\n\x1b[31mforged", 0), {}});
+  {
+    sweptccd::tracker_pose_t m = base(18, 5800000);
+    m.session = 0;
+    cases.push_back({"stale_session", bad, 18, m, {}});
+  }
+  cases.push_back({"utime_jump", bad, 19, base(19, 5000000 + 20000000), {}});
+  if (g_key) {
+    Bad unsigned_pose{"bad_signature", bad, -1, base(20, 6000000), {}};
+    unsigned_pose.unsigned_msg = true;
+    cases.push_back(unsigned_pose);
+  }
 
   int failures = 0;
   auto wait_for = [&](auto pred, const char* what) {
@@ -368,21 +461,20 @@ int BadInput(int argc, char** argv) {
     return true;
   };
   // Anchor the bad client with one good pose.
-  {
-    sweptccd::tracker_pose_t m = base(10, 5000000);
-    lcm.publish("SWEPTCCD_POSE", &m);
-  }
+  Send(lcm, base(10, 5000000));
   size_t next_case = 0;
   for (size_t k = 0; k < poses.size(); ++k) {
-    sweptccd::tracker_pose_t m = MakePose(poses[k], good, static_cast<int64_t>(k));
-    lcm.publish("SWEPTCCD_POSE", &m);
+    Send(lcm, MakePose(poses[k], good, static_cast<int64_t>(k)));
     if (next_case < cases.size()) {
       Bad& c = cases[next_case];
       const size_t before = rx.rejections.size();
       if (!c.raw.empty()) {
-        lcm.publish("SWEPTCCD_POSE", c.raw.data(), static_cast<unsigned int>(c.raw.size()));
+        lcm.publish(kPoseChannel, c.raw.data(), static_cast<unsigned int>(c.raw.size()));
+      } else if (c.unsigned_msg) {
+        const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(c.msg, nullptr);
+        lcm.publish(kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
       } else {
-        lcm.publish("SWEPTCCD_POSE", &c.msg);
+        Send(lcm, c.msg);
       }
       if (!wait_for([&] { return rx.rejections.size() > before; }, "rejection")) return 1;
       const sweptccd::rejection_t& r = rx.rejections[before];
@@ -435,11 +527,23 @@ int BadInput(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc > 2 && std::string(argv[1]) == "--key") {
+    try {
+      g_key.emplace(sweptccd::LoadKeyFile(argv[2]));
+    } catch (const sweptccd::InputError& e) {
+      std::fprintf(stderr, "e2e_tool: %s\n", e.what());
+      return 2;
+    }
+    argv[2] = argv[0];
+    argv += 2;
+    argc -= 2;
+  }
   const std::string mode = argc > 1 ? argv[1] : "";
   int rc = 2;
   if (mode == "publish") rc = Publish(argc, argv);
   if (mode == "lockstep") rc = Lockstep(argc, argv);
   if (mode == "probe") rc = Probe(argc, argv);
+  if (mode == "crash") rc = Crash(argc, argv);
   if (mode == "collect") rc = Collect(argc, argv);
   if (mode == "badinput") rc = BadInput(argc, argv);
   if (rc == 2) std::fprintf(stderr, "e2e_tool: bad arguments (see the comment in e2e_tool.cc)\n");

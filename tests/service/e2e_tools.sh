@@ -15,12 +15,12 @@
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
 enter_private_netns "$@"
-sweptccd=$1 service=$2 src=$4 work=$5
+sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
-env_ply="$src/data/morse_apartment.ply"
-bvh="$src/data/demo/cmu_02_01_walk.bvh"
+env_ply="$src/data/env/morse_apartment.ply.gz"
+bvh="$src/data/mocap/cmu_02_01_walk.bvh.gz"
 fail() { echo "e2e_tools: FAILED: $*" >&2; exit 1; }
 
 # refused EXPECTED_TEXT COMMAND...: exit status 2 and exactly one line on
@@ -36,13 +36,25 @@ refused() {
 refused missing.jsonl "$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/missing.jsonl"
 refused missing.bvh "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$work/missing.bvh"
 printf '{"utime": 1, "links": [[0, 0, 0, 1, 0, 0, 0]]}\n{"utime": 2, "links": [[0, 0\n' > "$work/bad.jsonl"
-refused "bad.jsonl: line 2" "$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/bad.jsonl"
+# A line that is no pose is skipped with a counted warning (SPEC 2: an
+# invalid pose, not a fatal error), as `query` reads the same file.
+"$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/bad.jsonl" --client badfile \
+  > "$work/bad.out" 2> "$work/bad.err" < /dev/null || fail "simulate-tracker refused bad.jsonl"
+grep -qF "bad.jsonl: line 2" "$work/bad.err" || fail "no warning naming bad.jsonl: line 2"
+grep -q "skipped 1 malformed line" "$work/bad.out" || fail "the skipped line is not counted"
 refused "--drop" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --drop 1.5
 refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed -2
 refused "--clients" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --clients many
 refused "--speed" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --speed 1e-300
 refused "--seq-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --seq-start 9223372036854775807
 refused "--utime-start" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --utime-start 1e19
+"$sweptccd" keygen --out "$work/room.key"
+key=(--key "$work/room.key")
+"$sweptccd" keygen --out "$work/open.key"
+chmod 640 "$work/open.key"
+refused "chmod 600" "$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --key "$work/open.key"
+refused "chmod 600" "$sweptccd" monitor --lcm-url "$url" --key "$work/open.key" --timeout 1
+refused "never overwritten" "$sweptccd" keygen --out "$work/room.key"
 refused missing.json "$sweptccd" monitor --lcm-url "$url" --skeleton "$work/missing.json" --timeout 1
 refused "--timeout" "$sweptccd" monitor --lcm-url "$url" --timeout -1
 
@@ -64,12 +76,12 @@ echo "query: $pairs pairs; contacts: client0 $want0, client1 $want1"
 "$service" --lcm-url "$url" --env "$env_ply" --status-period 0.2 \
   --client "client0=$work/skeleton.json" --client "client1=$work/skeleton.json" \
   --client "lossy0=$work/skeleton.json" --client "lossy1=$work/skeleton.json" \
-  --log-level info 2> "$work/daemon.log" &
+  --room-key "$work/room.key" --log-level info 2> "$work/daemon.log" &
 daemon=$!
 monitor= monitor_json=
 trap 'kill -KILL $daemon $monitor $monitor_json 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
-"$sweptccd" monitor --lcm-url "$url" --skeleton "$work/skeleton.json" --all --timeout 50 \
+"$sweptccd" monitor --lcm-url "$url" "${key[@]}" --skeleton "$work/skeleton.json" --all --timeout 50 \
   > "$work/monitor.out" 2> "$work/monitor.err" &
 monitor=$!
 wait_for "$work/monitor.out" "^monitor: listening"
@@ -115,7 +127,7 @@ check_client() {
 
 # Run 1: two clients, no loss, 4x real time.
 declare -A events_of
-"$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --up z --rate 30 \
+"$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
   --offset 0 -1 0 --utime-start 1000000 --clients 2 --spacing 0 2 0 --speed 4 \
   | tee "$work/sim1.out"
 grep -q "^simulate-tracker: sent $((2 * poses)), dropped 0, late 0 " "$work/sim1.out" \
@@ -141,10 +153,10 @@ done
 
 # Run 2: the same walk, lossy. A second monitor in --json mode must stop by
 # itself after 3 contact events.
-"$sweptccd" monitor --lcm-url "$url" --json --count 3 --timeout 30 > "$work/monitor.jsonl" &
+"$sweptccd" monitor --lcm-url "$url" "${key[@]}" --json --count 3 --timeout 30 > "$work/monitor.jsonl" &
 monitor_json=$!
 wait_for "$work/monitor.jsonl" '"type":"listening"'
-"$sweptccd" simulate-tracker --lcm-url "$url" --bvh "$bvh" --up z --rate 30 \
+"$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
   --offset 0 -1 0 --utime-start 1000000 --clients 2 --client-prefix lossy --spacing 0 2 0 \
   --speed 4 --drop 0.1 --late 0.1 --jitter-us 3000 --seed 7 | tee "$work/sim2.out"
 read -r sent dropped late < <(sed -n 's/^simulate-tracker: sent \([0-9]*\), dropped \([0-9]*\), late \([0-9]*\) .*/\1 \2 \3/p' "$work/sim2.out")
@@ -155,6 +167,10 @@ monitor_json=
 [ "$(grep -c '^{"type":"contact","client":"' "$work/monitor.jsonl")" = 3 ] \
   || { cat "$work/monitor.jsonl" >&2; fail "monitor --json --count 3 printed other than 3 contacts"; }
 grep -q '^{"type":"total",' "$work/monitor.jsonl" || fail "monitor --json printed no total"
+! grep -q '"verified":false' "$work/monitor.jsonl" || fail "monitor --key: a message did not verify"
+grep -q "^status service backend [a-z]* security signed " "$work/monitor.out" \
+  || fail "monitor shows no signed service"
+! grep -q "^UNVERIFIED" "$work/monitor.out" || fail "monitor --key marked a message UNVERIFIED"
 wait_settled "$sent" lossy0 lossy1
 rejections=$(grep -c "^reject lossy[01] seq [0-9]* non_increasing_seq: " "$work/monitor.out" || true)
 all_rejections=$(grep -c "^reject " "$work/monitor.out" || true)
@@ -192,7 +208,67 @@ done
 grep -q "^monitor: [0-9]* events " "$work/monitor.out" || fail "no total line"
 ! grep -q " gaps [1-9]" "$work/monitor.out" || fail "the monitor missed events"
 # --timeout alone ends the monitor (nothing published now).
-timeout 10 "$sweptccd" monitor --lcm-url "$url" --timeout 0.3 > "$work/monitor_timeout.out"
+# A tracker that restarts numbers from 0 again: with a new session (the wall
+# clock at its start, by default) it is not locked out. client0 got $poses
+# poses above; two restarts later: no rejection, and
+# accepted - 3 streams = answered + skipped.
+timeout 30 "$sweptccd" monitor --lcm-url "$url" "${key[@]}" --json --timeout 20 \
+  > "$work/restart.jsonl" &
+monitor_restart=$!
+wait_for "$work/restart.jsonl" '"type":"listening"'
+total=$poses
+for _ in 1 2; do
+  "$sweptccd" simulate-tracker --lcm-url "$url" "${key[@]}" --bvh "$bvh" --up z --rate 30 \
+    --offset 0 -1 0 --utime-start 1000000 --client client0 --frames 40 --speed 4 > "$work/restart.out"
+  total=$((total + $(sed -n 's/^simulate-tracker: sent \([0-9]*\),.*/\1/p' "$work/restart.out")))
+  sleep 0.01  # Two runs in one microsecond would share a session.
+done
+restarted=
+for _ in $(seq 100); do
+  if grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
+      | grep -q "\"poses_received\":$total,\"pairs_answered\":[0-9]*,\"pairs_skipped\":[0-9]*,\"rejected\":0,"; then
+    restarted=1; break
+  fi
+  sleep 0.1
+done
+kill -INT $monitor_restart; wait $monitor_restart || true
+[ -n "$restarted" ] || { grep client0 "$work/restart.jsonl" | tail -2 >&2; fail "a restarted tracker was refused"; }
+read -r answered skipped < <(grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
+  | sed 's/.*"pairs_answered":\([0-9]*\),"pairs_skipped":\([0-9]*\),.*/\1 \2/')
+[ $((answered + skipped)) = $((total - 3)) ] \
+  || fail "client0: $answered answered + $skipped skipped != $total poses - 3 streams"
+echo "restarts: client0 $total poses in 3 streams, $answered answered, $skipped skipped, 0 rejected"
+
+# The 36-byte datagram that crashed lcm-gen's decoders, on each channel the
+# monitor decodes: refused, counted, and the monitor goes on.
+timeout 20 "$sweptccd" monitor --lcm-url "$url" "${key[@]}" --timeout 3 \
+  > "$work/monitor_crash.out" 2> "$work/monitor_crash.err" &
+monitor_crash=$!
+wait_for "$work/monitor_crash.out" "^monitor: listening"
+"$tool" crash "$url" SWEPTCCD_CONTACT contact
+"$tool" crash "$url" SWEPTCCD_STATUS status
+"$tool" crash "$url" SWEPTCCD_REJECT reject
+wait $monitor_crash || fail "monitor exited $? after the crash datagrams"
+grep -q " 3 undecodable, " "$work/monitor_crash.out" || { cat "$work/monitor_crash.out" >&2; fail "monitor did not refuse 3 crash datagrams"; }
+[ "$(grep -c "string length -2147483648" "$work/monitor_crash.err")" = 3 ] \
+  || fail "monitor did not name the bad string length"
+
+# A monitor with another key marks every message it cannot verify.
+"$sweptccd" keygen --out "$work/other.key"
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --key "$work/other.key" --timeout 1 \
+  > "$work/monitor_other.out"
+grep -q "^UNVERIFIED status service backend [a-z]* security signed " "$work/monitor_other.out" \
+  || fail "monitor with a wrong key did not mark the status UNVERIFIED"
+! grep -v "^UNVERIFIED \|^monitor: " "$work/monitor_other.out" | grep -q . \
+  || fail "monitor with a wrong key showed a message as verified"
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --key "$work/other.key" --json --timeout 1 \
+  > "$work/monitor_other.jsonl"
+grep -q '^{"type":"service",.*"verified":false}$' "$work/monitor_other.jsonl" \
+  || fail "monitor --json with a wrong key did not say verified false"
+# Without --key nothing is verified, and the monitor says so.
+timeout 10 "$sweptccd" monitor --lcm-url "$url" --timeout 0.3 > "$work/monitor_timeout.out" \
+  2> "$work/monitor_timeout.err"
+grep -q "nothing is verified" "$work/monitor_timeout.err" || fail "monitor without --key is silent"
 grep -q "^monitor: 0 events" "$work/monitor_timeout.out" || fail "monitor --timeout"
 
 kill -TERM $daemon

@@ -36,6 +36,7 @@ clients:
     ignore: ["foot_l:0", "*:1"]
   - id: bob
     skeleton: /abs/bob.json
+security: {room_key: room.key}
 )";
 
 TEST(ServiceConfigTest, FullFileParses) {
@@ -66,7 +67,8 @@ TEST(ServiceConfigTest, FullFileParses) {
 }
 
 TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
-  const std::string base = "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\n";
+  const std::string base =
+      "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\nsecurity: {room_key: r.key}\n";
   EXPECT_EQ(RefusalOf(base), "");
   struct Case {
     std::string yaml, must_contain;
@@ -93,11 +95,43 @@ TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
       {"clients: [{id: a, skeleton: s}]\n", "no environment"},
       {"environment: [a.ply]\n", "no clients"},
       {"environment: a.ply\nclients: [{id: a, skeleton: s}]\n", "environment: expected a list"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\n",
+       "signed mode needs security.room_key or security.service_key"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\nsecurity: {service_key: k}\n",
+       "client 'a' has no key"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\nsecurity: {mode: open}\n",
+       "security.mode must be signed or unsigned"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\n"
+       "security: {room_key: r, client_keys: {'a b': k}}\n",
+       "is not a client id"},
+      {"environment: [a.ply]\nclients: [{id: 'al\\nice', skeleton: s}]\n",
+       "client id 'al\\\\nice' breaks the id rule"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\nsecurity: {pin: 1}\n",
+       "security: unknown key 'pin'"},
+      {"environment: [a.ply]\nclients: [{id: a, skeleton: s}]\n"
+       "security: {room_key: r, max_utime_jump_s: 0}\n",
+       "max_utime_jump_s must be in"},
   };
   for (const Case& c : cases) {
     const std::string message = RefusalOf(c.yaml);
     EXPECT_NE(message.find(c.must_contain), std::string::npos)
         << "yaml:\n" << c.yaml << "\nmessage: " << message;
+  }
+}
+
+// Regression (tests/fuzz/corpus/fuzz_config/crash_non_scalar_key.yaml): a
+// key that is a list or a mapping escaped as YAML::TypedBadConversion.
+TEST(ServiceConfigTest, NonScalarKeyIsRefusedAsInputError) {
+  const std::string base = "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\n";
+  const std::vector<std::string> cases = {
+      base + "? [workers, 2]\n: 3\n",
+      base + "{a: b}: 1\n",
+      "environment: [a.ply]\nclients: [{[id]: a, skeleton: s.json}]\n",
+  };
+  for (const std::string& yaml : cases) {
+    const std::string message = RefusalOf(yaml);
+    EXPECT_NE(message.find("a key must be a plain name"), std::string::npos)
+        << "yaml:\n" << yaml << "\nmessage: " << message;
   }
 }
 
@@ -116,6 +150,47 @@ TEST(ServiceConfigTest, DeployExampleParses) {
   EXPECT_FALSE(c.environment.empty());
   EXPECT_FALSE(c.clients.empty());
   EXPECT_NO_THROW(ValidateServiceConfig(c));
+}
+
+TEST(ServiceConfigTest, SecurityBlockParses) {
+  const ServiceConfig c = ParseServiceConfig(
+      "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}, {id: b, skeleton: s.json}]\n"
+      "security:\n  mode: signed\n  service_key: svc.key\n  max_utime_jump_s: 2.5\n"
+      "  client_keys: {a: a.key, b: /abs/b.key}\n",
+      "test", "/base");
+  EXPECT_EQ(c.security.mode, "signed");
+  EXPECT_EQ(c.security.service_key, "/base/svc.key");
+  EXPECT_EQ(c.security.room_key, "");
+  EXPECT_EQ(c.security.client_keys.at("a"), "/base/a.key");
+  EXPECT_EQ(c.security.client_keys.at("b"), "/abs/b.key");
+  EXPECT_EQ(c.security.max_utime_jump_s, 2.5);
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+  // Unsigned mode needs no key and loads none.
+  ServiceConfig bench = c;
+  bench.security = SecurityConfig{};
+  bench.security.mode = "unsigned";
+  EXPECT_NO_THROW(ValidateServiceConfig(bench));
+  EXPECT_FALSE(LoadTransportSecurity(bench.security).signed_mode);
+  // Signed mode loads the files, with their checks.
+  EXPECT_THROW(LoadTransportSecurity(c.security), InputError);
+}
+
+// The input limits: defaults when absent, read when given, refused when 0.
+TEST(ServiceConfigTest, MaxMeshBytesAndMaxLinks) {
+  const std::string base = "environment: [room.ply]\nclients: [{id: a, skeleton: a.json}]\n";
+  ServiceConfig c = ParseServiceConfig(base, "cfg.yaml", "/base");
+  EXPECT_EQ(c.max_mesh_bytes, kDefaultMaxMeshBytes);
+  EXPECT_EQ(c.max_links, kDefaultMaxLinks);
+  c = ParseServiceConfig(base + "max_mesh_bytes: 5000000000\nmax_links: 1000\n", "cfg.yaml",
+                         "/base");
+  EXPECT_EQ(c.max_mesh_bytes, 5000000000u);
+  EXPECT_EQ(c.max_links, 1000);
+  EXPECT_NE(RefusalOf(base + "max_mesh_bytes: 0\n").find("max_mesh_bytes must be >= 1"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "max_links: 0\n").find("max_links must be >= 1, got 0"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "max_links: many\n").find("cfg.yaml: max_links: expected a number"),
+            std::string::npos);
 }
 
 }  // namespace

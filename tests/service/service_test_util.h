@@ -1,12 +1,18 @@
 #pragma once
-// Shared fixtures of the service tests: a two-link skeleton, a floor, tracker
-// messages that lower the avatar onto the floor, and a capturing Publisher
-// with an optional gate that holds workers inside PublishContact.
+// Shared fixtures of the service tests: a two-link skeleton, a floor (in
+// memory and as files for the daemon), tracker messages that lower the avatar
+// onto the floor, a capturing Publisher with an optional gate that holds
+// workers inside PublishContact, and an LCM listener for memq:// tests.
 
 #include <gtest/gtest.h>
 
+#include <lcm/lcm-cpp.hpp>
+
+#include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -19,6 +25,9 @@
 #include "service/client_session.h"
 #include "service/collision_service.h"
 #include "service/publisher.h"
+#include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
 
 namespace sweptccd {
 namespace test {
@@ -56,15 +65,103 @@ inline tracker_pose_t MakePose(const std::string& client, int64_t seq, int64_t u
   tracker_pose_t m;
   m.utime = utime;
   m.client_id = client;
+  m.session = 1;
   m.seq = seq;
   m.num_links = 2;
   m.position = {{0.1 * seq, 0, z}, {0.1 * seq, 0, z + 0.3}};
   m.orientation = {{1, 0, 0, 0}, {std::cos(angle / 2), 0, 0, std::sin(angle / 2)}};
+  std::fill(std::begin(m.mac), std::end(m.mac), uint8_t{0});
   return m;
 }
 
 // Height of pose k of a descending stream: from 1 m, 0.07 m lower per pose.
 inline double Height(int64_t k) { return 1.0 - 0.07 * static_cast<double>(k); }
+
+// Pose k of client `client`'s descending, turning stream at 120 Hz.
+inline tracker_pose_t Sample(const std::string& client, int64_t k) {
+  return MakePose(client, k, 2'000'000 + k * 8'333, Height(k), 0.1 * static_cast<double>(k));
+}
+
+// A fresh folder for one test's files, under the build tree.
+inline std::string TestDir(const std::string& name) {
+  const std::filesystem::path dir =
+      std::filesystem::path(SWEPTCCD_BINARY_DIR) / "test_files" / name;
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir.string();
+}
+
+inline std::string WriteFile(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  EXPECT_TRUE(out.good()) << path;
+  return path;
+}
+
+// TwoLinkSkeleton() as a SPEC skeleton file.
+inline std::string WriteTwoLinkSkeleton(const std::string& dir) {
+  return WriteFile(dir + "/two.json", R"({"name": "two", "links": [
+    {"name": "pelvis", "parent": null, "a": [0, 0, 0], "b": [0, 0, 0.3], "radius": 0.1},
+    {"name": "arm", "parent": "pelvis", "a": [0, 0, 0], "b": [0.3, 0, 0], "radius": 0.05}]})");
+}
+
+// FloorEnvironment() as an OBJ file.
+inline std::string WriteFloorObj(const std::string& dir) {
+  return WriteFile(dir + "/floor.obj",
+                   "v -10 -10 0\nv 10 -10 0\nv 10 10 0\nv -10 10 0\nf 1 2 3\nf 1 3 4\n");
+}
+
+// Collects what the service publishes over LCM (callbacks on the thread that
+// handles the LCM instance; reads from any thread).
+class Listener {
+ public:
+  void OnContact(const lcm::ReceiveBuffer*, const std::string&, const contact_event_t* m) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    contacts_.push_back(*m);
+    cv_.notify_all();
+  }
+  void OnReject(const lcm::ReceiveBuffer*, const std::string&, const rejection_t* m) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    rejections_.push_back(*m);
+    cv_.notify_all();
+  }
+  void OnStatus(const lcm::ReceiveBuffer*, const std::string&, const status_t* m) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    statuses_.push_back(*m);
+    cv_.notify_all();
+  }
+  // Subscribes to the service's default output channels.
+  void SubscribeTo(lcm::LCM* lcm) {
+    lcm->subscribe("SWEPTCCD_CONTACT", &Listener::OnContact, this);
+    lcm->subscribe("SWEPTCCD_REJECT", &Listener::OnReject, this);
+    lcm->subscribe("SWEPTCCD_STATUS", &Listener::OnStatus, this);
+  }
+  // Waits (on state, not time) until `n` statuses arrived; false if they do
+  // not within `limit` (a guard against hanging, never the expected path).
+  bool WaitForStatuses(size_t n, std::chrono::seconds limit = std::chrono::seconds(60)) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return cv_.wait_for(lock, limit, [&] { return statuses_.size() >= n; });
+  }
+  std::vector<contact_event_t> contacts() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return contacts_;
+  }
+  std::vector<rejection_t> rejections() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return rejections_;
+  }
+  std::vector<status_t> statuses() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return statuses_;
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::vector<contact_event_t> contacts_;
+  std::vector<rejection_t> rejections_;
+  std::vector<status_t> statuses_;
+};
 
 inline Pose ToPose(const tracker_pose_t& m, int num_links) {
   Pose p;

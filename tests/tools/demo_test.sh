@@ -14,7 +14,7 @@ cat "$work/demo.out"
 [ "$status" = 0 ] || { echo "demo_test: tools/demo.sh exited $status" >&2; exit 1; }
 events=$(grep -c '^contact ' "$work/demo.out" || true)
 expected=$("$build/bin/sweptccd" query --skeleton "$work/walk_skeleton.json" \
-  --poses "$work/walk_poses.jsonl" --env "$src/data/morse_apartment.ply" \
+  --poses "$work/walk_poses.jsonl" --env "$src/data/env/morse_apartment.ply.gz" \
   | grep -c '"result":"contact"' || true)
 echo "demo_test: $events contact events printed, sweptccd query finds $expected"
 [ "$events" -ge 1 ] && [ "$events" = "$expected" ]

@@ -744,6 +744,33 @@ TEST_F(QueryCommandTest, PoseAndEnvironmentRefusals) {
                 {Path("no_dir/results.jsonl")}, "output in a missing folder");
 }
 
+// The input limits through the command line: --max-mesh-bytes and
+// --max-links refuse with the file, the value and the flag; raised, the same
+// inputs run; a pose line over the derived cap is an invalid record.
+TEST_F(QueryCommandTest, InputLimitsAndTheirFlags) {
+  const std::string poses = Write("poses.jsonl", TwoLinkPose(1, {0, 3, 0}) + "\n" +
+                                                     TwoLinkPose(2, {0, 3, 0}) + "\n");
+  ExpectRefusal(QueryArgs(poses, {"--max-mesh-bytes", "10"}),
+                {floor_, "more than the cap of 10 bytes", "--max-mesh-bytes"}, "mesh cap");
+  EXPECT_EQ(RunRecords(QueryArgs(poses, {"--max-mesh-bytes", "100000"})).size(), 1u);
+  ExpectRefusal(QueryArgs(poses, {"--max-links", "1"}),
+                {skeleton_, "2 links, above the limit of 1", "--max-links"}, "link limit");
+  EXPECT_EQ(RunRecords(QueryArgs(poses, {"--max-links", "2"})).size(), 1u);
+  ExpectRefusal(QueryArgs(poses, {"--max-links", "0"}), {"--max-links"}, "link limit 0");
+  // 4096 + 2 x 448 bytes is the cap for two links.
+  const std::string long_line = TwoLinkPose(2, {0, 3, 0}) + std::string(5000, ' ');
+  const std::string long_poses = Write("long.jsonl", TwoLinkPose(1, {0, 3, 0}) + "\n" +
+                                                         long_line + "\n" +
+                                                         TwoLinkPose(3, {0, 3, 0}) + "\n");
+  const std::vector<json> records = RunRecords(QueryArgs(long_poses));
+  ASSERT_EQ(records.size(), 2u);
+  EXPECT_EQ(records[0]["result"], "invalid");
+  EXPECT_NE(records[0]["error"].get<std::string>().find("line 2: longer than the cap of 4992 bytes"),
+            std::string::npos)
+      << records[0];
+  EXPECT_NE(records[1]["result"], "invalid") << records[1];
+}
+
 // A PLY whose header never ends. (Seen: assimp 5.2.5 loops forever, so the
 // command never exits.)
 TEST_F(QueryCommandTest, PlyHeaderWithoutEndHeaderIsRefused) {
@@ -829,7 +856,7 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
 // import-bvh --radii: a small JSON file overrides the default capsule radii;
 // a bad file is refused with one line naming it.
 TEST_F(QueryCommandTest, ImportBvhRadiiFile) {
-  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/mocap/cmu_02_01_walk.bvh.gz";
   const std::string radii = Write("radii.json", R"({"hand_l": 0.071, "head": 0.123})");
   const std::string skel = Path("walk_skeleton.json"), poses = Path("walk_poses.jsonl");
   const RunResult r = Run({"import-bvh", "--bvh", bvh, "--radii", radii, "--skeleton-out", skel,
@@ -874,7 +901,7 @@ TEST_F(QueryCommandTest, OutputsNeverDestroyInputsAndPlacementIsChecked) {
   EXPECT_EQ(ReadFile(poses), before) << "the pose stream was truncated";
   ExpectRefusal(QueryArgs(poses, {"--output", skeleton_}), {"--skeleton"}, "output = skeleton");
 
-  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/demo/cmu_02_01_walk.bvh";
+  const std::string bvh = std::string(SWEPTCCD_SOURCE_DIR) + "/data/mocap/cmu_02_01_walk.bvh.gz";
   const std::string skel = Path("s.json"), out = Path("p.jsonl");
   auto import = [&](std::initializer_list<std::string> extra) {
     std::vector<std::string> args = {"import-bvh", "--bvh", bvh, "--skeleton-out", skel,

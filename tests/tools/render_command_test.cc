@@ -118,7 +118,7 @@ class RenderCommandTest : public ::testing::Test {
     skeleton_ = Path("walk_skeleton.json");
     poses_ = Path("walk_poses.jsonl");
     if (fs::exists(poses_)) return;
-    const RunResult r = Run({"import-bvh", "--bvh", kSource + "/data/demo/cmu_02_01_walk.bvh",
+    const RunResult r = Run({"import-bvh", "--bvh", kSource + "/data/mocap/cmu_02_01_walk.bvh.gz",
                              "--up", "z", "--rate", "30", "--offset", "0", "-1", "0",
                              "--skeleton-out", skeleton_, "--poses-out", poses_});
     ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
@@ -146,7 +146,7 @@ class RenderCommandTest : public ::testing::Test {
 
   static fs::path* dir_;
   std::string skeleton_, poses_;
-  const std::string apartment_ = kSource + "/data/morse_apartment.ply";
+  const std::string apartment_ = kSource + "/data/env/morse_apartment.ply.gz";
 };
 
 fs::path* RenderCommandTest::dir_ = nullptr;

@@ -15,9 +15,14 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
+
+#include "core/errors.h"
+#include "msgs/channels.h"
+#include "msgs/signing.h"
 
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -42,8 +47,15 @@ struct Collector {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 6) {
-    std::fprintf(stderr, "usage: latency_bench URL POSES.jsonl CLIENTS RATE_HZ SECONDS\n");
+  if (argc != 7) {
+    std::fprintf(stderr, "usage: latency_bench URL POSES.jsonl CLIENTS RATE_HZ SECONDS KEY\n");
+    return 2;
+  }
+  std::optional<sweptccd::MacKey> key;  // Poses are signed, as in production.
+  try {
+    key.emplace(sweptccd::LoadKeyFile(argv[6]));
+  } catch (const sweptccd::InputError& e) {
+    std::fprintf(stderr, "latency_bench: %s\n", e.what());
     return 2;
   }
   lcm::LCM lcm(argv[1]);
@@ -57,6 +69,7 @@ int main(int argc, char** argv) {
     while (std::getline(in, line)) {
       const auto j = nlohmann::json::parse(line);
       sweptccd::tracker_pose_t m;
+      m.session = 1;
       m.num_links = static_cast<int32_t>(j["links"].size());
       for (const auto& l : j["links"]) {
         m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
@@ -67,7 +80,7 @@ int main(int argc, char** argv) {
     }
   }
   Collector collector;
-  lcm.subscribe("SWEPTCCD_CONTACT", &Collector::On, &collector);
+  lcm.subscribe(sweptccd::kContactChannel, &Collector::On, &collector);
   const auto period = std::chrono::duration<double>(1.0 / rate);
   const int ticks = static_cast<int>(seconds * rate);
   const auto start = Clock::now();
@@ -86,7 +99,8 @@ int main(int argc, char** argv) {
       m.seq = t;
       m.utime = 1000000 + static_cast<int64_t>(t * 1e6 / rate);
       collector.sent[{m.client_id, m.seq}] = Clock::now();
-      lcm.publish("SWEPTCCD_POSE", &m);
+      const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(m, &*key);
+      lcm.publish(sweptccd::kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
       ++published;
     }
   }

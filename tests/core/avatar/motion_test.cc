@@ -724,5 +724,46 @@ TEST(MotionTest, SpeedBoundsBoundFiniteDifferences) {
   EXPECT_GT(steps, 100000);
 }
 
+// PoseAt at s = 0, 0.5 and 1 is a look-up of poses composed once per pair
+// (a culled link of a deep chain costs O(1)): it must equal PosesAt at the
+// same time bit for bit, and agree with the composition just beside it
+// (nextafter), on chains deeper than PoseAt's 64-link step.
+TEST(MotionTest, PoseAtEndsAndMiddleMatchPosesAtOnDeepChains) {
+  std::mt19937_64 g(0x40710077);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int n : {1, 63, 65, 300}) {
+    std::vector<Link> links(n);
+    for (int i = 0; i < n; ++i) {
+      links[i].name = "l" + std::to_string(i);
+      links[i].parent = i - 1;
+      links[i].b_L = {0, 0.05, 0};
+      links[i].radius = 0.01;
+    }
+    const Skeleton skeleton = Skeleton::FromLinks("chain", links, "test");
+    Pose pose[2];
+    for (Pose& p : pose) {
+      p.links.resize(n);
+      for (LinkPose& l : p.links) {
+        l.p = {u(g), u(g), u(g)};
+        l.q = Eigen::Quaterniond(u(g), u(g), u(g), u(g)).normalized();
+      }
+    }
+    const PairMotion motion(skeleton, pose[0], pose[1], MotionModel::kArticulated);
+    for (double s : {0.0, 0.5, 1.0}) {
+      std::vector<LinkPose> all;
+      motion.PosesAt(s, &all);
+      const double beside = s < 1 ? std::nextafter(s, 1.0) : std::nextafter(s, 0.0);
+      for (int i = 0; i < n; ++i) {
+        const LinkPose one = motion.PoseAt(i, s);
+        ASSERT_EQ(one.p, all[i].p) << "n " << n << " link " << i << " s " << s;
+        ASSERT_EQ(one.q.coeffs(), all[i].q.coeffs()) << "n " << n << " link " << i << " s " << s;
+        const LinkPose near = motion.PoseAt(i, beside);
+        EXPECT_LT((near.p - one.p).norm(), 1e-9) << "n " << n << " link " << i << " s " << s;
+        EXPECT_LT((near.q.coeffs() - one.q.coeffs()).norm(), 1e-9);
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -452,6 +452,108 @@ TEST(PoseStreamReaderTest, SkipsBlankLinesAndPairsTheRest) {
   EXPECT_GT(records, 3000);
 }
 
+// A line longer than the cap is an invalid pose (SPEC 2), read to its newline
+// without being kept: the next lines are read as usual, with their numbers.
+TEST(PoseStreamReaderTest, OverlongLineIsAnInvalidPoseAndReadingGoesOn) {
+  const std::string good0 = Line("1000", {kIdentity});
+  const std::string good2 = Line("3000", {kIdentity});
+  const std::string huge = Line("2000", {kIdentity}) + std::string(5000, ' ');
+  const std::string text = good0 + "\n" + huge + "\n\n" + good2 + "\n";
+  std::istringstream in(text);
+  PoseStreamReader reader(in, 1, /*max_line_bytes=*/200);
+  std::optional<PairOutcome> first = reader.Next();
+  ASSERT_TRUE(first.has_value());
+  EXPECT_FALSE(first->valid);
+  EXPECT_EQ(first->error,
+            "invalid pose: line 2: longer than the cap of 200 bytes for a pose of 1 links "
+            "(skipped to its end)");
+  std::optional<PairOutcome> second = reader.Next();
+  ASSERT_TRUE(second.has_value());
+  EXPECT_TRUE(second->valid) << second->error;
+  EXPECT_EQ(second->pair, 1);
+  EXPECT_EQ(second->pose0.utime, 1000);
+  EXPECT_EQ(second->pose1.utime, 3000);
+  EXPECT_FALSE(reader.Next().has_value());
+  // An overlong line of whitespace only is still blank.
+  std::istringstream blank(good0 + "\n" + std::string(1000, ' ') + "\n" + good2 + "\n");
+  PoseStreamReader blank_reader(blank, 1, 200);
+  std::optional<PairOutcome> only = blank_reader.Next();
+  ASSERT_TRUE(only.has_value());
+  EXPECT_TRUE(only->valid) << only->error;
+  EXPECT_EQ(only->pair, 0);
+}
+
+// The bounded line reader against std::getline and the blank rule, on seeded
+// random text (lines of random lengths around the cap, whitespace, a missing
+// final newline): every counted line comes back whole, or flagged over the cap.
+TEST(PoseLineReaderTest, MatchesGetlineTwinOnRandomText) {
+  std::mt19937_64 g(0xb0bd5);
+  const char alphabet[] = " \t\rx{}0";
+  for (int c = 0; c < 500; ++c) {
+    std::string text;
+    const int lines = static_cast<int>(g() % 8);
+    for (int k = 0; k < lines; ++k) {
+      const int len = static_cast<int>(g() % 40);
+      for (int i = 0; i < len; ++i) text += alphabet[g() % (sizeof(alphabet) - 1)];
+      if (k + 1 < lines || g() % 2) text += '\n';
+    }
+    const uint64_t cap = 1 + g() % 30;
+    std::istringstream twin(text);
+    std::istringstream in(text);
+    PoseLineReader reader(in, 1, cap);
+    std::string line;
+    int64_t number = 0;
+    while (std::getline(twin, line)) {
+      ++number;
+      if (line.find_first_not_of(" \t\r\n\f\v") == std::string::npos) continue;
+      std::optional<PoseLine> got = reader.Next();
+      ASSERT_TRUE(got.has_value()) << "case " << c;
+      EXPECT_EQ(got->line_number, number);
+      ASSERT_FALSE(got->pose.has_value());
+      const bool over = line.size() > cap;
+      EXPECT_EQ(got->error.find("longer than the cap") != std::string::npos, over)
+          << "case " << c << ": " << got->error;
+    }
+    EXPECT_FALSE(reader.Next().has_value()) << "case " << c;
+    EXPECT_FALSE(reader.bad());
+  }
+}
+
+TEST(PoseLineReaderTest, DefaultCapGrowsWithTheLinkCount) {
+  EXPECT_EQ(DefaultMaxPoseLineBytes(1), 4096u + 7 * 64);
+  EXPECT_EQ(DefaultMaxPoseLineBytes(31), 4096u + 31 * 7 * 64);
+  EXPECT_EQ(DefaultMaxPoseLineBytes(-1), DefaultMaxPoseLineBytes(256));
+  // A real line of 31 links, written with full precision, fits easily.
+  Pose pose;
+  pose.utime = 1234567890123;
+  pose.links.resize(31);
+  for (LinkPose& l : pose.links) {
+    l.p = {-123.456789012345678, 0.1234567890123456, -1e-300};
+    l.q = Eigen::Quaterniond(-0.123456789012345, 0.98765432109876, -1e-17, 0.3);
+  }
+  EXPECT_LT(PoseToJsonLine(pose).size() * 2, DefaultMaxPoseLineBytes(31));
+}
+
+// With num_links < 0 the first pose fixes the count; lines are kept as
+// written (not normalised), fractional-but-integral utimes accepted.
+TEST(PoseLineReaderTest, LearnsTheLinkCountAndKeepsPosesAsWritten) {
+  std::istringstream in(Line("1000.0", {"[1, 2, 3, 2, 0, 0, 0]", kIdentity}) + "\n" +
+                        Line("2000", {kIdentity}) + "\n" +
+                        Line("3000", {kIdentity, "[0, 0, 0, 0, 0, 0, 0]"}) + "\n");
+  PoseLineReader reader(in, -1);
+  std::optional<PoseLine> a = reader.Next();
+  ASSERT_TRUE(a && a->pose) << (a ? a->error : "end");
+  EXPECT_EQ(reader.num_links(), 2);
+  EXPECT_EQ(a->pose->utime, 1000);
+  EXPECT_EQ(a->pose->links[0].q.w(), 2.0);  // As written.
+  std::optional<PoseLine> b = reader.Next();
+  ASSERT_TRUE(b.has_value());
+  EXPECT_FALSE(b->pose.has_value());
+  EXPECT_EQ(b->error, "line 2: 'links' has 1 entries, the skeleton has 2");
+  std::optional<PoseLine> c = reader.Next();
+  ASSERT_TRUE(c && c->pose) << (c ? c->error : "end");  // A zero quaternion is structurally fine.
+}
+
 // A few hand-written sequences, as named regressions of the rule.
 TEST(PosePairerTest, HandWrittenSequences) {
   auto run = [](const std::vector<std::pair<bool, int64_t>>& seq) {
@@ -484,6 +586,88 @@ TEST(PosePairerTest, HandWrittenSequences) {
   EXPECT_EQ(run({{true, 10}}), "");
   PosePairer p;
   EXPECT_FALSE(p.has_anchor());
+}
+
+// FindPoseProblem against a twin written here from SPEC section 2 and the
+// documented order (count; then per link: non-finite position x, y, z, then
+// quaternion w, x, y, z; a coordinate beyond 1e9 m; a norm below 1e-6), on
+// random poses with spoiled numbers; ValidateAndNormalizePose words it.
+TEST(FindPoseProblemTest, FirstProblemMatchesTheTwin) {
+  std::mt19937_64 rng(99);
+  const double specials[] = {std::numeric_limits<double>::quiet_NaN(),
+                             std::numeric_limits<double>::infinity(), -2e9, 1e9, 1e-7, 0};
+  std::uniform_real_distribution<double> u(-3, 3);
+  int problems = 0;
+  for (int trial = 0; trial < 5000; ++trial) {
+    const int n = 1 + static_cast<int>(rng() % 4);
+    Pose pose;
+    pose.links.resize(n);
+    double v[4][7];
+    for (int i = 0; i < n; ++i) {
+      for (int k = 0; k < 7; ++k) v[i][k] = u(rng);
+      for (int spoil = static_cast<int>(rng() % 2); spoil > 0; --spoil) {
+        v[i][rng() % 7] = specials[rng() % std::size(specials)];
+      }
+      if (rng() % 8 == 0) v[i][3] = v[i][4] = v[i][5] = v[i][6] = 1e-8;
+      pose.links[i].p = {v[i][0], v[i][1], v[i][2]};
+      pose.links[i].q = Eigen::Quaterniond(v[i][3], v[i][4], v[i][5], v[i][6]);
+    }
+    // The twin: the first (link, kind, component) in the documented order.
+    std::optional<PoseProblem> want;
+    for (int i = 0; i < n && !want; ++i) {
+      for (int k = 0; k < 7 && !want; ++k) {
+        if (!std::isfinite(v[i][k])) {
+          want = PoseProblem{PoseProblem::Kind::kNonFinite, i, k >= 3, k < 3 ? k : k - 3, v[i][k]};
+        }
+      }
+      for (int k = 0; k < 3 && !want; ++k) {
+        if (std::fabs(v[i][k]) > 1e9) {
+          want = PoseProblem{PoseProblem::Kind::kPositionOutOfRange, i, false, k, v[i][k]};
+        }
+      }
+      const double norm = std::sqrt(v[i][3] * v[i][3] + v[i][4] * v[i][4] + v[i][5] * v[i][5] +
+                                    v[i][6] * v[i][6]);
+      if (!want && !(norm >= 1e-6)) {
+        want = PoseProblem{PoseProblem::Kind::kZeroQuaternion, i, false, -1, norm};
+      }
+    }
+    const std::optional<PoseProblem> got = FindPoseProblem(pose, n);
+    ASSERT_EQ(got.has_value(), want.has_value()) << "trial " << trial;
+    Pose copy = pose;
+    const std::string error = ValidateAndNormalizePose(&copy, n);
+    EXPECT_EQ(error.empty(), !want.has_value());
+    if (!want) continue;
+    ++problems;
+    EXPECT_EQ(got->kind, want->kind) << "trial " << trial;
+    EXPECT_EQ(got->link, want->link);
+    EXPECT_EQ(got->in_orientation, want->in_orientation);
+    EXPECT_EQ(got->component, want->component);
+    if (want->kind == PoseProblem::Kind::kZeroQuaternion) {
+      EXPECT_NEAR(got->value, want->value, 1e-12);
+    } else if (std::isnan(want->value)) {
+      EXPECT_TRUE(std::isnan(got->value));
+    } else {
+      EXPECT_EQ(got->value, want->value);
+    }
+    EXPECT_EQ(error, got->Describe(n));
+    EXPECT_EQ(error.rfind("link " + std::to_string(want->link) + ": ", 0), 0u) << error;
+  }
+  EXPECT_GT(problems, 1000);  // The spoils did reach every branch often.
+}
+
+TEST(FindPoseProblemTest, WrongLinkCountAndTheCliWording) {
+  Pose pose;
+  pose.links.resize(2);
+  const std::optional<PoseProblem> count = FindPoseProblem(pose, 3);
+  ASSERT_TRUE(count);
+  EXPECT_EQ(count->kind, PoseProblem::Kind::kLinkCount);
+  EXPECT_EQ(count->Describe(3), "expected 3 link poses, got 2");
+  pose.links[1].q = Eigen::Quaterniond(0, 0, 0, 0);
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: quaternion norm 0.000000 is below 1e-6");
+  pose.links[1].p.x() = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: non-finite number");
+  pose.links[1].p.x() = 1.5e9;
+  EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: position beyond 1e9 m");
 }
 
 }  // namespace

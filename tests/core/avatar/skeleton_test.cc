@@ -4,10 +4,12 @@
 #include "core/avatar/skeleton.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <initializer_list>
 #include <limits>
@@ -17,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "core/bounded_file.h"
 #include "core/errors.h"
 
 namespace sweptccd {
@@ -489,6 +492,86 @@ TEST(SkeletonTest, LoadSkeletonFile) {
     EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("'pelvis'"), std::string::npos) << e.what();
   }
+  std::remove(path.c_str());
+}
+
+// A chain of n links, each the child of the one before.
+std::string ChainDoc(int n) {
+  std::vector<Entry> entries;
+  for (int i = 0; i < n; ++i) {
+    entries.push_back(Named("l" + std::to_string(i), i == 0 ? "null" : "l" + std::to_string(i - 1)));
+  }
+  return Doc(entries);
+}
+
+// Regression: a 10,000-link chain cost 9.2 s per pair. Skeletons above the
+// limit are refused with the source, the count and the flag.
+TEST(SkeletonTest, LinkLimitRefusesLargerSkeletons) {
+  EXPECT_EQ(ParseSkeletonJson(ChainDoc(kDefaultMaxLinks), kSource).num_links(), kDefaultMaxLinks);
+  try {
+    ParseSkeletonJson(ChainDoc(kDefaultMaxLinks + 1), kSource);
+    ADD_FAILURE() << "257 links accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              std::string(kSource) +
+                  ": 257 links, above the limit of 256; raise it with --max-links (daemon: "
+                  "max_links)");
+  }
+  EXPECT_EQ(ParseSkeletonJson(ChainDoc(300), kSource, 300).num_links(), 300);
+  EXPECT_THROW(ParseSkeletonJson(ChainDoc(3), kSource, 2), InputError);
+}
+
+TEST(SkeletonTest, FileSizeCapAndLinkLimitWhenLoading) {
+  const std::string dir = ::testing::TempDir();
+  const std::string chain = dir + "/sweptccd_chain_" + std::to_string(::getpid()) + ".json";
+  {
+    std::ofstream out(chain);
+    out << ChainDoc(10);
+  }
+  EXPECT_EQ(LoadSkeletonFile(chain).num_links(), 10);
+  try {
+    LoadSkeletonFile(chain, 9);
+    ADD_FAILURE() << "10 links accepted under a limit of 9";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(chain + ": 10 links, above the limit of 9"),
+              std::string::npos)
+        << e.what();
+  }
+  // A sparse file one byte over the 16 MiB cap: refused without parsing it.
+  const std::string big = dir + "/sweptccd_big_" + std::to_string(::getpid()) + ".json";
+  {
+    std::ofstream out(big);
+  }
+  std::filesystem::resize_file(big, kMaxJsonFileBytes + 1);
+  try {
+    LoadSkeletonFile(big);
+    ADD_FAILURE() << "an over-cap file accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(big + ": the skeleton file holds more than the cap of " +
+                                         std::to_string(kMaxJsonFileBytes) + " bytes"),
+              std::string::npos)
+        << e.what();
+  }
+  std::remove(chain.c_str());
+  std::remove(big.c_str());
+}
+
+TEST(BoundedFileTest, ReadsUpToTheCapInclusive) {
+  const std::string path =
+      ::testing::TempDir() + "/sweptccd_bounded_" + std::to_string(::getpid()) + ".txt";
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << std::string(100000, 'a');  // Spans chunks.
+  }
+  EXPECT_EQ(ReadFileBounded(path, 100000, "test file", "fix").size(), 100000u);
+  try {
+    ReadFileBounded(path, 99999, "test file", "the fix");
+    ADD_FAILURE() << "over the cap accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              path + ": the test file holds more than the cap of 99999 bytes; the fix");
+  }
+  EXPECT_THROW(ReadFileBounded(path + ".missing", 10, "test file", "fix"), InputError);
   std::remove(path.c_str());
 }
 

@@ -34,6 +34,7 @@
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "tests/common/brute_force.h"
 
 namespace sweptccd {
 namespace {
@@ -41,7 +42,7 @@ namespace {
 using Eigen::Vector3d;
 using Eigen::Vector3f;
 
-const std::string kData = SWEPTCCD_SHARED_DATA;
+const std::string kData = SWEPTCCD_DATA_DIR;
 
 // --- Random soups ----------------------------------------------------------
 
@@ -532,10 +533,10 @@ TEST_P(RealMeshBvhTest, StructureAndNoMissedTriangle) {
   EXPECT_GT(within, 0u);
 }
 
-INSTANTIATE_TEST_SUITE_P(SharedData, RealMeshBvhTest,
-                         ::testing::Values(RealMesh{"stanford_bunny.obj", 200},
-                                           RealMesh{"stanford_dragon_vrip_res4.ply", 400},
-                                           RealMesh{"morse_apartment.ply", 400}),
+INSTANTIATE_TEST_SUITE_P(RealData, RealMeshBvhTest,
+                         ::testing::Values(RealMesh{"stanford_bunny.obj.gz", 200},
+                                           RealMesh{"stanford_dragon_vrip_res4.ply.gz", 400},
+                                           RealMesh{"morse_apartment.ply.gz", 400}),
                          [](const ::testing::TestParamInfo<RealMesh>& info) {
                            std::string name = info.param.file;
                            for (char& ch : name) {
@@ -572,29 +573,8 @@ Pose RandomPose(std::mt19937_64& rng, int n, const Aabb& box, int64_t utime) {
   return pose;
 }
 
-struct BruteNearest {
-  bool any = false;
-  double distance = std::numeric_limits<double>::infinity();
-};
-
-BruteNearest BruteForceNearest(const Environment& env, const CollisionFilter& filter, int link,
-                               const Vector3d& a, const Vector3d& b) {
-  BruteNearest best;
-  for (int o = 0; o < env.num_objects(); ++o) {
-    if (filter.Ignores(link, o)) continue;
-    const TriangleBvh& bvh = env.object(o).bvh;
-    for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
-      Vector3d ta, tb, tc;
-      bvh.Triangle(slot, &ta, &tb, &tc);
-      const double d = SegmentTriangleDistance(a, b, ta, tb, tc).distance;
-      if (d < best.distance) {
-        best.distance = d;
-        best.any = true;
-      }
-    }
-  }
-  return best;
-}
+using testing::BruteForceNearest;
+using testing::BruteNearest;
 
 // Finds the triangle `id` of object `o` (slots are in BVH order).
 void TriangleById(const TriangleBvh& bvh, uint32_t id, Vector3d* a, Vector3d* b, Vector3d* c) {
@@ -611,7 +591,7 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
   std::mt19937_64 rng(31337);
   Environment env;
   env.AddMesh(MixedSoup(rng, 700, 1.5), "soup");
-  TriangleMesh dragon = LoadMeshFile(kData + "/env/stanford_dragon_vrip_res4.ply");
+  TriangleMesh dragon = LoadMeshFile(kData + "/env/stanford_dragon_vrip_res4.ply.gz");
   for (Vector3f& v : dragon.vertices) v = v * 6.0f + Vector3f(0.5f, -0.6f, 0.2f);
   env.AddMesh(dragon, "dragon");
   env.AddMesh(FlatSoup(rng, 200), "flat");
@@ -621,9 +601,9 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
   for (int variant = 0; variant < 2; ++variant) {
     CollisionFilter filter(skel.num_links(), env.num_objects());
     if (variant == 1) {
-      filter.Ignore(0, -1);  // Link 0 ignores everything.
-      filter.Ignore(1, 1);   // Link 1 ignores the dragon.
-      filter.Ignore(-1, 2);  // Nobody sees the flat soup.
+      filter.Ignore(LinkIndex(0), kAllObjects);  // Link 0 ignores everything.
+      filter.Ignore(LinkIndex(1), ObjectIndex(1));  // Link 1 ignores the dragon.
+      filter.Ignore(kAllLinks, ObjectIndex(2));     // Nobody sees the flat soup.
     }
     const CcdEngine engine(skel, env, filter);
     int found = 0, not_found = 0;
@@ -633,7 +613,7 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
       const MotionModel model = trial % 2 ? MotionModel::kIndependent : MotionModel::kArticulated;
       const PairMotion motion(skel, p0, p1, model);
       for (int k = 0; k < 6; ++k) {
-        const int link = static_cast<int>(rng() % skel.num_links());
+        const LinkIndex link(static_cast<int>(rng() % skel.num_links()));
         const double s = k == 0 ? 0.0 : k == 1 ? 1.0 : Uniform(rng, 0, 1);
         const double search = std::vector<double>{0.0, 1e-3, 0.05, 0.4, 10.0, -1.0}[rng() % 6];
         Vector3d a, b;
@@ -686,7 +666,7 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
 // Brute force: the earliest sampled s at which `link` touches (distance <=
 // radius to some unfiltered triangle), or -1.
 double EarliestTouchingSample(const Environment& env, const CollisionFilter& filter,
-                              const Skeleton& skel, const PairMotion& motion, int link,
+                              const Skeleton& skel, const PairMotion& motion, LinkIndex link,
                               int samples) {
   for (int k = 0; k <= samples; ++k) {
     const double s = static_cast<double>(k) / samples;
@@ -701,7 +681,7 @@ double EarliestTouchingSample(const Environment& env, const CollisionFilter& fil
 TEST(BvhTest, QueryNeverCullsATouchingLink) {
   MocapImportOptions options;
   options.frame_step = 4;  // 30 Hz.
-  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh", options);
+  MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh.gz", options);
   ASSERT_EQ(clip.skeleton.num_links(), 16);
   ASSERT_GT(clip.poses.size(), 40u);
   const Skeleton& skel = clip.skeleton;
@@ -743,9 +723,9 @@ TEST(BvhTest, QueryNeverCullsATouchingLink) {
   for (int variant = 0; variant < 2; ++variant) {
     CollisionFilter filter(skel.num_links(), env.num_objects());
     if (variant == 1) {
-      filter.Ignore(skel.FindLink("foot_l"), 1);
-      filter.Ignore(skel.FindLink("foot_r"), 1);
-      filter.Ignore(skel.FindLink("head"), -1);
+      filter.Ignore(LinkIndex(skel.FindLink("foot_l")), ObjectIndex(1));
+      filter.Ignore(LinkIndex(skel.FindLink("foot_r")), ObjectIndex(1));
+      filter.Ignore(LinkIndex(skel.FindLink("head")), kAllObjects);
     }
     const CcdEngine engine(skel, env, filter);
     QueryOptions per_link;
@@ -759,7 +739,7 @@ TEST(BvhTest, QueryNeverCullsATouchingLink) {
       int touching = 0;
       double earliest = 2;
       for (int l = 0; l < skel.num_links(); ++l) {
-        touch[l] = EarliestTouchingSample(env, filter, skel, motion, l, 32);
+        touch[l] = EarliestTouchingSample(env, filter, skel, motion, LinkIndex(l), 32);
         if (touch[l] >= 0) {
           ++touching;
           earliest = std::min(earliest, touch[l]);
@@ -768,7 +748,7 @@ TEST(BvhTest, QueryNeverCullsATouchingLink) {
       const QueryResult r = engine.Query(p0, p1, per_link);
       SCOPED_TRACE("variant " + std::to_string(variant) + " pair " + std::to_string(k));
       int ignored_all = 0;
-      for (int l = 0; l < skel.num_links(); ++l) ignored_all += filter.IgnoresAll(l);
+      for (LinkIndex l(0); l < skel.num_links(); ++l) ignored_all += filter.IgnoresAll(l);
       EXPECT_EQ(r.stats.links_culled + r.stats.links_tested + ignored_all, skel.num_links());
       EXPECT_GE(r.stats.links_tested, touching) << "a touching link was culled";
       for (int l = 0; l < skel.num_links(); ++l) {

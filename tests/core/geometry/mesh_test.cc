@@ -2,7 +2,7 @@
 // binary), each optionally gzip-compressed, with or without a `.gz` suffix;
 // polygons split as a fan from their first vertex in file order; degenerate
 // triangles kept; bad files refused with a message naming the path and the
-// problem. Also loads every real scene of the shared data with the triangle
+// problem. Also loads every real scene of data/ (SWEPTCCD_DATA_DIR) with the triangle
 // count of its manifest.
 
 #include "core/geometry/mesh.h"
@@ -521,10 +521,152 @@ TEST_F(MeshTest, BinaryStlWhoseHeaderStartsWithSolid) {
                   "solid_header.stl");
 }
 
+// --- Bounds: size caps and header counts checked before allocation ---------
+
+// The InputError message of LoadMeshFile(path, options), or "" when it loads.
+std::string RefusalOf(const std::string& path, const MeshLoadOptions& options = {}) {
+  try {
+    LoadMeshFile(path, options);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// A gzip bomb: 8 MiB of zeros after an OBJ, compressed to a few KiB, with a
+// 1 MiB cap. The inflate loop must stop at the cap (naming the file, the cap
+// and the flag); a 4 GiB bomb takes the same path with the default 1 GiB cap.
+TEST_F(MeshTest, GzipBombStopsAtTheDecompressedCap) {
+  const std::string text = ObjText() + "#" + std::string(8 << 20, ' ') + "\n";
+  const std::string gz = WriteGz("bomb.obj.gz", text);
+  ASSERT_LT(fs::file_size(gz), 100000u);
+  MeshLoadOptions options;
+  options.max_bytes = 1 << 20;
+  options.max_line_bytes = 16 << 20;
+  const std::string why = RefusalOf(gz, options);
+  EXPECT_NE(why.find(gz), std::string::npos) << why;
+  EXPECT_NE(why.find("inflates to more than the cap of 1048576 bytes"), std::string::npos) << why;
+  EXPECT_NE(why.find("--max-mesh-bytes"), std::string::npos) << why;
+  EXPECT_THROW(ReadFileMaybeGzip(gz, 1 << 20), InputError);
+  // Under a cap it fits, the same file loads.
+  options.max_bytes = 16 << 20;
+  EXPECT_EQ(RefusalOf(gz, options), "");
+}
+
+TEST_F(MeshTest, PlainFileOverTheSizeCapIsRefused) {
+  const std::string text = ObjText();
+  const std::string path = Write("plain.obj", text);
+  MeshLoadOptions options;
+  options.max_bytes = text.size();  // The cap is inclusive.
+  EXPECT_EQ(RefusalOf(path, options), "");
+  options.max_bytes = text.size() - 1;
+  const std::string why = RefusalOf(path, options);
+  EXPECT_NE(why.find("the file holds more than the cap of " + std::to_string(text.size() - 1)),
+            std::string::npos)
+      << why;
+  EXPECT_NE(why.find("--max-mesh-bytes"), std::string::npos) << why;
+}
+
+// Regression: `element vertex 2000000000` with no properties kept assimp busy
+// for 25 s (the daemon was not ready after 20 s). Refused from the header.
+TEST_F(MeshTest, PlyElementWithoutPropertiesAndHugeCountIsRefused) {
+  for (const char* format : {"ascii", "binary_little_endian"}) {
+    SCOPED_TRACE(format);
+    const std::string path = Write(std::string("noprop_") + format + ".ply",
+                                   std::string("ply\nformat ") + format +
+                                       " 1.0\nelement vertex 2000000000\nend_header\n");
+    const std::string why = RefusalOf(path);
+    EXPECT_NE(why.find("the PLY element 'vertex' announces 2000000000 items but has no "
+                       "properties"),
+              std::string::npos)
+        << why;
+  }
+}
+
+TEST_F(MeshTest, PlyCountBeyondInt32IsRefused) {
+  const std::string path = Write("int32.ply",
+                                 "ply\nformat binary_little_endian 1.0\nelement vertex 2147483648\n"
+                                 "property float x\nend_header\n");
+  const std::string why = RefusalOf(path);
+  EXPECT_NE(why.find("announces 2147483648 items, beyond the limit of 2147483647"),
+            std::string::npos)
+      << why;
+  EXPECT_NE(RefusalOf(Write("neg.ply", "ply\nformat ascii 1.0\nelement vertex -3\n"
+                                       "property float x\nend_header\n"))
+                .find("bad PLY element line"),
+            std::string::npos);
+}
+
+// Counts that need more bytes than the body holds are refused before the body
+// is walked: binary (3 floats = 12 bytes a vertex; a list counts its 1-byte
+// length prefix) and ASCII (two bytes a value).
+TEST_F(MeshTest, PlyCountsBeyondTheBodyAreRefusedFromTheHeader) {
+  const std::string body(1000, '\0');
+  const std::string bin = Write("counts_bin.ply",
+                                "ply\nformat binary_little_endian 1.0\nelement vertex 50\n"
+                                "property float x\nproperty float y\nproperty float z\n"
+                                "element face 600\nproperty list uchar int vertex_indices\n"
+                                "end_header\n" + body);
+  // 50 x 12 + 600 x 1 = 1200 > 1000.
+  std::string why = RefusalOf(bin);
+  EXPECT_NE(why.find("announces more data than the file holds: element 'face' x 600 needs at "
+                     "least 1200 bytes after the header, the file has 1000"),
+            std::string::npos)
+      << why;
+  const std::string ascii = Write("counts_ascii.ply",
+                                  "ply\nformat ascii 1.0\nelement vertex 1000000\n"
+                                  "property float x\nproperty float y\nproperty float z\n"
+                                  "end_header\n0 0 0\n1 0 0\n0 1 0\n");
+  why = RefusalOf(ascii);
+  EXPECT_NE(why.find("element 'vertex' x 1000000 needs at least 6000000 bytes"), std::string::npos)
+      << why;
+  // A body that fits, without a final newline, still loads.
+  const std::string tight =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n3 0 1 2";
+  EXPECT_EQ(RefusalOf(Write("tight.ply", tight)), "");
+}
+
+TEST_F(MeshTest, BinaryStlCountMismatchIsRefused) {
+  std::string text = StlBinaryText();
+  const uint32_t huge = 1000000000;
+  std::memcpy(&text[80], &huge, 4);
+  const std::string path = Write("count.stl", text);
+  const std::string why = RefusalOf(path);
+  EXPECT_NE(why.find("its binary header announces 1000000000 triangles, which need 84 + 50 x "
+                     "1000000000 = 50000000084 bytes, but the file size is " +
+                     std::to_string(text.size())),
+            std::string::npos)
+      << why;
+}
+
+TEST_F(MeshTest, OverlongTextLinesAreRefused) {
+  MeshLoadOptions options;
+  options.max_line_bytes = 64;
+  const std::string long_comment = "# " + std::string(100, 'x') + "\n";
+  struct Case {
+    const char* name;
+    std::string text;
+  };
+  const std::vector<Case> cases = {
+      {"long.obj", long_comment + ObjText()},
+      {"long.stl", StlAsciiText() + long_comment},
+      {"long.ply", PlyAsciiText() + std::string(100, ' ') + "\n"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string path = Write(c.name, c.text);
+    const std::string why = RefusalOf(path, options);
+    EXPECT_NE(why.find("is longer than the cap of 64 bytes per line"), std::string::npos) << why;
+    EXPECT_EQ(RefusalOf(path), "");  // The default cap (1 MiB) lets it through.
+  }
+}
+
 // --- Real data ------------------------------------------------------------
 
 TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
-  const std::string root = SWEPTCCD_SHARED_DATA;
+  const std::string root = SWEPTCCD_DATA_DIR;
   std::ifstream in(root + "/manifest.json");
   ASSERT_TRUE(in.good()) << root << "/manifest.json is missing";
   const nlohmann::json manifest = nlohmann::json::parse(in);
@@ -535,7 +677,7 @@ TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
     ASSERT_TRUE(entry.contains("triangles")) << key;
     const std::string path = root + "/" + entry.value("path", key);
     SCOPED_TRACE(path);
-    ASSERT_TRUE(fs::exists(path)) << "missing shared file";
+    ASSERT_TRUE(fs::exists(path)) << "missing data file";
     const TriangleMesh mesh = LoadMeshFile(path);
     EXPECT_EQ(mesh.num_triangles(), entry["triangles"].get<size_t>());
     // The manifest's checker counts near-zero areas too (its threshold is not
@@ -563,12 +705,14 @@ TEST(MeshRealData, EverySharedSceneLoadsWithTheManifestTriangleCount) {
   EXPECT_GE(checked, 7);
 }
 
+// The shipped bunny is gzip; its gunzipped text, written plain, loads alike.
 TEST_F(MeshTest, RealObjLoadsGzippedToo) {
-  const std::string src = std::string(SWEPTCCD_SHARED_DATA) + "/env/stanford_bunny.obj";
-  const std::string text = ReadBytes(src);
+  const std::string src = std::string(SWEPTCCD_DATA_DIR) + "/env/stanford_bunny.obj.gz";
+  const std::string text = ReadFileMaybeGzip(src);
   ASSERT_FALSE(text.empty()) << src;
-  const TriangleMesh plain = LoadMeshFile(src);
-  const TriangleMesh gz = LoadMeshFile(WriteGz("bunny.obj.gz", text));
+  ASSERT_NE(text, ReadBytes(src)) << src << " is not gzip-compressed";
+  const TriangleMesh plain = LoadMeshFile(Write("bunny.obj", text));
+  const TriangleMesh gz = LoadMeshFile(src);
   ASSERT_EQ(plain.num_triangles(), gz.num_triangles());
   for (size_t t = 0; t < plain.num_triangles(); t += 97) {
     EXPECT_TRUE(TriangleOf(plain, t) == TriangleOf(gz, t)) << t;

@@ -12,7 +12,7 @@ void AttachBackend(CcdEngine* engine) {
   // context (any renderer: llvmpipe in CI), uploads shared by environment.
   static gpu::Backend backend([] {
     gpu::BackendOptions options;
-    options.backend = "gpu";
+    options.backend = gpu::BackendKind::kGpu;
     return options;
   }());
   if (!backend.gpu()) throw gpu::GpuError("no GPU backend for the suite: " + backend.reason());

@@ -20,20 +20,15 @@
 #include "core/geometry/distance.h"
 #include "core/gpu/gl_api.h"
 #include "core/gpu/gl_context.h"
+#include "tests/common/brute_force.h"
+#include "tests/common/random.h"
 
 namespace sweptccd::gpu {
 namespace {
 
 using Eigen::Vector3d;
 
-struct Rng {
-  explicit Rng(uint64_t seed) : g(seed) {}
-  std::mt19937_64 g;
-  double U(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(g); }
-  int I(int n) { return static_cast<int>(g() % static_cast<uint64_t>(n)); }
-  Vector3d Box(double h) { return Vector3d(U(-h, h), U(-h, h), U(-h, h)); }
-  Vector3d Dir() { return Box(1).normalized(); }
-};
+using testing::Rng;
 
 // One link from the origin of its frame to `b` (JSON array), radius 5 cm.
 Skeleton OneLinkSkeleton(const std::string& b) {
@@ -77,22 +72,13 @@ struct Fixture {
   CollisionFilter filter;
   int num_links = 4;
   // Exact separation (distance - radius) of a capsule from the unfiltered triangles.
-  double Separation(const CullCapsule& c, uint32_t* tests = nullptr) const {
-    double best = 1e300;
-    for (int o = 0; o < env.num_objects(); ++o) {
-      if (filter.Ignores(c.link, o)) continue;
-      const TriangleBvh& bvh = env.object(o).bvh;
-      Vector3d ta, tb, tc;
-      for (uint32_t s = 0; s < bvh.num_triangles(); ++s) {
-        bvh.Triangle(s, &ta, &tb, &tc);
-        best = std::min(best, SegmentTriangleDistance(c.a, c.b, ta, tb, tc).distance - c.radius);
-      }
-    }
-    return best;
+  double Separation(const LinkCapsule& c) const {
+    const testing::BruteNearest n = testing::BruteForceNearest(env, filter, c.link, c.a, c.b);
+    return n.any ? n.distance - c.radius : 1e300;
   }
 };
 
-void CheckBatch(const Fixture& f, const GpuCuller& culler, const std::vector<CullCapsule>& caps,
+void CheckBatch(const Fixture& f, const GpuCuller& culler, const std::vector<LinkCapsule>& caps,
                 const char* what, double scale, int64_t* clear, int64_t* cleared) {
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
@@ -101,7 +87,7 @@ void CheckBatch(const Fixture& f, const GpuCuller& culler, const std::vector<Cul
   for (size_t i = 0; i < caps.size(); ++i) {
     const double sep = f.Separation(caps[i]);
     if (sep <= 0 && may_touch[i] == 0 && ++misses <= 5) {
-      const CullCapsule& c = caps[i];
+      const LinkCapsule& c = caps[i];
       ADD_FAILURE() << what << ": capsule " << i << " touches (separation " << sep
                     << ") but was cleared: a [" << c.a.transpose() << "] b [" << c.b.transpose()
                     << "] radius " << c.radius << " link " << c.link;
@@ -127,28 +113,28 @@ TEST(GpuCullerTest, NeverClearsATouchingCapsuleRandomized) {
       f.env.AddMesh(Soup(rng, centre, 120 + 40 * o, 1.5), "soup" + std::to_string(o));
     }
     f.filter = CollisionFilter(f.num_links, f.env.num_objects());
-    f.filter.Ignore(1, 0);
-    f.filter.Ignore(3, 2);
-    if (seed == 3) f.filter.Ignore(2, -1);  // Link 2 ignores everything.
+    f.filter.Ignore(LinkIndex(1), ObjectIndex(0));
+    f.filter.Ignore(LinkIndex(3), ObjectIndex(2));
+    if (seed == 3) f.filter.Ignore(LinkIndex(2), kAllObjects);  // Link 2 ignores everything.
     auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env);
     const GpuCuller culler(gpu_env, f.filter, f.num_links);
 
-    std::vector<CullCapsule> caps;
+    std::vector<LinkCapsule> caps;
     for (int i = 0; i < 1500; ++i) {
-      CullCapsule c;
+      LinkCapsule c;
       c.a = centre + rng.Box(2.0);
       c.b = rng.I(8) == 0 ? c.a : c.a + rng.Box(0.6);  // Some zero-length segments.
       c.radius = rng.I(6) == 0 ? 0.0 : rng.U(0.001, 0.2);
-      c.link = rng.I(f.num_links);
+      c.link = LinkIndex(rng.I(f.num_links));
       caps.push_back(c);
     }
     // Tangent capsules: the radius set to the exact distance (touching at
     // exactly zero separation), or a hair below or above it.
     for (int i = 0; i < 1500; ++i) {
-      CullCapsule c;
+      LinkCapsule c;
       c.a = centre + rng.Box(2.0);
       c.b = c.a + rng.Box(0.4);
-      c.link = rng.I(f.num_links);
+      c.link = LinkIndex(rng.I(f.num_links));
       c.radius = 0;
       const double d = f.Separation(c);
       if (d > 1e200) continue;
@@ -213,8 +199,8 @@ TEST(GpuCullerTest, HandCases) {
       {{0.5, 19, -1}, {0.5, 19, 1}, 0.0, true, "through a 1e-12 m triangle"},
       {{0.5, 20, 0.02}, {0.5, 20, 0.02}, 0.01, false, "1 cm above a 1e-24 sliver"},
   };
-  std::vector<CullCapsule> caps;
-  for (const Case& c : cases) caps.push_back(CullCapsule{c.a, c.b, c.radius, 0});
+  std::vector<LinkCapsule> caps;
+  for (const Case& c : cases) caps.push_back(LinkCapsule{c.a, c.b, c.radius, LinkIndex(0)});
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
   for (size_t i = 0; i < cases.size(); ++i) {
@@ -262,12 +248,12 @@ TEST(GpuCullerTest, NonFiniteAndHugeCapsulesAreKept) {
   const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
                          f.num_links);
   const double nan = std::nan(""), inf = HUGE_VAL;
-  const std::vector<CullCapsule> caps = {
-      CullCapsule{Vector3d(nan, 0, 0), Vector3d(0, 0, 0), 0.1, 0},
-      CullCapsule{Vector3d(0, 0, 0), Vector3d(0, inf, 0), 0.1, 0},
-      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), nan, 0},
-      CullCapsule{Vector3d(1e35, 0, 0), Vector3d(1e35, 0, 0), 0.1, 0},
-      CullCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1, 0},  // Clear: cleared.
+  const std::vector<LinkCapsule> caps = {
+      LinkCapsule{Vector3d(nan, 0, 0), Vector3d(0, 0, 0), 0.1, LinkIndex(0)},
+      LinkCapsule{Vector3d(0, 0, 0), Vector3d(0, inf, 0), 0.1, LinkIndex(0)},
+      LinkCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), nan, LinkIndex(0)},
+      LinkCapsule{Vector3d(1e35, 0, 0), Vector3d(1e35, 0, 0), 0.1, LinkIndex(0)},
+      LinkCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1, LinkIndex(0)},  // Clear: cleared.
   };
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
@@ -281,9 +267,9 @@ TEST(GpuCullerTest, ConcurrentCallersGetTheSerialAnswers) {
   f.filter = CollisionFilter(f.num_links, 1);
   const GpuCuller culler(std::make_shared<const GpuEnvironment>(SharedContext(), f.env), f.filter,
                          f.num_links);
-  std::vector<CullCapsule> caps;
+  std::vector<LinkCapsule> caps;
   for (int i = 0; i < 500; ++i) {
-    caps.push_back(CullCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), rng.I(f.num_links)});
+    caps.push_back(LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
   }
   std::vector<uint8_t> serial;
   ASSERT_TRUE(culler.Cull(caps, &serial));
@@ -338,7 +324,7 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
   EXPECT_GT(contacts, 0);
   EXPECT_EQ(lost_queries, 20);
   std::vector<uint8_t> may_touch;
-  EXPECT_FALSE(culler->Cull({CullCapsule{}}, &may_touch));
+  EXPECT_FALSE(culler->Cull({LinkCapsule{}}, &may_touch));
   EXPECT_EQ(may_touch, std::vector<uint8_t>{1});
 }
 
@@ -346,7 +332,7 @@ TEST(GpuCullerTest, LostContextFallsBackToTheCpu) {
 // its context is lost (the daemon reports this in status_t).
 TEST(GpuBackendTest, StateReportsALostContext) {
   BackendOptions options;
-  options.backend = "gpu";
+  options.backend = gpu::BackendKind::kGpu;
   Backend backend(options);
   ASSERT_TRUE(backend.gpu());
   EXPECT_EQ(backend.State(), "gpu");
@@ -357,7 +343,7 @@ TEST(GpuBackendTest, StateReportsALostContext) {
   EXPECT_EQ(backend.State(), "cpu (gpu failed: the OpenGL context was lost)");
   EXPECT_STREQ(backend.name(), "gpu");  // What was chosen at start.
   BackendOptions cpu_options;
-  cpu_options.backend = "cpu";
+  cpu_options.backend = gpu::BackendKind::kCpu;
   EXPECT_EQ(Backend(cpu_options).State(), "cpu");
 }
 
@@ -367,7 +353,7 @@ TEST(GpuBackendTest, StateReportsALostContext) {
 // benchmark, which builds one environment per scene).
 TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
   BackendOptions options;
-  options.backend = "gpu";
+  options.backend = gpu::BackendKind::kGpu;
   Backend backend(options);
   ASSERT_TRUE(backend.gpu()) << backend.reason();
   const Skeleton skeleton = OneLinkSkeleton("[0, 0.4, 0]");

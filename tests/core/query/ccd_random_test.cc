@@ -65,6 +65,7 @@
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "tests/common/random.h"
 
 namespace sweptccd {
 namespace {
@@ -246,7 +247,9 @@ class SceneUnderTest {
       engine_ = std::make_unique<CcdEngine>(scene_.skeleton, env_);
     } else {
       CollisionFilter filter(n, m);
-      for (const auto& [link, object] : scene_.ignored) filter.Ignore(link, object);
+      for (const auto& [link, object] : scene_.ignored) {
+        filter.Ignore(LinkIndex(link), ObjectIndex(object));
+      }
       engine_ = std::make_unique<CcdEngine>(scene_.skeleton, env_, std::move(filter));
     }
     // The backend under test; with an accelerator, the CPU engine answers
@@ -843,34 +846,7 @@ Outcome Suite::Run(const SceneUnderTest& sut, const QuerySpec& q, uint64_t seed,
 // ---------------------------------------------------------------------------
 // Generators.
 
-struct Rng {
-  explicit Rng(uint64_t seed) : g(seed) {}
-  std::mt19937_64 g;
-  double U(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(g); }
-  int I(int n) { return static_cast<int>(g() % static_cast<uint64_t>(n)); }
-  bool P(double p) { return U(0, 1) < p; }
-  double N() { return std::normal_distribution<double>()(g); }
-  Vec3 Box(double h) { return Vec3(U(-h, h), U(-h, h), U(-h, h)); }
-  Vec3 Dir() {
-    Vec3 v(N(), N(), N());
-    return v.normalized();
-  }
-  Eigen::Quaterniond Quat() {
-    Eigen::Quaterniond q(N(), N(), N(), N());
-    return q.normalized();
-  }
-  Eigen::Quaterniond Turn(double angle) {
-    return Eigen::Quaterniond(Eigen::AngleAxisd(angle, Dir()));
-  }
-  // A random unit vector perpendicular to d (unit).
-  Vec3 Perp(const Vec3& d) {
-    for (;;) {
-      Vec3 v = Dir();
-      v -= v.dot(d) * d;
-      if (v.norm() > 0.1) return v.normalized();
-    }
-  }
-};
+using testing::Rng;
 
 Eigen::Vector3f F(const Vec3& v) {
   return Eigen::Vector3f(static_cast<float>(v.x()), static_cast<float>(v.y()),
@@ -2155,6 +2131,27 @@ TEST(CcdRandomTest, SmallWorkLimitIsUndecidedButKeepsG1) {
   suite.Finish(200, /*limit_undecided=*/false);
 }
 
+// A query of one of the small regression scenes below on the backend under
+// test. With the GPU, the culler must have been asked (unless the link touched
+// at s = 0, answered before any swept test) and the CPU engine must give the
+// same answer.
+QueryResult QueryOnBackend(const Skeleton& sk, const Environment& env, const Pose& p0,
+                           const Pose& p1) {
+  CcdEngine engine(sk, env);
+  testing::AttachBackend(&engine);
+  const QueryResult r = engine.Query(p0, p1, QueryOptions());
+  if (std::string(testing::BackendName()) == "gpu") {
+    EXPECT_TRUE(engine.culler() != nullptr);
+    if (!r.initially_colliding) {
+      EXPECT_GT(r.stats.cull_round_trips, 0) << "the GPU never ran";
+    }
+    const CcdEngine cpu(sk, env);
+    EXPECT_TRUE(testing::SameAnswer(r, cpu.Query(p0, p1, QueryOptions())))
+        << "GPU and CPU answers differ";
+  }
+  return r;
+}
+
 TEST(CcdRandomTest, DefaultFilterIgnoresNothing) {
   // A default-constructed CollisionFilter must not make every link skip.
   Link l;
@@ -2165,12 +2162,11 @@ TEST(CcdRandomTest, DefaultFilterIgnoresNothing) {
   AddTri(&mesh, Vec3(-1, -1, 0), Vec3(1, -1, 0), Vec3(0, 1, 0));
   Environment env;
   env.AddMesh(mesh, "tri");
-  const CcdEngine engine(sk, env);
   LinkPose x0, x1;
   x0.p = Vec3(0, 0, 1);
   x1.p = Vec3(0, 0, -1);
   // Touches at s = 0.475 (z = 0.05); 1 s with eps 1e-4 s: a bracket <= 1e-4 wide.
-  const QueryResult r = engine.Query(MakePose(0, {x0}), MakePose(1'000'000, {x1}), QueryOptions());
+  const QueryResult r = QueryOnBackend(sk, env, MakePose(0, {x0}), MakePose(1'000'000, {x1}));
   ASSERT_TRUE(r.contact);
   EXPECT_LE(r.s_lo, 0.475);
   EXPECT_GE(r.s_lo, 0.475 - 1e-3);
@@ -2191,13 +2187,11 @@ TEST(CcdRandomTest, EpochUtimesKeepG2) {
   AddTri(&mesh, Vec3(-1, -1, -0.06), Vec3(1, -1, -0.06), Vec3(0, 1, -0.06));
   Environment env;
   env.AddMesh(mesh, "tri");
-  const CcdEngine engine(sk, env);
   LinkPose x0, x1;
   x0.p = Vec3(0, 0, 1);
   x1.p = Vec3(0, 0, -1);  // Touches at s = 0.505.
   const int64_t utime0 = 1700087249186542, dt = 6407;
-  const QueryResult r =
-      engine.Query(MakePose(utime0, {x0}), MakePose(utime0 + dt, {x1}), QueryOptions());
+  const QueryResult r = QueryOnBackend(sk, env, MakePose(utime0, {x0}), MakePose(utime0 + dt, {x1}));
   ASSERT_TRUE(r.contact);
   EXPECT_FALSE(r.undecided);
   EXPECT_LE((r.s_hi - r.s_lo) * dt, 100.0) << "bracket [" << r.s_lo << ", " << r.s_hi << "] is "
@@ -2228,8 +2222,7 @@ TEST(CcdRandomTest, TinySphereOnSliverTriangle) {
   ASSERT_GT((b - a).cross(x.p - a).z(), 0);
   ASSERT_GT((c - b).cross(x.p - b).z(), 0);
   ASSERT_GT((a - c).cross(x.p - c).z(), 0);
-  const CcdEngine engine(sk, env);
-  const QueryResult r = engine.Query(MakePose(0, {x}), MakePose(1000, {x}), QueryOptions());
+  const QueryResult r = QueryOnBackend(sk, env, MakePose(0, {x}), MakePose(1000, {x}));
   EXPECT_TRUE(r.contact && r.initially_colliding)
       << "a sphere lying on the triangle is not seen; SegmentTriangleDistance says "
       << SegmentTriangleDistance(x.p, x.p, a, b, c).distance << " (exact: 0), tolerance "

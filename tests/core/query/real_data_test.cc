@@ -1,5 +1,5 @@
-// CcdEngine::Query on the real scenes and motion capture of the shared data
-// (SWEPTCCD_SHARED_DATA; the tests fail, not skip, when it is missing):
+// CcdEngine::Query on the real scenes and motion capture of the project data
+// (SWEPTCCD_DATA_DIR; the tests fail, not skip, when it is missing):
 // 16-link avatars imported from BVH clips (subsampled 120 Hz -> 30 Hz), placed
 // in the Bitterli grey & white room (Y-up), the MORSE apartment (Z-up) and in
 // front of the Stanford dragon scaled x8, feet slightly below the floor in
@@ -43,7 +43,7 @@ namespace {
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
 
-const std::string kData = SWEPTCCD_SHARED_DATA;
+const std::string kData = SWEPTCCD_DATA_DIR;
 constexpr int kSamples = 400;
 
 std::string EnvPath(const std::string& file) { return kData + "/env/" + file; }
@@ -61,13 +61,13 @@ struct RefNearest {
 // The exact separation of `link` at s over the unfiltered triangles within
 // radius + reach of its segment.
 RefNearest ReferenceSeparation(const Environment& env, const CollisionFilter& filter,
-                               const Skeleton& skel, const PairMotion& motion, int link, double s,
-                               double reach) {
+                               const Skeleton& skel, const PairMotion& motion, LinkIndex link,
+                               double s, double reach) {
   Vector3d a, b;
   motion.SegmentAt(link, s, &a, &b);
   const double radius = skel.link(link).radius;
   RefNearest best;
-  for (int o = 0; o < env.num_objects(); ++o) {
+  for (ObjectIndex o(0); o < env.num_objects(); ++o) {
     if (filter.Ignores(link, o)) continue;
     const TriangleBvh& bvh = env.object(o).bvh;
     bvh.QueryCapsule(a, b, radius + reach, [&](uint32_t slot) {
@@ -87,7 +87,7 @@ RefNearest ReferenceSeparation(const Environment& env, const CollisionFilter& fi
 
 bool Touches(const Environment& env, const CollisionFilter& filter, const Skeleton& skel,
              const PairMotion& motion, int link, double s) {
-  const RefNearest r = ReferenceSeparation(env, filter, skel, motion, link, s, 0.0);
+  const RefNearest r = ReferenceSeparation(env, filter, skel, motion, LinkIndex(link), s, 0.0);
   return r.found && r.separation <= 0;
 }
 
@@ -322,7 +322,7 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
 
 MocapClip LoadClip(const std::string& file, char up_axis) {
   const std::string path = MocapPath(file);
-  EXPECT_TRUE(fs::exists(path)) << "missing shared data: " << path;
+  EXPECT_TRUE(fs::exists(path)) << "missing data file: " << path;
   MocapImportOptions options;
   options.up_axis = up_axis;
   options.frame_step = 4;  // 120 Hz -> 30 Hz.
@@ -355,7 +355,7 @@ Environment LoadScene(const std::vector<std::string>& files) {
   Environment env;
   for (const std::string& f : files) {
     const std::string path = EnvPath(f);
-    EXPECT_TRUE(fs::exists(path)) << "missing shared data: " << path;
+    EXPECT_TRUE(fs::exists(path)) << "missing data file: " << path;
     env.AddMesh(LoadMeshFile(path), path);
   }
   return env;
@@ -383,27 +383,27 @@ void Report(const char* scene, const Tally& t) {
 // The grey & white room: floor y = 0, x in [-0.5, 5.1], z in [-3.6, 0.6]; a
 // sofa along the back wall, a table, shelves along the front wall.
 TEST(RealDataTest, GreyWhiteRoom) {
-  const Environment env = LoadScene({"bitterli_grey_white_room.ply"});
+  const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
   ASSERT_EQ(env.num_triangles(), 143163u);
   const int up = 1;
   const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
   Tally tally;
   {  // Walking the length of the room through the furniture, soles 1 cm into the floor.
-    MocapClip clip = LoadClip("cmu_02_01_walk.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(2.0, 0, -1.5), -0.01);
     CheckClip(env, no_filter, clip, 0, 84, "walk, soles 1 cm down", &tally);
   }
   {  // Another walk between the table and the shelves, soles 2 cm above the floor.
-    MocapClip clip = LoadClip("cmu_07_01_walk.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_07_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(1.2, 0, -1.6), 0.02);
     CheckClip(env, no_filter, clip, 0, 77, "walk, soles 2 cm up", &tally);
   }
   {  // Dancing (cartwheel, pirouettes) near the table, soles 2 cm into the floor.
-    MocapClip clip = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
     Place(&clip, up, Vector3d(2.4, 0, -1.3), -0.02);
     CheckClip(env, no_filter, clip, 0, 221, "dance, soles 2 cm down", &tally);
   }
-  for (const char* file : {"cmu_06_01_walk.bvh", "cmu_13_41_jump.bvh"}) {
+  for (const char* file : {"cmu_06_01_walk.bvh.gz", "cmu_13_41_jump.bvh.gz"}) {
     // Every dropping pair shifted so the floor is crossed mid-pair.
     MocapClip clip = LoadClip(file, 'y');
     Place(&clip, up, Vector3d(3.2, 0, -1.2), 0);
@@ -411,7 +411,7 @@ TEST(RealDataTest, GreyWhiteRoom) {
               &tally, Straddle{true, up, 0.0});
   }
   {  // Jumping in the middle of the room; landings reach 5 mm into the floor.
-    MocapClip clip = LoadClip("cmu_13_41_jump.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_13_41_jump.bvh.gz", 'y');
     Place(&clip, up, Vector3d(3.0, 0, -1.0), -0.005);
     CheckClip(env, no_filter, clip, 0, 91, "jump, soles 5 mm down", &tally);
   }
@@ -422,23 +422,23 @@ TEST(RealDataTest, GreyWhiteRoom) {
 // y in [-3.1, 5.6], and a 21.8 m ground plane at z = -0.017 (not 0). The clips
 // are imported with up_axis 'z' (file y up -> z up).
 TEST(RealDataTest, MorseApartmentZUp) {
-  const Environment env = LoadScene({"morse_apartment.ply"});
+  const Environment env = LoadScene({"morse_apartment.ply.gz"});
   ASSERT_EQ(env.num_triangles(), 10616u);
   const int up = 2;
   const double ground = -0.017;
   const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
   Tally tally;
   {  // Walking (along -y) through the furniture at y in [2.8, 5.6], soles 1 cm down.
-    MocapClip clip = LoadClip("cmu_06_01_walk.bvh", 'z');
+    MocapClip clip = LoadClip("cmu_06_01_walk.bvh.gz", 'z');
     Place(&clip, up, Vector3d(-0.7, 3.5, 0), ground - 0.01);
     CheckClip(env, no_filter, clip, 0, 122, "walk, soles 1 cm down", &tally);
   }
   {  // Jumping beside the furniture at x in [-5.7, -2.5], soles 1 cm up.
-    MocapClip clip = LoadClip("cmu_02_04_jump_balance.bvh", 'z');
+    MocapClip clip = LoadClip("cmu_02_04_jump_balance.bvh.gz", 'z');
     Place(&clip, up, Vector3d(-2.3, -1.5, 0), ground + 0.01);
     CheckClip(env, no_filter, clip, 0, 119, "jump/balance, soles 1 cm up", &tally);
   }
-  for (const char* file : {"cmu_07_01_walk.bvh", "cmu_02_04_jump_balance.bvh"}) {
+  for (const char* file : {"cmu_07_01_walk.bvh.gz", "cmu_02_04_jump_balance.bvh.gz"}) {
     // Every dropping pair shifted so the ground plane is crossed mid-pair.
     MocapClip clip = LoadClip(file, 'z');
     Place(&clip, up, Vector3d(-0.7, 3.5, 0), ground);
@@ -451,7 +451,7 @@ TEST(RealDataTest, MorseApartmentZUp) {
 // The Stanford dragon (res2, 202k triangles) scaled x8 (~1.6 m long, 1.2 m
 // tall) standing on a floor quad, in the path of a walking avatar.
 TEST(RealDataTest, DragonInThePath) {
-  TriangleMesh dragon = LoadMeshFile(EnvPath("stanford_dragon_vrip_res2.ply"));
+  TriangleMesh dragon = LoadMeshFile(EnvPath("stanford_dragon_vrip_res2.ply.gz"));
   ASSERT_EQ(dragon.num_triangles(), 202520u);
   float min_y = std::numeric_limits<float>::infinity();
   for (const auto& v : dragon.vertices) min_y = std::min(min_y, v.y());
@@ -468,36 +468,36 @@ TEST(RealDataTest, DragonInThePath) {
   const int up = 1;
   Tally tally;
   {  // Walking into the dragon, soles 1 cm into the floor.
-    MocapClip clip = LoadClip("cmu_02_01_walk.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(0.6, 0, 0.0), -0.01);
     const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
     CheckClip(env, no_filter, clip, 0, 84, "walk into the dragon", &tally);
   }
   {  // The same with the feet ignoring the floor (a typical filter).
-    MocapClip clip = LoadClip("cmu_02_01_walk.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(0.6, 0, 0.0), -0.01);
     CollisionFilter feet_floor(kMocapNumLinks, env.num_objects());
-    feet_floor.Ignore(clip.skeleton.FindLink("foot_l"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("foot_r"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("shin_l"), 1);
-    feet_floor.Ignore(clip.skeleton.FindLink("shin_r"), 1);
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("foot_l")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("foot_r")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("shin_l")), ObjectIndex(1));
+    feet_floor.Ignore(LinkIndex(clip.skeleton.FindLink("shin_r")), ObjectIndex(1));
     CheckClip(env, feet_floor, clip, 0, 84, "walk into the dragon, feet ignore floor", &tally);
   }
   {  // Jumping next to the dragon's tail; landings reach 5 mm into the floor.
-    MocapClip clip = LoadClip("cmu_13_41_jump.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_13_41_jump.bvh.gz", 'y');
     Place(&clip, up, Vector3d(-0.6, 0, 0.9), -0.005);
     const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
     CheckClip(env, no_filter, clip, 0, 91, "jump beside the dragon", &tally);
   }
   {  // Every dropping pair of the walk shifted so the floor is crossed mid-pair.
-    MocapClip clip = LoadClip("cmu_02_01_walk.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
     Place(&clip, up, Vector3d(0.6, 0, 0.0), 0);
     const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
     CheckClip(env, no_filter, clip, 0, 84, "walk into the dragon, floor crossed mid-pair", &tally,
               Straddle{true, up, 0.0});
   }
   {  // The same for the jump beside the tail.
-    MocapClip clip = LoadClip("cmu_13_41_jump.bvh", 'y');
+    MocapClip clip = LoadClip("cmu_13_41_jump.bvh.gz", 'y');
     Place(&clip, up, Vector3d(-0.6, 0, 0.9), 0);
     const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
     CheckClip(env, no_filter, clip, 0, 91, "jump beside the dragon, floor crossed mid-pair",

@@ -1,4 +1,4 @@
-#include "tools/stop_signal.h"
+#include "service/daemon/stop_signal.h"
 
 #include <poll.h>
 #include <signal.h>
@@ -51,6 +51,15 @@ bool StopSignal::WaitUntil(std::chrono::steady_clock::time_point deadline) const
     const int ready = ppoll(&p, 1, &timeout, nullptr);
     if (ready > 0) return true;
     if (ready < 0 && errno != EINTR) return stopped();
+  }
+}
+
+void StopSignal::Wait() const {
+  for (;;) {
+    pollfd p{g_pipe[0], POLLIN, 0};
+    const int ready = poll(&p, 1, -1);
+    if (ready > 0) return;
+    if (ready < 0 && errno != EINTR) throw InputError("waiting for a stop signal: poll failed");
   }
 }
 

@@ -1,0 +1,22 @@
+#pragma once
+// Reading a whole file from outside with a cap on its size.
+
+#include <cstdint>
+#include <string>
+
+namespace sweptccd {
+
+/// Cap on a skeleton or collision filter JSON file: 16 MiB (a 256-link
+/// skeleton is about 40 KiB).
+inline constexpr uint64_t kMaxJsonFileBytes = uint64_t{16} << 20;
+
+/// Reads the whole file at `path`, holding at most `max_bytes` of it: a longer
+/// file is refused after reading max_bytes + 1 bytes. `what` names the file's
+/// role in messages ("skeleton file"); `fix` ends the over-cap message (how to
+/// raise the cap, or what the file should be). Throws InputError("PATH:
+/// problem") when the file cannot be opened or read or is over the cap.
+/// Thread-safe.
+std::string ReadFileBounded(const std::string& path, uint64_t max_bytes, const std::string& what,
+                            const std::string& fix);
+
+}  // namespace sweptccd

@@ -1,0 +1,61 @@
+#include "core/query/candidate_pool.h"
+
+namespace sweptccd::internal {
+
+CandidatePool::CandidatePool(const EnvironmentTarget& target, int max_candidates,
+                             int64_t* triangle_tests)
+    : target_(target), max_candidates_(max_candidates), triangle_tests_(triangle_tests) {
+  entries_.reserve(1024);
+}
+
+bool CandidatePool::CollectFromBvh(const LinkCapsule& cap, ObjectIndex object,
+                                   uint32_t start_node) {
+  const size_t start = entries_.size();
+  bool overflow = false;
+  for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
+    if ((object.is_valid() && o != object) || target_.Ignores(cap.link, o)) continue;
+    double radius = cap.radius;
+    target_.bvh(o).QueryCapsuleShrinking(
+        cap.a, cap.b, &radius,
+        [&](uint32_t slot) {
+          const Candidate c{static_cast<uint32_t>(o.value()), slot};
+          if (!Within(cap, c)) return true;
+          entries_.push_back(c);
+          // Past the cap the list is not worth keeping: stop early.
+          overflow = entries_.size() - start > static_cast<size_t>(max_candidates_);
+          return !overflow;
+        },
+        object.is_valid() ? start_node : 0);
+    if (overflow) break;
+  }
+  if (overflow) entries_.resize(start);
+  return !overflow;
+}
+
+CandidateList CandidatePool::Refine(const CandidateList& parent, const LinkCapsule& cap) {
+  CandidateList list;
+  list.begin = static_cast<uint32_t>(entries_.size());
+  if (parent.requery) {
+    if (CollectFromBvh(cap)) {
+      list.count = static_cast<uint32_t>(entries_.size() - list.begin);
+    } else {
+      list.requery = true;  // Too many to list: non-empty, keep going.
+      list.count = 1;
+    }
+    return list;
+  }
+  for (uint32_t k = parent.begin; k < parent.begin + parent.count; ++k) {
+    const Candidate c = entries_[k];
+    if (Within(cap, c)) entries_.push_back(c);
+  }
+  list.count = static_cast<uint32_t>(entries_.size() - list.begin);
+  return list;
+}
+
+bool CandidatePool::Nearest(const PairMotion& motion, LinkIndex link, double s,
+                            const CandidateList& list, ContactRecord* best) {
+  return target_.NearestOf(motion, link, s, entries_.data() + list.begin, list.count, best,
+                           triangle_tests_);
+}
+
+}  // namespace sweptccd::internal

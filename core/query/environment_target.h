@@ -1,0 +1,90 @@
+#pragma once
+// Internal to the query engine (see docs/DESIGN.md, "core/query"): what a
+// link is tested against. Today the one target is the static environment
+// (objects of triangles behind BVHs, minus the collision filter). SPEC
+// section 8 adds other targets (another avatar's links, a moving object);
+// they answer the same questions: which primitives come within a capsule,
+// the exact separation at s, whether the link touches at s.
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "core/avatar/motion.h"
+#include "core/avatar/skeleton.h"
+#include "core/geometry/distance.h"
+#include "core/query/ccd_query.h"
+#include "core/query/link_capsule.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+
+namespace sweptccd::internal {
+
+/// A primitive of the target: an object and a slot of its BVH.
+struct Candidate {
+  uint32_t object;
+  uint32_t slot;
+};
+
+/// The static environment seen through a collision filter. Holds references
+/// (all three outlive it); const methods are thread-safe.
+class EnvironmentTarget {
+ public:
+  EnvironmentTarget(const Skeleton& skeleton, const Environment& environment,
+                    const CollisionFilter& filter)
+      : skeleton_(skeleton), env_(environment), filter_(filter) {}
+
+  int num_objects() const { return env_.num_objects(); }
+  const TriangleBvh& bvh(ObjectIndex object) const { return env_.object(object).bvh; }
+  /// Whether the link is never tested (filtered from every object).
+  bool IgnoresAll(LinkIndex link) const { return filter_.IgnoresAll(link); }
+  bool Ignores(LinkIndex link, ObjectIndex object) const { return filter_.Ignores(link, object); }
+
+  /// Whether the candidate's triangle comes within the capsule (conservative
+  /// towards "inside" by a relative 1e-9 on the cheap tests, exact otherwise).
+  bool WithinCapsule(const LinkCapsule& capsule, Candidate candidate) const;
+
+  /// As CcdEngine::TouchesAt and CcdEngine::Separation (which call these).
+  bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const;
+  bool Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
+                  ContactRecord* record) const;
+
+  /// The exact separation of `link` at s over `count` candidates from
+  /// `first` only: false when count is 0. Adds count to *triangle_tests.
+  bool NearestOf(const PairMotion& motion, LinkIndex link, double s, const Candidate* first,
+                 uint32_t count, ContactRecord* best, int64_t* triangle_tests) const;
+
+ private:
+  ContactRecord MakeRecord(LinkIndex link, ObjectIndex object, uint32_t slot, double s,
+                           const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const SegmentTriangleResult& r, const Eigen::Vector3d& ta,
+                           const Eigen::Vector3d& tb, const Eigen::Vector3d& tc) const;
+
+  const Skeleton& skeleton_;
+  const Environment& env_;
+  const CollisionFilter& filter_;
+};
+
+// Inline: the hottest test of the descent (one call per candidate per interval).
+inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c) const {
+  Eigen::Vector3d ta, tb, tc;
+  env_.object(static_cast<int>(c.object)).bvh.Triangle(c.slot, &ta, &tb, &tc);
+  // Cheap answers first: the triangle's bounding sphere around ta misses
+  // the capsule (reject), or a vertex is inside it (accept). Both compare
+  // squared distances with a relative margin of 1e-9 towards "inside".
+  const Eigen::Vector3d d = cap.b - cap.a;
+  const double dd = d.squaredNorm();
+  const double reach = std::sqrt(std::max((tb - ta).squaredNorm(), (tc - ta).squaredNorm()));
+  const double da = PointSegmentDistanceSquared(ta, cap.a, d, dd);
+  const double far = cap.radius + reach;
+  if (da > far * far * (1 + 1e-9)) return false;
+  if (da <= cap.radius * cap.radius * (1 - 1e-9) ||
+      PointSegmentDistanceSquared(tb, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9) ||
+      PointSegmentDistanceSquared(tc, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9)) {
+    return true;
+  }
+  return SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
+}
+
+}  // namespace sweptccd::internal

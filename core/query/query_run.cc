@@ -1,0 +1,181 @@
+#include "core/query/query_run.h"
+
+#include <algorithm>
+#include <vector>
+
+#include "core/query/root_candidates.h"
+
+namespace sweptccd::internal {
+
+QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
+                   const QueryOptions& options)
+    : options_(options),
+      num_links_(engine.skeleton().num_links()),
+      motion_(engine.skeleton(), pose0, pose1, options.motion),
+      target_(engine.skeleton(), engine.environment(), engine.filter()),
+      bounds_(engine.skeleton(), motion_, SweptBounds::Tolerance(engine.environment(), motion_)),
+      slicer_(pose0.utime, pose1.utime, options.eps_s),
+      pool_(target_, options.max_candidates, &stats_.triangle_tests),
+      cull_(engine.culler(), bounds_, &stats_),
+      witnesses_(target_, motion_, num_links_),
+      cleared_by_culler_(num_links_, false) {}
+
+QueryResult QueryRun::Run() {
+  CloseTouchingAtStart();
+  if (Searching()) {
+    CullWholePair();
+    SeedRoots();
+    Descend();
+  }
+  if (out_of_work_) CloseOutOfWork();
+  QueryResult result;
+  result.stats = stats_;
+  return witnesses_.Assemble(options_, std::move(result));
+}
+
+// A link touching at s = 0 answers at once: [0, w] with w the first dyadic
+// width that meets G2 (the interval the chronological descent would reach),
+// the witness at s = 0 (separation <= 0 <= delta); G1 is empty.
+void QueryRun::CloseTouchingAtStart() {
+  const double w = slicer_.FirstNarrowWidth();
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (target_.IgnoresAll(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) continue;
+    ContactRecord at_zero;
+    if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
+    ++stats_.links_tested;
+    witnesses_.CloseLeaf(l, 0, w, at_zero, /*exact_witness=*/true);
+    if (!options_.per_link) break;
+  }
+}
+
+// The published method's culling step, on the culler: every link's swept
+// bound over the whole pair (and the first levels below it) in one round
+// trip. A link it clears is free for the pair without CPU work.
+void QueryRun::CullWholePair() {
+  if (!cull_.active()) return;
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (!TestsLink(l)) continue;
+    cull_.AppendSubtree(l, 0, 1, bounds_.EndsOver(l, 0, 1), CullBatcher::kLevels);
+  }
+  if (!cull_.Flush()) return;
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    const CullAnswer* root = cull_.Find(l, 0, 1);
+    cleared_by_culler_[l] = root != nullptr && root->cleared;
+  }
+}
+
+// Seeding: the links the whole-pair bounds leave open start the descent with
+// their whole-pair candidates.
+void QueryRun::SeedRoots() {
+  const RootCandidates roots(target_, bounds_, num_links_, cleared_by_culler_, &pool_);
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (!TestsLink(l)) continue;
+    if (cleared_by_culler_[l] || roots.Empty(l)) {
+      ++stats_.links_culled;
+      continue;
+    }
+    ++stats_.links_tested;
+    Interval root;
+    root.link = l;
+    root.candidates = roots.ListOf(l);
+    root.prefiltered = true;
+    root.ends = bounds_.EndsOver(l, 0, 1);
+    queue_.push(root);
+  }
+}
+
+// The chronological descent over every open link's intervals, until the
+// first contact (or, per link, every link's), or out of work.
+void QueryRun::Descend() {
+  while (!queue_.empty() && Searching()) {
+    const Interval interval = queue_.top();
+    queue_.pop();
+    if (witnesses_.done(interval.link)) continue;
+    // Work limit, and a memory limit on the candidate pool (64 M entries,
+    // 512 MiB) so a raised work limit cannot exhaust memory.
+    if (++stats_.intervals > options_.max_intervals || pool_.size() > (64u << 20)) {
+      out_of_work_ = true;
+      queue_.push(interval);
+      return;
+    }
+    if (Visit(interval) == Step::kStop) return;
+  }
+}
+
+QueryRun::Step QueryRun::Visit(const Interval& interval) {
+  const CullAnswer* answer = nullptr;
+  if (!interval.prefiltered) {
+    answer = cull_.AnswerFor(interval, queue_.pending(), witnesses_.done());
+    if (answer != nullptr && answer->cleared) {
+      ++stats_.cull_cleared;
+      return Step::kNext;  // Certified free over [s0, s1] by the culler.
+    }
+  }
+  // The swept capsule: already computed when the culler was asked.
+  const LinkCapsule capsule =
+      answer != nullptr ? answer->capsule
+                        : bounds_.FromEnds(interval.link, interval.s0, interval.s1, interval.ends);
+  const CandidateList list = CandidatesOf(interval, capsule);
+  if (list.count == 0) return Step::kNext;  // Certified free over [s0, s1].
+  if (slicer_.Narrow(interval.s0, interval.s1) && TryClose(interval, list)) {
+    return options_.per_link ? Step::kNext : Step::kStop;
+  }
+  Interval lower, upper;
+  if (!TimeSlicer::Split(interval, capsule, list, &lower, &upper)) {
+    witnesses_.CloseUndecided(interval.link, interval.s0);  // Cannot split further.
+    return options_.per_link ? Step::kNext : Step::kStop;
+  }
+  queue_.push(lower);
+  queue_.push(upper);
+  return Step::kNext;
+}
+
+CandidateList QueryRun::CandidatesOf(const Interval& interval, const LinkCapsule& capsule) {
+  if (!interval.prefiltered) return pool_.Refine(interval.candidates, capsule);
+  // The root interval: seeding already tested this capsule.
+  CandidateList list = interval.candidates;
+  if (list.requery) list.count = 1;
+  return list;
+}
+
+bool QueryRun::TryClose(const Interval& interval, const CandidateList& list) {
+  ContactRecord best, sample;
+  bool have = false;
+  const double mid = 0.5 * (interval.s0 + interval.s1);
+  for (double s : {interval.s0, mid, interval.s1}) {
+    // With no list (a dense region), ask the target for the nearest
+    // primitive within delta of the capsule instead.
+    const bool got =
+        list.requery ? target_.Separation(motion_, interval.link, s, options_.delta_m, &sample)
+                     : pool_.Nearest(motion_, interval.link, s, list, &sample);
+    if (got && (!have || sample.separation < best.separation)) {
+      best = sample;
+      have = true;
+    }
+  }
+  // Accept with the tolerance as margin, so that a checker reading the
+  // files' decimal vertices (we hold floats) still sees <= delta; when
+  // delta is within a few tolerances, plain <= delta (termination).
+  const double tol = bounds_.tolerance_m();
+  const double accept = options_.delta_m > 4 * tol ? options_.delta_m - tol : options_.delta_m;
+  if (!have || best.separation > accept) return false;
+  witnesses_.CloseLeaf(interval.link, interval.s0, interval.s1, best);
+  return true;
+}
+
+// Out of work: every link with work left is undecided from its earliest
+// open interval.
+void QueryRun::CloseOutOfWork() {
+  std::vector<double> earliest(num_links_, 2.0);
+  while (!queue_.empty()) {
+    const Interval& t = queue_.top();
+    if (!witnesses_.done(t.link)) earliest[t.link] = std::min(earliest[t.link], t.s0);
+    queue_.pop();
+    if (!options_.per_link) break;  // The top one is the earliest of all.
+  }
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (earliest[l] <= 1.0) witnesses_.CloseUndecided(l, earliest[l]);
+  }
+}
+
+}  // namespace sweptccd::internal

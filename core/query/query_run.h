@@ -1,0 +1,61 @@
+#pragma once
+// Internal to the query engine (see docs/DESIGN.md, "core/query"): one query,
+// as a sequence of named phases over the engine's parts.
+
+#include "core/query/candidate_pool.h"
+#include "core/query/ccd_query.h"
+#include "core/query/cull_batcher.h"
+#include "core/query/environment_target.h"
+#include "core/query/swept_bounds.h"
+#include "core/query/time_slicer.h"
+#include "core/query/witnesses.h"
+
+namespace sweptccd::internal {
+
+/// Runs one query. Single-use and single-threaded; holds references to the
+/// engine's skeleton, environment and filter, and to the options.
+class QueryRun {
+ public:
+  QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
+           const QueryOptions& options);
+
+  QueryResult Run();
+
+ private:
+  // The phases, in order.
+  void CloseTouchingAtStart();
+  void CullWholePair();
+  void SeedRoots();
+  void Descend();
+  void CloseOutOfWork();
+
+  // Whether the query still looks for contacts (per link: until all links are
+  // closed; otherwise until the first).
+  bool Searching() const { return options_.per_link || witnesses_.empty(); }
+  bool TestsLink(LinkIndex link) const {
+    return !target_.IgnoresAll(link) && !witnesses_.done(link);
+  }
+  enum class Step { kNext, kStop };
+  // One interval of the descent: cleared, closed, or split into the queue.
+  Step Visit(const Interval& interval);
+  // A narrow interval: closes it when a sample is within delta (G3).
+  bool TryClose(const Interval& interval, const CandidateList& list);
+  // The interval's candidates (its capsule given).
+  CandidateList CandidatesOf(const Interval& interval, const LinkCapsule& capsule);
+
+  const QueryOptions& options_;
+  const int num_links_;
+  PairMotion motion_;
+  EnvironmentTarget target_;
+  SweptBounds bounds_;
+  TimeSlicer slicer_;
+  QueryStats stats_;
+  CandidatePool pool_;
+  CullBatcher cull_;
+  Witnesses witnesses_;
+  IntervalQueue queue_;
+  std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
+  bool out_of_work_ = false;
+};
+
+}  // namespace sweptccd::internal

@@ -1,0 +1,114 @@
+#include "core/query/root_candidates.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace sweptccd::internal {
+
+RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
+                               int num_links, const std::vector<bool>& skip,
+                               CandidatePool* pool)
+    : target_(target), pool_(*pool) {
+  const int n = num_links;
+  capsule_.resize(n);
+  box_.resize(n);
+  begin_.assign(n, 0);
+  count_.assign(n, 0);
+  overflow_.assign(n, false);
+  for (LinkIndex l(0); l < n; ++l) {
+    capsule_[l] = bounds.Over(l, 0, 1);
+    const LinkCapsule& c = capsule_[l];
+    box_[l].lo = c.a.cwiseMin(c.b).array() - c.radius;
+    box_[l].hi = c.a.cwiseMax(c.b).array() + c.radius;
+  }
+  for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
+    std::vector<LinkIndex> links;
+    for (LinkIndex l(0); l < n; ++l) {
+      if (!target_.Ignores(l, o) && !skip[l]) links.push_back(l);
+    }
+    if (!links.empty()) CollectDual(links, o, 0);
+  }
+  // An overflowing link's partial runs are useless; it queries the BVHs per
+  // interval instead.
+  for (int l = 0; l < n; ++l) {
+    if (overflow_[l]) count_[l] = 0;
+  }
+}
+
+void RootCandidates::CollectDual(const std::vector<LinkIndex>& links, ObjectIndex object,
+                                 uint32_t env_node) {
+  const TriangleBvh& bvh = target_.bvh(object);
+  const Aabb env_box = bvh.NodeBox(env_node);
+  Aabb box{Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()),
+           Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity())};
+  std::vector<LinkIndex> live;
+  for (LinkIndex l : links) {
+    if (box_[l].Overlaps(env_box)) {
+      live.push_back(l);
+      box.lo = box.lo.cwiseMin(box_[l].lo);
+      box.hi = box.hi.cwiseMax(box_[l].hi);
+    }
+  }
+  if (live.empty()) return;
+  if (live.size() == 1) {
+    CollectOne(live[0], object, env_node);
+    return;
+  }
+  const TriangleBvh::Node& node = bvh.nodes()[env_node];
+  const Eigen::Vector3d link_ext = box.hi - box.lo;
+  const Eigen::Vector3d env_ext = env_box.hi - env_box.lo;
+  const bool split_links = node.count > 0 || link_ext.maxCoeff() >= env_ext.maxCoeff();
+  if (!split_links) {
+    CollectDual(live, object, node.first);
+    CollectDual(live, object, node.first + 1);
+    return;
+  }
+  int axis = 0;
+  link_ext.maxCoeff(&axis);
+  SplitLinks(std::move(live), axis, object, env_node);
+}
+
+void RootCandidates::SplitLinks(std::vector<LinkIndex> live, int axis, ObjectIndex object,
+                                uint32_t env_node) {
+  std::sort(live.begin(), live.end(), [&](LinkIndex x, LinkIndex y) {
+    const double cx = box_[x].lo[axis] + box_[x].hi[axis];
+    const double cy = box_[y].lo[axis] + box_[y].hi[axis];
+    return cx != cy ? cx < cy : x < y;
+  });
+  const size_t half = live.size() / 2;
+  CollectDual(std::vector<LinkIndex>(live.begin(), live.begin() + half), object, env_node);
+  CollectDual(std::vector<LinkIndex>(live.begin() + half, live.end()), object, env_node);
+}
+
+void RootCandidates::CollectOne(LinkIndex l, ObjectIndex object, uint32_t env_node) {
+  if (overflow_[l]) return;
+  // Gather this link's candidates below env_node into its own run of the
+  // pool. Runs of one link from different nodes are contiguous because the
+  // traversal finishes a link leaf before moving on.
+  std::vector<Candidate>& pool = pool_.entries();
+  const size_t before = pool.size();
+  if (!pool_.CollectFromBvh(capsule_[l], object, env_node)) {
+    overflow_[l] = true;
+    return;
+  }
+  const uint32_t added = static_cast<uint32_t>(pool.size() - before);
+  if (added == 0) return;
+  const uint32_t cap = static_cast<uint32_t>(pool_.max_candidates());
+  // Move the new run next to the link's earlier run, if any.
+  if (count_[l] == 0) {
+    begin_[l] = static_cast<uint32_t>(before);
+  } else if (begin_[l] + count_[l] != before) {
+    std::vector<Candidate> merged(pool.begin() + begin_[l], pool.begin() + begin_[l] + count_[l]);
+    merged.insert(merged.end(), pool.begin() + before, pool.end());
+    pool.resize(before);
+    begin_[l] = static_cast<uint32_t>(pool.size());
+    pool.insert(pool.end(), merged.begin(), merged.end());
+    count_[l] = static_cast<uint32_t>(merged.size());
+    if (count_[l] > cap) overflow_[l] = true;
+    return;
+  }
+  count_[l] += added;
+  if (count_[l] > cap) overflow_[l] = true;
+}
+
+}  // namespace sweptccd::internal

@@ -1,0 +1,46 @@
+#pragma once
+// Internal to the query engine (see docs/DESIGN.md, "core/query"): seeding,
+// the published method's culling step. A BVH over the links' swept bounds for
+// the whole pair is traversed together with each object's BVH; a link whose
+// bound meets no triangle is free for the whole pair, the others start the
+// descent with their candidates listed.
+
+#include <vector>
+
+#include "core/geometry/bvh.h"
+#include "core/query/candidate_pool.h"
+#include "core/query/swept_bounds.h"
+
+namespace sweptccd::internal {
+
+/// The whole-pair candidates of every link. Single-threaded, one per query.
+class RootCandidates {
+ public:
+  /// Collects into `pool` for every link not in `skip` (cleared by the culler
+  /// already) the primitives its whole-pair capsule meets.
+  RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, int num_links,
+                 const std::vector<bool>& skip, CandidatePool* pool);
+
+  /// The link's list (requery when it had too many to list). Empty: the link
+  /// is free for the whole pair.
+  CandidateList ListOf(LinkIndex link) const {
+    return CandidateList{begin_[link], count_[link], static_cast<bool>(overflow_[link])};
+  }
+  bool Empty(LinkIndex link) const { return count_[link] == 0 && !overflow_[link]; }
+
+ private:
+  void CollectDual(const std::vector<LinkIndex>& links, ObjectIndex object, uint32_t env_node);
+  // One link below env_node: appends its candidates next to its earlier run.
+  void CollectOne(LinkIndex link, ObjectIndex object, uint32_t env_node);
+  // Splits the links at the median of their box centres along `axis`.
+  void SplitLinks(std::vector<LinkIndex> live, int axis, ObjectIndex object, uint32_t env_node);
+
+  const EnvironmentTarget& target_;
+  CandidatePool& pool_;
+  std::vector<LinkCapsule> capsule_;
+  std::vector<Aabb> box_;
+  std::vector<uint32_t> begin_, count_;
+  std::vector<bool> overflow_;
+};
+
+}  // namespace sweptccd::internal

@@ -1,0 +1,95 @@
+#pragma once
+// Signed messages: HMAC-SHA256 (libsodium) over the encoded LCM bytes of a
+// message with its last 32 bytes (the `mac` field, last in every type the
+// service receives or publishes) excluded, so a receiver verifies the raw
+// datagram before decoding it. Unsigned mode writes an all-zero mac.
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace sweptccd {
+
+inline constexpr size_t kMacBytes = 32;
+inline constexpr size_t kKeyBytes = 32;
+
+/// A 32-byte HMAC-SHA256 key. Its bytes are wiped when it is destroyed.
+class MacKey {
+ public:
+  explicit MacKey(const std::array<uint8_t, kKeyBytes>& bytes) : bytes_(bytes) {}
+  ~MacKey();
+  MacKey(const MacKey&) = default;
+  MacKey& operator=(const MacKey&) = default;
+  const uint8_t* data() const { return bytes_.data(); }
+
+ private:
+  std::array<uint8_t, kKeyBytes> bytes_;
+};
+
+/// Parses 64 hex digits (surrounding whitespace ignored). Throws InputError
+/// naming `where` and the fix when the text is anything else.
+MacKey ParseKeyHex(std::string_view text, const std::string& where);
+
+/// Reads a key file: a regular file, not readable or writable by group or
+/// others (mode & 077 == 0), holding one key as 64 hex digits. Throws
+/// InputError with one line naming the file and the fix (e.g. chmod 600).
+MacKey LoadKeyFile(const std::string& path);
+
+/// Writes a new random key (libsodium randombytes) as 64 hex digits to
+/// `path`, created with mode 600; refuses to overwrite an existing file.
+/// Throws InputError.
+void WriteNewKeyFile(const std::string& path);
+
+/// Fills the last kMacBytes of `bytes` with the HMAC of the bytes before
+/// them under `key`, or with zeros when `key` is null (unsigned mode).
+/// Precondition: size >= kMacBytes. Thread-safe.
+void SignEncoded(uint8_t* bytes, size_t size, const MacKey* key);
+
+/// True when the last kMacBytes of `bytes` are the HMAC of the bytes before
+/// them under `key` (constant-time compare). False when size < kMacBytes.
+/// Thread-safe.
+bool VerifyEncoded(const void* bytes, size_t size, const MacKey& key);
+
+/// Encodes `msg` (an lcm-gen type whose last field is `byte mac[32]`) and
+/// signs it with `key` (null: unsigned). Publish the result with
+/// lcm::LCM::publish(channel, data, size). Throws std::runtime_error when
+/// the message cannot be encoded.
+template <class T>
+std::vector<uint8_t> EncodeSigned(const T& msg, const MacKey* key) {
+  const int size = msg.getEncodedSize();
+  if (size < static_cast<int>(kMacBytes)) throw std::runtime_error("message too short to sign");
+  std::vector<uint8_t> bytes(static_cast<size_t>(size));
+  if (msg.encode(bytes.data(), 0, size) != size) throw std::runtime_error("cannot encode message");
+  SignEncoded(bytes.data(), bytes.size(), key);
+  return bytes;
+}
+
+/// The keys of a room: per-client keys, a room key for clients without
+/// their own, and the service key that signs what the service publishes
+/// (default: the room key). Immutable once built; thread-safe to read.
+class KeyRing {
+ public:
+  KeyRing() = default;
+  void SetRoomKey(MacKey key) { room_.emplace(key); }
+  void SetServiceKey(MacKey key) { service_.emplace(key); }
+  /// Throws InputError when `client_id` breaks the id rule.
+  void SetClientKey(const std::string& client_id, MacKey key);
+
+  /// The client's own key, else the room key, else null.
+  const MacKey* KeyFor(std::string_view client_id) const;
+  /// The service key, else the room key, else null.
+  const MacKey* ServiceKey() const;
+
+ private:
+  std::optional<MacKey> room_;
+  std::optional<MacKey> service_;
+  std::map<std::string, MacKey, std::less<>> clients_;
+};
+
+}  // namespace sweptccd

@@ -1,0 +1,122 @@
+#include "service/service_flags.h"
+
+#include <CLI/CLI.hpp>
+#include <utility>
+
+#include "core/errors.h"
+#include "core/gpu/backend.h"
+
+namespace sweptccd {
+
+namespace {
+
+// ID=VALUE, both parts non-empty; `flag` names the flag in errors.
+std::pair<std::string, std::string> SplitIdValue(const std::string& text, const char* flag,
+                                                 const char* value_name) {
+  const size_t eq = text.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == text.size()) {
+    throw InputError(std::string(flag) + " '" + text + "': expected ID=" + value_name);
+  }
+  return {text.substr(0, eq), text.substr(eq + 1)};
+}
+
+ClientSpec& ClientNamed(ServiceConfig* config, const std::string& id, const char* flag) {
+  for (ClientSpec& c : config->clients) {
+    if (c.id == id) return c;
+  }
+  throw InputError(std::string(flag) + ": unknown client '" + id + "'");
+}
+
+void ApplyClientFlags(const ServiceFlags& flags, ServiceConfig* config) {
+  for (const std::string& flag : flags.client_flags) {
+    ClientSpec spec;
+    std::tie(spec.id, spec.skeleton_path) = SplitIdValue(flag, "--client", "SKELETON.json");
+    config->clients.push_back(spec);
+  }
+  for (const std::string& flag : flags.filter_flags) {
+    const auto [id, path] = SplitIdValue(flag, "--filter", "VALUE");
+    ClientNamed(config, id, "--filter").filter_path = path;
+  }
+  for (const std::string& flag : flags.ignore_flags) {
+    const auto [id, rule] = SplitIdValue(flag, "--ignore", "VALUE");
+    ClientNamed(config, id, "--ignore").ignore_rules.push_back(rule);
+  }
+}
+
+void SetIfGiven(const std::string& flag, std::string* value) {
+  if (!flag.empty()) *value = flag;
+}
+
+}  // namespace
+
+void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
+  app->add_option("--config", f->config_path, "YAML configuration (see deploy/sweptccd.yaml)");
+  app->add_option("--lcm-url", f->lcm_url, "LCM provider URL (overrides lcm_url)");
+  app->add_option("--env", f->env_paths, "Mesh file; repeat (replaces 'environment')");
+  app->add_option("--client", f->client_flags,
+                  "ID=SKELETON.json: one more client (articulated, no filter); repeat");
+  app->add_option("--eps", f->eps_s, "Time tolerance, seconds");
+  app->add_option("--delta", f->delta_m, "Distance tolerance, metres");
+  app->add_option("--workers", f->workers, "Worker threads")->check(CLI::Range(1, 1024));
+  app->add_option("--backend", f->backend,
+                  "cpu, gpu or auto (auto: the GPU on a hardware EGL device, else the CPU)");
+  app->add_option("--gpu-device", f->gpu_device, "EGL device index for the GPU backend");
+  app->add_flag("--require-hardware", f->require_hardware,
+                "GPU backend: refuse software renderers (llvmpipe)");
+  app->add_option("--status-period", f->status_period_s, "Seconds between status messages")
+      ->check(CLI::Range(0.001, 3600.0));
+  app->add_option("--log-level", f->log_level, "trace, debug, info, warn, error or off");
+  app->add_option("--pose-channel", f->pose_channel, "Channel of tracker_pose_t (in)");
+  app->add_option("--contact-channel", f->contact_channel, "Channel of contact_event_t (out)");
+  app->add_option("--reject-channel", f->reject_channel, "Channel of rejection_t (out)");
+  app->add_option("--status-channel", f->status_channel, "Channel of status_t (out)");
+  app->add_option("--filter", f->filter_flags,
+                  "ID=FILTER.json: a client's collision filter; repeat");
+  app->add_option("--ignore", f->ignore_flags,
+                  "ID=LINK:OBJECT: a client ignores LINK against OBJECT (names, indices or *); "
+                  "repeat");
+  app->add_option("--security-mode", f->security_mode,
+                  "signed (default) or unsigned (lab bench: nothing is authenticated)");
+  app->add_option("--room-key", f->room_key, "Key file (mode 600, 64 hex digits) of the room");
+  app->add_option("--service-key", f->service_key,
+                  "Key file that signs what the service publishes");
+  app->add_option("--client-key", f->client_key_flags, "ID=FILE: a client's own key file; repeat");
+}
+
+void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
+  SetIfGiven(flags.lcm_url, &config->lcm_url);
+  if (!flags.env_paths.empty()) config->environment = flags.env_paths;
+  ApplyClientFlags(flags, config);
+  SetIfGiven(flags.pose_channel, &config->channels.pose);
+  SetIfGiven(flags.contact_channel, &config->channels.contact);
+  SetIfGiven(flags.reject_channel, &config->channels.reject);
+  SetIfGiven(flags.status_channel, &config->channels.status);
+  if (flags.eps_s >= 0) config->query.eps_s = flags.eps_s;
+  if (flags.delta_m >= 0) config->query.delta_m = flags.delta_m;
+  if (flags.workers != 0) config->workers = flags.workers;
+  if (!flags.backend.empty()) config->backend = gpu::ParseBackendKind(flags.backend, "--backend");
+  if (flags.gpu_device != -2) config->gpu_device = flags.gpu_device;
+  if (flags.require_hardware) config->require_hardware = true;
+  if (flags.status_period_s >= 0) config->status_period_s = flags.status_period_s;
+  SetIfGiven(flags.log_level, &config->log_level);
+  SetIfGiven(flags.security_mode, &config->security.mode);
+  SetIfGiven(flags.room_key, &config->security.room_key);
+  SetIfGiven(flags.service_key, &config->security.service_key);
+  for (const std::string& flag : flags.client_key_flags) {
+    const size_t eq = flag.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == flag.size()) {
+      throw InputError("--client-key '" + flag + "': expected ID=FILE");
+    }
+    config->security.client_keys[flag.substr(0, eq)] = flag.substr(eq + 1);
+  }
+}
+
+ServiceConfig BuildServiceConfig(const ServiceFlags& flags) {
+  ServiceConfig config =
+      flags.config_path.empty() ? ServiceConfig() : LoadServiceConfig(flags.config_path);
+  ApplyServiceFlags(flags, &config);
+  ValidateServiceConfig(config);
+  return config;
+}
+
+}  // namespace sweptccd

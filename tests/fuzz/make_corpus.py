@@ -1,0 +1,231 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of the fuzz targets into tests/fuzz/corpus/<target>/.
+
+A few well-formed seeds per target (so the fuzzer starts deep) and every
+known attack case, each file named after what it is. LCM seeds are encoded
+with Python modules lcm-gen writes from msgs/*.lcm into a temporary folder,
+so they carry the current fingerprints: run this again after a change to
+msgs/ (python3 tests/fuzz/make_corpus.py) and commit the result.
+"""
+import gzip
+import importlib
+import pathlib
+import struct
+import subprocess
+import sys
+import tempfile
+
+HERE = pathlib.Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+CORPUS = HERE / "corpus"
+
+
+def write(target, name, data):
+    folder = CORPUS / target
+    folder.mkdir(parents=True, exist_ok=True)
+    if isinstance(data, str):
+        data = data.encode()
+    (folder / name).write_bytes(data)
+
+
+def gz(data):
+    if isinstance(data, str):
+        data = data.encode()
+    return gzip.compress(data, compresslevel=9, mtime=0)
+
+
+CUBE_OBJ = """# unit cube
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+f 1 2 3 4
+f 5 8 7 6
+f 1 5 6 2
+f 2 6 7 3
+f 3 7 8 4
+f 5 1 4 8
+"""
+
+PLY_ASCII = """ply
+format ascii 1.0
+comment one quad, one triangle
+element vertex 4
+property float x
+property float y
+property float z
+element face 2
+property list uchar int vertex_indices
+end_header
+0 0 0
+1 0 0
+1 1 0
+0 1 0
+4 0 1 2 3
+3 0 2 1
+"""
+
+
+def ply_binary():
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 3\n"
+              "property float x\nproperty float y\nproperty float z\n"
+              "element face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    body = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<B3i", 3, 0, 1, 2)
+    return header.encode() + body
+
+
+STL_ASCII = """solid tri
+facet normal 0 0 1
+  outer loop
+    vertex 0 0 0
+    vertex 1 0 0
+    vertex 0 1 0
+  endloop
+endfacet
+endsolid tri
+"""
+
+
+def stl_binary(count, triangles):
+    data = b"binary stl seed".ljust(80, b" ") + struct.pack("<I", count)
+    for _ in range(triangles):
+        data += struct.pack("<12fH", 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0)
+    return data
+
+
+def meshes():
+    write("fuzz_mesh_obj", "cube.obj", CUBE_OBJ)
+    write("fuzz_mesh_obj", "cube.obj.gz", gz(CUBE_OBJ))
+    write("fuzz_mesh_obj", "negative_indices.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")
+    write("fuzz_mesh_obj", "index_out_of_range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    write("fuzz_mesh_ply", "quad_ascii.ply", PLY_ASCII)
+    write("fuzz_mesh_ply", "triangle_binary_le.ply", ply_binary())
+    write("fuzz_mesh_ply", "quad_ascii.ply.gz", gz(PLY_ASCII))
+    # Attack: an element with no properties and a count of 2e9 (a reader that
+    # loops per element spins; one that reserves per count allocates).
+    write("fuzz_mesh_ply", "attack_zero_property_element_count_2e9.ply",
+          "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\n"
+          "element face 0\nproperty list uchar int vertex_indices\nend_header\n")
+    # Attack: a small gzip bomb, 16 MiB of zeros in 16 KiB (ratio ~1000).
+    write("fuzz_mesh_ply", "attack_gzip_bomb_16MiB.ply.gz",
+          gz(PLY_ASCII.encode() + bytes(16 << 20)))
+    write("fuzz_mesh_stl", "triangle_ascii.stl", STL_ASCII)
+    write("fuzz_mesh_stl", "triangle_binary.stl", stl_binary(1, 1))
+    write("fuzz_mesh_stl", "triangle_binary.stl.gz", gz(stl_binary(1, 1)))
+    # Attack: a binary STL announcing 2^32-1 triangles and holding one.
+    write("fuzz_mesh_stl", "attack_binary_count_4294967295.stl", stl_binary(0xFFFFFFFF, 1))
+
+
+SKELETON = """{"name": "example", "links": [
+  {"name": "pelvis", "parent": null, "a": [0, 0, 0], "b": [0, 0.20, 0], "radius": 0.12},
+  {"name": "spine", "parent": "pelvis", "a": [0, 0, 0], "b": [0, 0.30, 0], "radius": 0.10},
+  {"name": "head", "parent": "spine", "a": [0, 0, 0], "b": [0, 0, 0], "radius": 0.09}]}
+"""
+
+
+def text_parsers():
+    write("fuzz_skeleton", "spec_example.json", SKELETON)
+    write("fuzz_skeleton", "loop.json",
+          '{"name": "l", "links": [{"name": "a", "parent": "b", "a": [0,0,0], "b": [0,0,0], "radius": 1},'
+          ' {"name": "b", "parent": "a", "a": [0,0,0], "b": [0,0,0], "radius": 1}]}')
+    write("fuzz_skeleton", "deep_nesting.json", "[" * 1500 + "]" * 1500)
+    # Pose lines: the first byte picks the link count (1 + byte % 64).
+    write("fuzz_pose", "two_links.bin",
+          b"\x01" + b'{"utime": 1000000, "links": [[0, 0, 0, 1, 0, 0, 0], [0.1, 0.2, 0.3, 0.7071, 0.7071, 0, 0]]}')
+    write("fuzz_pose", "zero_quaternion.bin", b"\x00" + b'{"utime": 5, "links": [[0, 0, 0, 0, 0, 0, 0]]}')
+    write("fuzz_pose", "huge_coordinate.bin", b"\x00" + b'{"utime": 5, "links": [[1e300, 0, 0, 1, 0, 0, 0]]}')
+    write("fuzz_pose", "utime_overflow.bin", b"\x00" + b'{"utime": 18446744073709551616, "links": [[0, 0, 0, 1, 0, 0, 0]]}')
+    write("fuzz_filter", "by_name_and_index.json",
+          '{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"},'
+          ' {"link": 2, "object": "*"}]}')
+    write("fuzz_filter", "bad_index.json", '{"ignore": [{"link": -1, "object": 99}]}')
+    write("fuzz_config", "deploy_sweptccd.yaml", (ROOT / "deploy" / "sweptccd.yaml").read_bytes())
+    write("fuzz_config", "minimal.yaml",
+          "environment: [room.ply]\nclients:\n  - {id: alice, skeleton: a.json, ignore: ['foot_l:0']}\n")
+    write("fuzz_config", "anchors_and_tags.yaml",
+          "base: &b {id: a, skeleton: s.json}\nenvironment: [!!str x.ply]\nclients: [*b, *b]\nworkers: 0x10\n")
+
+
+def lcm_types(tmp):
+    subprocess.run(["lcm-gen", "--python", "--ppath", str(tmp)] + sorted(map(str, (ROOT / "msgs").glob("*.lcm"))),
+                   check=True)
+    sys.path.insert(0, str(tmp))
+    return importlib.import_module("sweptccd")
+
+
+def record(m, link):
+    r = m.contact_record_t()
+    r.link, r.object, r.triangle, r.s = link, 0, 17, 0.25
+    r.point_link, r.point_env, r.normal = [0.1, 0.2, 0.3], [0.1, 0.2, 0.25], [0, 0, 1]
+    r.separation = -0.001
+    return r
+
+
+def messages(m):
+    fp = {name: getattr(m, name)._get_packed_fingerprint()
+          for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t",
+                       "contact_record_t", "link_bracket_t")}
+    p = m.tracker_pose_t()
+    p.utime, p.client_id, p.seq, p.num_links = 1000000, "alice", 7, 2
+    p.position = [[0, 0, 1], [0, 0.2, 1]]
+    p.orientation = [[1, 0, 0, 0], [0.7071, 0.7071, 0, 0]]
+    write("fuzz_decode_tracker_pose_t", "two_links.lcm", p.encode())
+    # Attack: client_id length INT32_MIN, 36 bytes in all.
+    write("fuzz_decode_tracker_pose_t", "attack_client_id_length_int32_min.lcm",
+          fp["tracker_pose_t"] + struct.pack(">qi", 1, -2**31) + bytes(16))
+    # Attack: num_links = 2^26 in a short message (arrays sized from it).
+    write("fuzz_decode_tracker_pose_t", "attack_num_links_2pow26.lcm",
+          fp["tracker_pose_t"] + struct.pack(">qi", 1, 2) + b"a\x00" + struct.pack(">qi", 1, 2**26) + bytes(48))
+    s = m.status_t()
+    s.utime, s.backend, s.renderer, s.num_clients = 5, "gpu", "llvmpipe", 1
+    s.client_id, s.poses_received, s.pairs_answered, s.pairs_skipped = ["alice"], [10], [9], [0]
+    s.rejected, s.seq_gaps, s.latency_median_us, s.latency_p99_us = [1], [0], [800.0], [2100.0]
+    s.queue_depth, s.dropped_total, s.rejected_unattributed = 0, 0, 3
+    write("fuzz_decode_status_t", "one_client.lcm", s.encode())
+    # Attack: 2^24 clients announced in a short message.
+    write("fuzz_decode_status_t", "attack_num_clients_2pow24.lcm",
+          fp["status_t"] + struct.pack(">q", 5) + struct.pack(">i", 4) + b"cpu\x00" +
+          struct.pack(">i", 1) + b"\x00" + struct.pack(">i", 2**24) + bytes(16))
+    e = m.contact_event_t()
+    e.utime, e.client_id, e.seq0, e.seq1, e.pair, e.utime0, e.utime1 = 9, "alice", 6, 7, 0, 100, 200
+    e.result, e.error, e.initially_colliding, e.undecided = 1, "", False, False
+    e.s_lo, e.s_hi, e.t_lo, e.t_hi = 0.25, 0.2501, 125.0, 125.01
+    e.num_contacts, e.contacts = 1, [record(m, 1)]
+    b = m.link_bracket_t()
+    b.link, b.s_lo, b.s_hi, b.t_lo, b.t_hi = 1, 0.25, 0.2501, 125.0, 125.01
+    b.initially_colliding, b.undecided, b.has_witness, b.witness = False, False, True, record(m, 1)
+    e.num_links, e.links = 1, [b]
+    e.receive_utime, e.compute_us, e.queue_us, e.skipped_pairs_total = 300, 40.0, 2.0, 0
+    write("fuzz_decode_contact_event_t", "contact_per_link.lcm", e.encode())
+    write("fuzz_decode_contact_event_t", "attack_num_contacts_2pow26.lcm",
+          e.encode()[:8 + 8 + 4 + 6 + 6 * 8 + 1 + 4 + 1 + 2 + 32] + struct.pack(">i", 2**26))
+    write("fuzz_decode_contact_record_t", "record.lcm", record(m, 3).encode())
+    write("fuzz_decode_link_bracket_t", "bracket.lcm", b.encode())
+    r = m.rejection_t()
+    r.utime, r.client_id, r.seq, r.reason, r.message = 1, "mallory", -1, "decode_error", "bad"
+    write("fuzz_decode_rejection_t", "decode_error.lcm", r.encode())
+    write("fuzz_decode_rejection_t", "attack_reason_length_int32_min.lcm",
+          fp["rejection_t"] + struct.pack(">q", 1) + struct.pack(">i", 1) + b"\x00" +
+          struct.pack(">q", -1) + struct.pack(">i", -2**31) + bytes(8))
+
+
+def main():
+    # Reproducers the fuzzer found (crash_*) are kept; everything else is
+    # written again.
+    for old in CORPUS.glob("*/*"):
+        if not old.name.startswith("crash_"):
+            old.unlink()
+    meshes()
+    text_parsers()
+    with tempfile.TemporaryDirectory() as tmp:
+        messages(lcm_types(pathlib.Path(tmp)))
+    for folder in sorted(CORPUS.iterdir()):
+        print(f"{folder.name}: {len(list(folder.iterdir()))} seeds")
+
+
+if __name__ == "__main__":
+    main()

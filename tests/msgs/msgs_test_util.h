@@ -1,0 +1,133 @@
+#pragma once
+// Seeded random valid messages of every type the service sends or receives.
+
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/rejection_t.hpp"
+#include "sweptccd/status_t.hpp"
+#include "sweptccd/tracker_pose_t.hpp"
+
+namespace sweptccd::testing {
+
+class RandomMessages {
+ public:
+  explicit RandomMessages(uint64_t seed) : rng_(seed) {}
+
+  int64_t Int() { return static_cast<int64_t>(rng_()); }
+  double Real() { return std::uniform_real_distribution<double>(-1e3, 1e3)(rng_); }
+  int Below(int n) { return static_cast<int>(rng_() % static_cast<uint64_t>(n)); }
+  // Printable and hostile bytes alike, but no NUL (LCM strings are C strings).
+  std::string Text(int max_length) {
+    std::string s(static_cast<size_t>(Below(max_length + 1)), 'x');
+    for (char& c : s) c = static_cast<char>(1 + Below(255));
+    return s;
+  }
+  void Mac(uint8_t mac[32]) {
+    for (int i = 0; i < 32; ++i) mac[i] = static_cast<uint8_t>(Below(256));
+  }
+
+  tracker_pose_t Pose() {
+    tracker_pose_t m;
+    m.utime = Int();
+    m.client_id = Text(20);
+    m.session = Int();
+    m.seq = Int();
+    m.num_links = Below(6);
+    m.position.assign(m.num_links, std::vector<double>(3));
+    m.orientation.assign(m.num_links, std::vector<double>(4));
+    for (auto& p : m.position) for (double& v : p) v = Real();
+    for (auto& q : m.orientation) for (double& v : q) v = Real();
+    Mac(m.mac);
+    return m;
+  }
+  contact_record_t Record() {
+    contact_record_t r;
+    r.link = static_cast<int32_t>(Int());
+    r.object = static_cast<int32_t>(Int());
+    r.triangle = Int();
+    r.s = Real();
+    for (int k = 0; k < 3; ++k) {
+      r.point_link[k] = Real();
+      r.point_env[k] = Real();
+      r.normal[k] = Real();
+    }
+    r.separation = Real();
+    return r;
+  }
+  contact_event_t Contact() {
+    contact_event_t e;
+    e.utime = Int();
+    e.client_id = Text(20);
+    e.seq0 = Int(), e.seq1 = Int(), e.pair = Int(), e.utime0 = Int(), e.utime1 = Int();
+    e.result = static_cast<int8_t>(Below(3));
+    e.error = Text(30);
+    e.initially_colliding = Below(2), e.undecided = Below(2);
+    e.s_lo = Real(), e.s_hi = Real(), e.t_lo = Real(), e.t_hi = Real();
+    e.num_contacts = Below(4);
+    for (int i = 0; i < e.num_contacts; ++i) e.contacts.push_back(Record());
+    e.num_links = Below(4);
+    for (int i = 0; i < e.num_links; ++i) {
+      link_bracket_t b;
+      b.link = static_cast<int32_t>(Int());
+      b.s_lo = Real(), b.s_hi = Real(), b.t_lo = Real(), b.t_hi = Real();
+      b.initially_colliding = Below(2), b.undecided = Below(2), b.has_witness = Below(2);
+      b.witness = Record();
+      e.links.push_back(b);
+    }
+    e.receive_utime = Int();
+    e.compute_us = Real(), e.queue_us = Real();
+    e.skipped_pairs_total = Int();
+    Mac(e.mac);
+    return e;
+  }
+  rejection_t Rejection() {
+    rejection_t r;
+    r.utime = Int();
+    r.client_id = Text(20);
+    r.seq = Int();
+    r.reason = Text(20);
+    r.message = Text(60);
+    r.suppressed = Int();
+    Mac(r.mac);
+    return r;
+  }
+  status_t Status() {
+    status_t s;
+    s.utime = Int();
+    s.backend = Text(10);
+    s.renderer = Text(10);
+    s.security = Text(8);
+    s.num_clients = Below(5);
+    for (int i = 0; i < s.num_clients; ++i) {
+      s.client_id.push_back(Text(12));
+      s.poses_received.push_back(Int());
+      s.pairs_answered.push_back(Int());
+      s.pairs_skipped.push_back(Int());
+      s.rejected.push_back(Int());
+      s.seq_gaps.push_back(Int());
+      s.latency_median_us.push_back(Real());
+      s.latency_p99_us.push_back(Real());
+    }
+    s.queue_depth = static_cast<int32_t>(Int());
+    s.dropped_total = Int();
+    s.rejected_unattributed = Int();
+    Mac(s.mac);
+    return s;
+  }
+
+ private:
+  std::mt19937_64 rng_;
+};
+
+template <class T>
+std::vector<uint8_t> Encode(const T& msg) {
+  std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
+  msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  return bytes;
+}
+
+}  // namespace sweptccd::testing

@@ -1,0 +1,142 @@
+// The daemon's loop on memq:// (in-process, never the network): built from a
+// configuration like sweptccd-service's, started, fed poses, stopped; the
+// answers checked against the engine. Waits on WaitUntilIdle, never sleeps.
+#include "service/daemon/daemon.h"
+
+#include <gtest/gtest.h>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "core/errors.h"
+#include "service/collision_service.h"
+#include "tests/service/service_test_util.h"
+
+namespace sweptccd {
+namespace {
+
+using test::Sample;
+
+ServiceConfig MemqConfig(const std::string& test_name) {
+  const std::string dir = test::TestDir("daemon_test_" + test_name);
+  ServiceConfig config;
+  config.lcm_url = "memq://";
+  config.environment = {test::WriteFloorObj(dir)};
+  const std::string skeleton = test::WriteTwoLinkSkeleton(dir);
+  for (const char* id : {"a", "b"}) {
+    ClientSpec spec;
+    spec.id = id;
+    spec.skeleton_path = skeleton;
+    config.clients.push_back(spec);
+  }
+  config.backend = gpu::BackendKind::kCpu;
+  config.status_period_s = 3600;  // No timer status unless a test asks for it.
+  config.log_level = "warn";
+  ValidateServiceConfig(config);
+  return config;
+}
+
+TEST(DaemonTest, AnswersEveryPairThenStopsWithAFinalStatus) {
+  Daemon daemon(MemqConfig("answers"));
+  test::Listener listener;
+  listener.SubscribeTo(daemon.lcm());
+  daemon.Start();
+  constexpr int kPoses = 16;  // Contact from pose 13 on (Height <= 0.1 m).
+  for (int64_t k = 0; k < kPoses; ++k) {
+    for (const char* id : {"a", "b"}) {
+      const tracker_pose_t m = Sample(id, k);
+      ASSERT_EQ(daemon.lcm()->publish("SWEPTCCD_POSE", &m), 0);
+    }
+    daemon.WaitUntilIdle();  // One pose per client at a time: no latest-wins skipping.
+    ASSERT_EQ(listener.contacts().size(), static_cast<size_t>(2 * k)) << "after pose " << k;
+  }
+  const tracker_pose_t stranger = Sample("nobody", 0);
+  daemon.lcm()->publish("SWEPTCCD_POSE", &stranger);
+  daemon.WaitUntilIdle();
+  ASSERT_EQ(listener.rejections().size(), 1u);
+  EXPECT_EQ(listener.rejections()[0].reason, rejection_code::kUnknownClient);
+
+  daemon.Stop();
+  daemon.WaitUntilIdle();  // After Stop: delivers what Stop published.
+  const std::vector<status_t> statuses = listener.statuses();
+  ASSERT_EQ(statuses.size(), 1u) << "Stop publishes one last status";
+  EXPECT_EQ(statuses[0].backend, "cpu");
+  EXPECT_EQ(statuses[0].rejected_unattributed, 1);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(statuses[0].pairs_answered[i], kPoses - 1);
+
+  const auto skeleton = test::TwoLinkSkeleton();
+  const auto env = test::FloorEnvironment();
+  int contact = 0;
+  for (const char* id : {"a", "b"}) {
+    int64_t next = 0;
+    for (const contact_event_t& e : listener.contacts()) {
+      if (e.client_id != id) continue;
+      SCOPED_TRACE(std::string(id) + " pair " + std::to_string(next));
+      EXPECT_EQ(e.pair, next);
+      test::ExpectMatchesEngine(e, Sample(id, next), Sample(id, next + 1), *skeleton, *env,
+                                QueryOptions{});
+      contact += e.result == contact_event_t::RESULT_CONTACT;
+      ++next;
+    }
+    EXPECT_EQ(next, kPoses - 1);
+  }
+  EXPECT_GT(contact, 0);
+
+  // Stopped: poses are no longer taken, and Stop stays idempotent.
+  const tracker_pose_t late = Sample("a", kPoses);
+  daemon.lcm()->publish("SWEPTCCD_POSE", &late);
+  daemon.WaitUntilIdle();
+  EXPECT_EQ(listener.contacts().size(), static_cast<size_t>(2 * (kPoses - 1)));
+  daemon.Stop();
+}
+
+TEST(DaemonTest, PublishesStatusOnItsTimer) {
+  ServiceConfig config = MemqConfig("timer");
+  config.status_period_s = 0.001;
+  Daemon daemon(config);
+  test::Listener listener;
+  listener.SubscribeTo(daemon.lcm());
+  daemon.Start();
+  // Statuses are published and delivered by the loop thread alone.
+  ASSERT_TRUE(listener.WaitForStatuses(3));
+  daemon.Stop();
+  EXPECT_EQ(listener.statuses()[0].num_clients, 2);
+}
+
+TEST(DaemonTest, StopWithoutStartAnswersWhatWasQueued) {
+  Daemon daemon(MemqConfig("no_start"));
+  test::Listener listener;
+  listener.SubscribeTo(daemon.lcm());
+  for (int64_t k = 0; k < 2; ++k) {
+    const tracker_pose_t m = Sample("a", k);
+    daemon.lcm()->publish("SWEPTCCD_POSE", &m);
+  }
+  daemon.WaitUntilIdle();  // No loop: handled on this thread.
+  ASSERT_EQ(listener.contacts().size(), 1u);
+  daemon.Stop();
+}
+
+TEST(DaemonTest, RefusesWhatItCannotBuild) {
+  ServiceConfig config = MemqConfig("refusals");
+  ServiceConfig bad_level = config;
+  bad_level.log_level = "loud";
+  try {
+    Daemon daemon(bad_level);
+    ADD_FAILURE() << "an unknown log level was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("loud"), std::string::npos) << e.what();
+  }
+  ServiceConfig missing_mesh = config;
+  missing_mesh.environment = {config.environment[0] + ".missing.obj"};
+  EXPECT_THROW(Daemon{missing_mesh}, InputError);
+  ServiceConfig bad_url = config;
+  bad_url.lcm_url = "nosuchprovider://";
+  try {
+    Daemon daemon(bad_url);
+    ADD_FAILURE() << "an unusable LCM URL was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("nosuchprovider://"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace sweptccd

@@ -1,0 +1,84 @@
+// sweptccd-service's flags over the YAML configuration: what each overrides,
+// what is left alone, and refusals that name the flag.
+#include "service/service_flags.h"
+
+#include <gtest/gtest.h>
+
+#include <CLI/CLI.hpp>
+
+#include "core/errors.h"
+
+namespace sweptccd {
+namespace {
+
+void ExpectRefused(const ServiceFlags& flags, ServiceConfig config, const std::string& needle) {
+  try {
+    ApplyServiceFlags(flags, &config);
+    ADD_FAILURE() << "accepted; expected a refusal naming '" << needle << "'";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
+  CLI::App app;
+  ServiceFlags flags;
+  AddServiceFlags(&app, &flags);
+  const char* argv[] = {"sweptccd-service", "--lcm-url", "memq://",   "--client",  "a=a.json",
+                        "--client",         "b=b.json",  "--filter",  "b=f.json",  "--ignore",
+                        "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
+                        "--gpu-device",     "-1",        "--workers", "3"};
+  app.parse(static_cast<int>(std::size(argv)), argv);
+  ServiceConfig config;
+  config.environment = {"room.ply"};
+  ClientSpec from_file;
+  from_file.id = "yaml";
+  from_file.skeleton_path = "y.json";
+  config.clients.push_back(from_file);
+  config.gpu_device = 2;
+  ApplyServiceFlags(flags, &config);
+  EXPECT_EQ(config.lcm_url, "memq://");
+  EXPECT_EQ(config.environment, std::vector<std::string>{"room.ply"});  // Not given: kept.
+  ASSERT_EQ(config.clients.size(), 3u);  // Appended to the file's clients.
+  EXPECT_EQ(config.clients[1].id, "a");
+  EXPECT_EQ(config.clients[1].skeleton_path, "a.json");
+  EXPECT_EQ(config.clients[1].ignore_rules, std::vector<std::string>{"arm:*"});
+  EXPECT_EQ(config.clients[2].filter_path, "f.json");
+  EXPECT_EQ(config.query.eps_s, 1e-5);
+  EXPECT_EQ(config.query.delta_m, QueryOptions{}.delta_m);
+  EXPECT_EQ(config.backend, gpu::BackendKind::kCpu);
+  EXPECT_EQ(config.gpu_device, -1);  // -1 is a value, not "not given".
+  EXPECT_EQ(config.workers, 3);
+  EXPECT_EQ(config.log_level, "info");
+  EXPECT_NO_THROW(ValidateServiceConfig(config));
+}
+
+TEST(ServiceFlagsTest, RefusalsNameTheFlag) {
+  ServiceConfig config;
+  ServiceFlags f;
+  f.client_flags = {"novalue="};
+  ExpectRefused(f, config, "--client 'novalue='");
+  f = {};
+  f.client_flags = {"a=a.json"};
+  f.filter_flags = {"b=f.json"};
+  ExpectRefused(f, config, "--filter: unknown client 'b'");
+  f.filter_flags = {};
+  f.ignore_flags = {"a"};
+  ExpectRefused(f, config, "--ignore 'a'");
+  f = {};
+  f.backend = "tpu";
+  ExpectRefused(f, config, "--backend must be cpu, gpu or auto, got 'tpu'");
+}
+
+TEST(ServiceFlagsTest, BuildValidatesTheMergedConfiguration) {
+  ServiceFlags flags;
+  EXPECT_THROW(BuildServiceConfig(flags), InputError);  // No environment, no clients.
+  flags.env_paths = {"room.ply"};
+  flags.client_flags = {"a=a.json"};
+  const ServiceConfig config = BuildServiceConfig(flags);
+  EXPECT_EQ(config.clients.size(), 1u);
+  EXPECT_EQ(config.backend, gpu::BackendKind::kAuto);
+}
+
+}  // namespace
+}  // namespace sweptccd
