@@ -27,7 +27,8 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   const char* argv[] = {"sweptccd-service", "--lcm-url", "memq://",   "--client",  "a=a.json",
                         "--client",         "b=b.json",  "--filter",  "b=f.json",  "--ignore",
                         "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
-                        "--gpu-device",     "-1",        "--workers", "3"};
+                        "--gpu-device",     "-1",        "--workers", "3",
+                        "--max-pose-rate",  "500",       "--security-mode", "unsigned"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};
@@ -49,6 +50,7 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   EXPECT_EQ(config.backend, gpu::BackendKind::kCpu);
   EXPECT_EQ(config.gpu_device, -1);  // -1 is a value, not "not given".
   EXPECT_EQ(config.workers, 3);
+  EXPECT_EQ(config.max_pose_rate_hz, 500);
   EXPECT_EQ(config.log_level, "info");
   EXPECT_NO_THROW(ValidateServiceConfig(config));
 }
@@ -75,6 +77,7 @@ TEST(ServiceFlagsTest, BuildValidatesTheMergedConfiguration) {
   EXPECT_THROW(BuildServiceConfig(flags), InputError);  // No environment, no clients.
   flags.env_paths = {"room.ply"};
   flags.client_flags = {"a=a.json"};
+  flags.security_mode = "unsigned";
   const ServiceConfig config = BuildServiceConfig(flags);
   EXPECT_EQ(config.clients.size(), 1u);
   EXPECT_EQ(config.backend, gpu::BackendKind::kAuto);
