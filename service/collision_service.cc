@@ -112,6 +112,7 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   const int64_t receive_utime = NowUtime();
   const SteadyClock::time_point receive_time = SteadyClock::now();
   std::optional<Rejection> rejection;
+  bool attributed = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_) {
@@ -130,12 +131,14 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
                             "client_id '" + pose.client_id +
                                 "' is not registered; register it in the service configuration"};
     } else {
+      attributed = true;
       rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
     }
   }
   if (rejection) {
     // An id that breaks the rule is not echoed in rejection_t.client_id.
-    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection);
+    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection,
+           attributed);
   }
 }
 
@@ -169,7 +172,7 @@ void CollisionService::OnRefused(const std::string& client_id, const Rejection& 
     }
     ++rejected_unattributed_;
   }
-  Reject(client_id, -1, rejection);
+  Reject(client_id, -1, rejection, /*attributed=*/false);
 }
 
 void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
@@ -185,17 +188,19 @@ void CollisionService::OnUndecodable(const std::string& channel, const std::stri
          Rejection{rejection_code::kDecodeError,
                    "message on channel " + channel + " could not be decoded as " +
                        "sweptccd.tracker_pose_t (" + problem +
-                       "); publish tracker_pose_t built from this service's msgs/"});
+                       "); publish tracker_pose_t built from this service's msgs/"},
+         /*attributed=*/false);
 }
 
 void CollisionService::Reject(const std::string& client_id, int64_t seq,
-                              const Rejection& rejection) {
+                              const Rejection& rejection, bool attributed) {
   const int64_t now_us = NowUtime();
   int64_t held_back = 0;
   {
+    // Rejections no registered client can be blamed for (unknown or bad ids,
+    // bad signatures, undecodable bytes) share the key "": forging a client's
+    // id cannot spend that client's budget.
     std::lock_guard<std::mutex> lock(mutex_);
-    // Unattributed rejections (no registered sender) share one key.
-    const bool attributed = client_index_.count(client_id) > 0;
     held_back = rejection_throttle_.Admit(attributed ? client_id : "", now_us);
   }
   LogRejection(client_id, seq, rejection, now_us);

@@ -138,7 +138,10 @@ class CollisionService {
 
   void WorkerLoop();
   contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
-  void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection);
+  // Publishes through the throttle, keyed by client_id when `attributed` (the
+  // pose came from that registered client), else by "".
+  void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection,
+              bool attributed);
   // Under mutex_: the rejection (if any) of a pose of the registered client
   // `index`, rate limit first; queues the client when a pair became ready.
   std::optional<Rejection> AdmitLocked(int index, const tracker_pose_t& pose,

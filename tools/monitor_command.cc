@@ -284,10 +284,15 @@ class Monitor {
                 {"seq", r.seq},
                 {"reason", r.reason},
                 {"message", r.message},
+                {"suppressed", r.suppressed},
                 {"utime", r.utime}});
     } else {
-      Show(fmt::format("reject {} seq {} {}: {}", Name(r.client_id), r.seq,
-                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024)));
+      // The count held back since the previous published one, at the end so
+      // that the fields before keep their places.
+      Show(fmt::format("reject {} seq {} {}: {}{}", Name(r.client_id), r.seq,
+                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024),
+                       r.suppressed > 0 ? fmt::format(" [{} suppressed before]", r.suppressed)
+                                        : std::string()));
     }
   }
 

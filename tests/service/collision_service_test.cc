@@ -459,11 +459,14 @@ TEST_F(RateLimitTest, TenThousandUnknownPosesPublishABoundedCountThatAddsUp) {
   EXPECT_EQ(service->rejections_suppressed(), SuppressedSum());
 }
 
-TEST_F(RateLimitTest, AFloodOfUnknownIdsDoesNotSilenceARegisteredClientsRejections) {
+// Unknown ids and forged signatures in a registered client's name share the
+// key "": they cannot spend that client's own budget.
+TEST_F(RateLimitTest, AFloodOfUnknownIdsAndForgeriesDoesNotSilenceAClientsRejections) {
   auto service = MakeWith({"good"}, LimitedOptions());
   for (int64_t k = 0; k < 1000; ++k) {
     now_us_ = 1'000'000 + k * 100;
     service->OnPose(Sample("stranger", k));
+    service->OnRefused("good", Rejection{rejection_code::kBadSignature, "forged"});
   }
   service->OnPose(Sample("good", 5));
   tracker_pose_t replay = Sample("good", 5);

@@ -23,8 +23,11 @@
 //     Subscribes to contact events, touches READY_FILE once subscribed, and
 //     collects until every ID has an event ending at the last pose (or fails
 //     after TIMEOUT_S). Checks per client: pair numbers 0, 1, ... without
-//     gaps, the events chain the poses (seq0 = previous seq1, first seq0 0,
-//     last seq1 the last pose), poses - 1 = answered + skipped, and every
+//     gaps, the events chain the poses (seq0 = previous seq1, first seq0 0),
+//     answered + skipped + seq_gaps (poses the daemon reports it never
+//     received, from a status_t published after the last event) = the last
+//     answered pose, poses lost after it are printed (a client is done at
+//     the last pose, or 3 s after its events stop), and every
 //     event equals `sweptccd query`: consecutive pairs against EXPECTED
 //     line seq0, a skipped-over pair against `sweptccd query` run on the
 //     two-line pose file (seq0, seq1).
@@ -47,6 +50,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -73,6 +77,7 @@ namespace {
 using sweptccd::kContactChannel;
 using sweptccd::kPoseChannel;
 using sweptccd::kRejectChannel;
+using sweptccd::kStatusChannel;
 
 std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose, verifies every answer.
 
@@ -87,6 +92,7 @@ void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
 struct Receiver {
   std::vector<sweptccd::contact_event_t> events;
   std::vector<sweptccd::rejection_t> rejections;
+  std::optional<sweptccd::status_t> status;  // The newest.
   template <class T>
   static T Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     sweptccd::DecodeResult<T> r = sweptccd::DecodeChecked<T>(rbuf->data, rbuf->data_size, {});
@@ -106,6 +112,9 @@ struct Receiver {
   }
   void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     rejections.push_back(Checked<sweptccd::rejection_t>(rbuf, channel));
+  }
+  void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    status = Checked<sweptccd::status_t>(rbuf, channel);
   }
 };
 
@@ -241,23 +250,47 @@ int Collect(int argc, char** argv) {
   const int64_t last = static_cast<int64_t>(poses.size()) - 1;
   Receiver rx;
   lcm.subscribe(kContactChannel, &Receiver::On, &rx);
+  lcm.subscribe(kStatusChannel, &Receiver::OnStatus, &rx);
   { std::ofstream ready(argv[8]); ready << "ready\n"; }
   std::map<std::string, std::vector<sweptccd::contact_event_t>> by_id;
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(timeout_s));
   size_t seen = 0;
+  // A client is done at its event ending at the last pose, or (the last
+  // poses lost on the way) once its events have stopped for kQuiet.
+  constexpr auto kQuiet = std::chrono::seconds(3);
+  auto last_event = std::chrono::steady_clock::now();
   auto done = [&] {
+    const bool quiet = std::chrono::steady_clock::now() - last_event > kQuiet;
     for (const auto& id : ids) {
       const auto it = by_id.find(id);
-      if (it == by_id.end() || it->second.empty() || it->second.back().seq1 != last) return false;
+      if (it == by_id.end() || it->second.empty()) return false;
+      if (it->second.back().seq1 != last && !quiet) return false;
     }
     return true;
   };
   while (!done() && std::chrono::steady_clock::now() < deadline) {
     lcm.handleTimeout(20);
+    if (seen < rx.events.size()) last_event = std::chrono::steady_clock::now();
     for (; seen < rx.events.size(); ++seen) by_id[rx.events[seen].client_id].push_back(rx.events[seen]);
   }
+  // seq_gaps (poses the daemon never received) from a status published after
+  // the last event; bounded wait.
+  int64_t newest_event_utime = 0;
+  for (const auto& e : rx.events) newest_event_utime = std::max(newest_event_utime, e.utime);
+  for (int waited_ms = 0; waited_ms < 10000 && (!rx.status || rx.status->utime <= newest_event_utime);
+       waited_ms += 20) {
+    lcm.handleTimeout(20);
+  }
+  auto status_of = [&](const std::string& id, const char* field) -> int64_t {
+    if (!rx.status) return 0;
+    for (int32_t i = 0; i < rx.status->num_clients; ++i) {
+      if (rx.status->client_id[i] != id) continue;
+      return std::string(field) == "seq_gaps" ? rx.status->seq_gaps[i] : rx.status->rate_limited[i];
+    }
+    return 0;
+  };
   int failures = 0;
   if (!done()) {
     std::fprintf(stderr, "e2e_tool collect: not every client answered up to pose %lld within %g s\n",
@@ -329,14 +362,30 @@ int Collect(int argc, char** argv) {
       }
     }
     const int64_t skipped = ev.empty() ? 0 : ev.back().skipped_pairs_total;
-    if (static_cast<int64_t>(ev.size()) + skipped != last) {
-      std::fprintf(stderr, "e2e_tool collect: %s: %zu answered + %lld skipped != %lld poses - 1\n",
-                   id.c_str(), ev.size(), static_cast<long long>(skipped),
-                   static_cast<long long>(last + 1));
+    // UDP may lose poses before the daemon reads them: the daemon counts
+    // those between received poses in status_t.seq_gaps; lost trailing poses
+    // (after the last event) are counted apart and printed.
+    const int64_t gaps = status_of(id, "seq_gaps");
+    const int64_t final_seq1 = ev.empty() ? 0 : ev.back().seq1;
+    const int64_t trailing = last - final_seq1;
+    if (!rx.status || rx.status->utime <= newest_event_utime) {
+      std::fprintf(stderr, "e2e_tool collect: no status_t after the last event within 10 s\n");
       ++failures;
     }
-    std::printf("e2e_tool collect: %s: %zu events, %lld skipped\n", id.c_str(), ev.size(),
-                static_cast<long long>(skipped));
+    if (static_cast<int64_t>(ev.size()) + skipped + gaps != final_seq1) {
+      std::fprintf(stderr,
+                   "e2e_tool collect: %s: %zu answered + %lld skipped + %lld seq_gaps != %lld "
+                   "(last answered pose)\n",
+                   id.c_str(), ev.size(), static_cast<long long>(skipped),
+                   static_cast<long long>(gaps), static_cast<long long>(final_seq1));
+      ++failures;
+    }
+    std::printf("e2e_tool collect: %s: %zu events, %lld skipped, %lld seq_gaps, %lld lost at the "
+                "end, %lld rate_limited (poses %lld)\n",
+                id.c_str(), ev.size(), static_cast<long long>(skipped),
+                static_cast<long long>(gaps), static_cast<long long>(trailing),
+                static_cast<long long>(status_of(id, "rate_limited")),
+                static_cast<long long>(last + 1));
   }
   std::printf("e2e_tool collect: %d events compared (%d skipped-over pairs), %d failures\n",
               compared, nonconsecutive, failures);
