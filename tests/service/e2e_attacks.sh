@@ -48,11 +48,11 @@ daemon=$!
 monitor= collector= publisher=
 trap 'kill -KILL $daemon $monitor $collector $publisher 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
-"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --all --timeout 120 \
+"$sweptccd" monitor --lcm-url "$url&recv_buf_size=2097152" --key "$work/room.key" --json --all --timeout 120 \
   > "$work/monitor.out" 2> "$work/monitor.err" &
 monitor=$!
 wait_for "$work/monitor.out" listening
-timeout 100 "$tool" --key "$work/room.key" collect "$url" "$work/poses.jsonl" \
+timeout 100 "$tool" --key "$work/room.key" --skip-forged collect "$url&recv_buf_size=2097152" "$work/poses.jsonl" \
   "$work/expected.jsonl" "$sweptccd" "$work/skeleton.json" "$env_ply" "$work/collect.ready" 90 \
   alice > "$work/collect.out" 2>&1 &
 collector=$!

@@ -27,7 +27,9 @@
 //     answered + skipped + seq_gaps (poses the daemon reports it never
 //     received, from a status_t published after the last event) = the last
 //     answered pose, poses lost after it are printed (a client is done at
-//     the last pose, or 3 s after its events stop), and every
+//     the last pose, or 3 s after its events stop; with --skip-forged, events
+//     lost before this subscriber read them are counted and the chain
+//     resumes after them), and every
 //     event equals `sweptccd query`: consecutive pairs against EXPECTED
 //     line seq0, a skipped-over pair against `sweptccd query` run on the
 //     two-line pose file (seq0, seq1).
@@ -41,7 +43,9 @@
 //
 // Every mode takes `--key FILE` first (e2e_tool --key FILE MODE ...): poses
 // are then signed with that key (a daemon in signed mode refuses others) and
-// every message received from the daemon must verify with it; without it
+// every message received from the daemon must verify with it (`--key FILE
+// --skip-forged`: one that does not, or does not decode, is counted and
+// dropped: the attack test forges on purpose); without it
 // poses go unsigned and nothing is verified. badinput then also checks
 // bad_signature. Received messages are decoded through DecodeChecked.
 //
@@ -80,6 +84,10 @@ using sweptccd::kRejectChannel;
 using sweptccd::kStatusChannel;
 
 std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose, verifies every answer.
+// --skip-forged (after --key): an undecodable or unverified message is counted
+// and dropped instead of ending the run (the attack test forges on purpose).
+bool g_skip_forged = false;
+int64_t g_skipped_forged = 0;
 
 // Publishes a pose signed with --key (unsigned without it).
 void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
@@ -94,27 +102,30 @@ struct Receiver {
   std::vector<sweptccd::rejection_t> rejections;
   std::optional<sweptccd::status_t> status;  // The newest.
   template <class T>
-  static T Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  static std::optional<T> Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     sweptccd::DecodeResult<T> r = sweptccd::DecodeChecked<T>(rbuf->data, rbuf->data_size, {});
+    const bool verified = !g_key || sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key);
+    if (r.ok() && verified) return std::move(*r.message);
+    if (g_skip_forged && g_key) {
+      ++g_skipped_forged;
+      return std::nullopt;
+    }
     if (!r.ok()) {
       std::fprintf(stderr, "e2e_tool: undecodable message on %s: %s\n", channel.c_str(),
                    r.problem.c_str());
-      std::exit(1);
-    }
-    if (g_key && !sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key)) {
+    } else {
       std::fprintf(stderr, "e2e_tool: a message on %s does not verify\n", channel.c_str());
-      std::exit(1);
     }
-    return std::move(*r.message);
+    std::exit(1);
   }
   void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    events.push_back(Checked<sweptccd::contact_event_t>(rbuf, channel));
+    if (auto m = Checked<sweptccd::contact_event_t>(rbuf, channel)) events.push_back(std::move(*m));
   }
   void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    rejections.push_back(Checked<sweptccd::rejection_t>(rbuf, channel));
+    if (auto m = Checked<sweptccd::rejection_t>(rbuf, channel)) rejections.push_back(std::move(*m));
   }
   void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    status = Checked<sweptccd::status_t>(rbuf, channel);
+    if (auto m = Checked<sweptccd::status_t>(rbuf, channel)) status = std::move(*m);
   }
 };
 
@@ -331,10 +342,17 @@ int Collect(int argc, char** argv) {
   int compared = 0, nonconsecutive = 0;
   for (const auto& id : ids) {
     const auto& ev = by_id[id];
-    int64_t prev_seq1 = 0;
+    int64_t prev_seq1 = 0, next_pair = 0, lost_in_transit = 0;
     for (size_t k = 0; k < ev.size(); ++k) {
       const auto& e = ev[k];
-      if (e.pair != static_cast<int64_t>(k) || e.seq0 != prev_seq1 || e.seq1 <= e.seq0 ||
+      // --skip-forged (a flooded bus): an event the daemon published may be
+      // lost before this subscriber reads it; counted, the chain resumes.
+      if (g_skip_forged && e.pair > next_pair && e.seq0 > prev_seq1) {
+        lost_in_transit += e.pair - next_pair;
+        next_pair = e.pair;
+        prev_seq1 = e.seq0;
+      }
+      if (e.pair != next_pair++ || e.seq0 != prev_seq1 || e.seq1 <= e.seq0 ||
           e.seq1 > last) {
         std::fprintf(stderr, "e2e_tool collect: %s event %zu out of order: pair %lld seq %lld-%lld\n",
                      id.c_str(), k, static_cast<long long>(e.pair),
@@ -362,6 +380,7 @@ int Collect(int argc, char** argv) {
       }
     }
     const int64_t skipped = ev.empty() ? 0 : ev.back().skipped_pairs_total;
+    const int64_t answered = ev.empty() ? 0 : ev.back().pair + 1;  // By the daemon.
     // UDP may lose poses before the daemon reads them: the daemon counts
     // those between received poses in status_t.seq_gaps; lost trailing poses
     // (after the last event) are counted apart and printed.
@@ -372,23 +391,25 @@ int Collect(int argc, char** argv) {
       std::fprintf(stderr, "e2e_tool collect: no status_t after the last event within 10 s\n");
       ++failures;
     }
-    if (static_cast<int64_t>(ev.size()) + skipped + gaps != final_seq1) {
+    if (answered + skipped + gaps != final_seq1) {
       std::fprintf(stderr,
-                   "e2e_tool collect: %s: %zu answered + %lld skipped + %lld seq_gaps != %lld "
+                   "e2e_tool collect: %s: %lld answered + %lld skipped + %lld seq_gaps != %lld "
                    "(last answered pose)\n",
-                   id.c_str(), ev.size(), static_cast<long long>(skipped),
+                   id.c_str(), static_cast<long long>(answered), static_cast<long long>(skipped),
                    static_cast<long long>(gaps), static_cast<long long>(final_seq1));
       ++failures;
     }
-    std::printf("e2e_tool collect: %s: %zu events, %lld skipped, %lld seq_gaps, %lld lost at the "
-                "end, %lld rate_limited (poses %lld)\n",
-                id.c_str(), ev.size(), static_cast<long long>(skipped),
+    std::printf("e2e_tool collect: %s: %lld answered (%zu events received, %lld lost in transit), "
+                "%lld skipped, %lld seq_gaps, %lld lost at the end, %lld rate_limited (poses %lld)\n",
+                id.c_str(), static_cast<long long>(answered), ev.size(),
+                static_cast<long long>(lost_in_transit), static_cast<long long>(skipped),
                 static_cast<long long>(gaps), static_cast<long long>(trailing),
                 static_cast<long long>(status_of(id, "rate_limited")),
                 static_cast<long long>(last + 1));
   }
-  std::printf("e2e_tool collect: %d events compared (%d skipped-over pairs), %d failures\n",
-              compared, nonconsecutive, failures);
+  std::printf("e2e_tool collect: %d events compared (%d skipped-over pairs), %d failures, %lld "
+              "forged or undecodable messages dropped\n",
+              compared, nonconsecutive, failures, static_cast<long long>(g_skipped_forged));
   return failures == 0 ? 0 : 1;
 }
 
@@ -586,6 +607,12 @@ int main(int argc, char** argv) {
     argv[2] = argv[0];
     argv += 2;
     argc -= 2;
+    if (argc > 1 && std::string(argv[1]) == "--skip-forged") {
+      g_skip_forged = true;
+      argv[1] = argv[0];
+      argv += 1;
+      argc -= 1;
+    }
   }
   const std::string mode = argc > 1 ? argv[1] : "";
   int rc = 2;
