@@ -57,9 +57,15 @@ python3 - "$work/rss.txt" "$work/monitor.out" "$work/latency.md" "$seconds" <<'E
 import json, sys
 pts = [tuple(map(float, l.split())) for l in open(sys.argv[1]) if len(l.split()) == 2]
 n = len(pts)
-mx = sum(t for t, _ in pts) / n
-my = sum(r for _, r in pts) / n
-slope = sum((t - mx) * (r - my) for t, r in pts) / max(1e-9, sum((t - mx) ** 2 for t, _ in pts))
+
+def slope_of(p):  # Least squares, KiB per second.
+    mx = sum(t for t, _ in p) / len(p)
+    my = sum(r for _, r in p) / len(p)
+    return sum((t - mx) * (r - my) for t, r in p) / max(1e-9, sum((t - mx) ** 2 for t, _ in p))
+
+slope = slope_of(pts)
+warm = [q for q in pts if q[0] >= 30] or pts  # After the first 30 s (buffers warmed up).
+slope_warm = slope_of(warm) if len(warm) > 1 else float("nan")
 status, service = {}, {}
 for line in open(sys.argv[2], errors="replace"):
     try:
@@ -71,12 +77,12 @@ for line in open(sys.argv[2], errors="replace"):
 tot = lambda k: sum(s.get(k, 0) for s in status.values())
 row = open(sys.argv[3]).read().splitlines()[-1].strip("|").split("|")
 print(f"| seconds | clients x Hz | poses sent | answered | skipped | seq_gaps | rate_limited "
-      f"| rejected | RSS first KiB | RSS last KiB | RSS slope KiB/min | samples |")
-print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+      f"| rejected | RSS first KiB | RSS last KiB | RSS slope KiB/min | slope after 30 s | samples |")
+print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 print(f"| {sys.argv[4]} | {row[0].strip()} x {row[1].strip()} | {row[2].strip()} | "
       f"{tot('pairs_answered')} | {tot('pairs_skipped')} | {tot('seq_gaps')} | "
       f"{tot('rate_limited')} | {tot('rejected') + service.get('rejected_unattributed', 0)} | "
-      f"{int(pts[0][1])} | {int(pts[-1][1])} | {slope * 60:.1f} | {n} |")
+      f"{int(pts[0][1])} | {int(pts[-1][1])} | {slope * 60:.1f} | {slope_warm * 60:.2f} | {n} |")
 print(f"latency (publication -> event): median {row[4].strip()} us, p99 {row[5].strip()} us, "
       f"max {row[6].strip()} us; clients reported: {len(status)}")
 EOF
