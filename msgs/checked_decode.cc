@@ -167,12 +167,12 @@ std::string CheckWire(const status_t*, const void* data, size_t size, const Wire
   r.String("backend", limits.max_text_bytes);
   r.String("renderer", limits.max_text_bytes);
   r.String("security", limits.max_text_bytes);
-  // Per client: one string and seven 8-byte numbers.
-  const int32_t n = r.Count("num_clients", limits.max_clients, kMinString + 7 * 8);
+  // Per client: one string and eight 8-byte numbers.
+  const int32_t n = r.Count("num_clients", limits.max_clients, kMinString + 8 * 8);
   for (int32_t i = 0; i < n && !r.failed(); ++i) r.String("client_id[]", limits.max_id_bytes);
-  r.Fixed("poses_received..latency_p99_us", static_cast<size_t>(n) * 7 * 8);
+  r.Fixed("poses_received..latency_p99_us", static_cast<size_t>(n) * 8 * 8);
   r.Fixed("queue_depth", 4);
-  r.Fixed("dropped_total, rejected_unattributed", 2 * 8);
+  r.Fixed("dropped_total, rejected_unattributed, rejections_suppressed", 3 * 8);
   r.Fixed("mac", kMac);
   return r.Finish();
 }

@@ -28,6 +28,7 @@ inline constexpr char kBadClientId[] = "bad_client_id";    // Breaks the id rule
 inline constexpr char kBadSignature[] = "bad_signature";    // mac missing, wrong, or no key.
 inline constexpr char kStaleSession[] = "stale_session";    // session below the client's current.
 inline constexpr char kUtimeJump[] = "utime_jump";          // utime beyond the horizon.
+inline constexpr char kRateLimited[] = "rate_limited";      // Over the client's input rate.
 }
 
 /// Default horizon of the utime_jump rule: 10 s.

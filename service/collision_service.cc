@@ -31,15 +31,37 @@ double MicrosBetween(SteadyClock::time_point a, SteadyClock::time_point b) {
 }  // namespace
 
 CollisionService::Client::Client(ClientConfig c, const Environment& env,
-                                 int64_t max_utime_jump_us)
+                                 const ServiceOptions& options)
     : config(std::move(c)),
       engine(std::make_unique<CcdEngine>(*config.skeleton, env, config.filter)),
-      session(config.client_id, config.skeleton->num_links(), max_utime_jump_us) {}
+      session(config.client_id, config.skeleton->num_links(), options.max_utime_jump_us),
+      pose_bucket(options.max_pose_rate_hz, options.pose_burst) {}
+
+namespace {
+
+void CheckRateOptions(const ServiceOptions& o) {
+  if (!(o.max_pose_rate_hz > 0 && o.max_pose_rate_hz <= 1e6) || o.pose_burst < 1) {
+    throw InputError("collision service: max_pose_rate_hz " + std::to_string(o.max_pose_rate_hz) +
+                     " / pose_burst " + std::to_string(o.pose_burst) +
+                     "; use a rate in (0, 1e6] Hz and a burst of 1 or more");
+  }
+  if (!(o.rejection_rate_hz > 0 && o.rejection_rate_hz <= 1e6) || o.rejection_burst < 1 ||
+      o.rejection_max_keys < 1) {
+    throw InputError("collision service: rejection_rate_hz, rejection_burst and "
+                     "rejection_max_keys must be > 0");
+  }
+}
+
+}  // namespace
 
 CollisionService::CollisionService(std::shared_ptr<const Environment> environment,
                                    std::vector<ClientConfig> clients, ServiceOptions options,
                                    Publisher* publisher)
-    : environment_(std::move(environment)), options_(std::move(options)), publisher_(publisher) {
+    : environment_(std::move(environment)),
+      options_(std::move(options)),
+      publisher_(publisher),
+      rejection_throttle_(options_.rejection_rate_hz, options_.rejection_burst,
+                          options_.rejection_max_keys) {
   if (!environment_) throw InputError("collision service: no environment");
   if (!publisher_) throw InputError("collision service: no publisher");
   if (clients.empty())
@@ -55,6 +77,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
   const std::string problem = ValidateQueryOptions(options_.query);
   if (!problem.empty()) throw InputError("collision service: " + problem);
   if (!options_.clock_utime) options_.clock_utime = SystemUtime;
+  CheckRateOptions(options_);
   if (options_.max_utime_jump_us < 1) {
     throw InputError("collision service: max_utime_jump_us is " +
                      std::to_string(options_.max_utime_jump_us) + "; use 1 or more");
@@ -72,7 +95,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
                        "' is registered twice; give every client its own id");
     }
     client_index_[c.client_id] = static_cast<int>(clients_.size());
-    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_, options_.max_utime_jump_us));
+    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_, options_));
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
   workers_.reserve(options_.num_workers);
@@ -89,6 +112,7 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   const int64_t receive_utime = NowUtime();
   const SteadyClock::time_point receive_time = SteadyClock::now();
   std::optional<Rejection> rejection;
+  bool attributed = false;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_) {
@@ -107,19 +131,35 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
                             "client_id '" + pose.client_id +
                                 "' is not registered; register it in the service configuration"};
     } else {
-      Client& client = *clients_[it->second];
-      const bool was_ready = client.session.ready();
-      rejection = client.session.OnPose(pose, receive_utime, receive_time);
-      if (!rejection && !was_ready && client.session.ready()) {
-        ready_.push_back(it->second);
-        work_cv_.notify_one();
-      }
+      attributed = true;
+      rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
     }
   }
   if (rejection) {
     // An id that breaks the rule is not echoed in rejection_t.client_id.
-    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection);
+    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection,
+           attributed);
   }
+}
+
+std::optional<Rejection> CollisionService::AdmitLocked(int index, const tracker_pose_t& pose,
+                                                      int64_t receive_utime,
+                                                      SteadyClock::time_point receive_time) {
+  Client& client = *clients_[index];
+  if (!client.pose_bucket.TryTake(receive_utime)) {
+    ++client.rate_limited;
+    return Rejection{rejection_code::kRateLimited,
+                     "client '" + pose.client_id + "' sends faster than max_pose_rate_hz " +
+                         std::to_string(options_.max_pose_rate_hz) +
+                         "; pose shed unread; lower the tracker's rate"};
+  }
+  const bool was_ready = client.session.ready();
+  std::optional<Rejection> rejection = client.session.OnPose(pose, receive_utime, receive_time);
+  if (!rejection && !was_ready && client.session.ready()) {
+    ready_.push_back(index);
+    work_cv_.notify_one();
+  }
+  return rejection;
 }
 
 void CollisionService::OnRefused(const std::string& client_id, const Rejection& rejection) {
@@ -132,7 +172,7 @@ void CollisionService::OnRefused(const std::string& client_id, const Rejection& 
     }
     ++rejected_unattributed_;
   }
-  Reject(client_id, -1, rejection);
+  Reject(client_id, -1, rejection, /*attributed=*/false);
 }
 
 void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
@@ -148,25 +188,42 @@ void CollisionService::OnUndecodable(const std::string& channel, const std::stri
          Rejection{rejection_code::kDecodeError,
                    "message on channel " + channel + " could not be decoded as " +
                        "sweptccd.tracker_pose_t (" + problem +
-                       "); publish tracker_pose_t built from this service's msgs/"});
+                       "); publish tracker_pose_t built from this service's msgs/"},
+         /*attributed=*/false);
 }
 
 void CollisionService::Reject(const std::string& client_id, int64_t seq,
-                              const Rejection& rejection) {
+                              const Rejection& rejection, bool attributed) {
+  const int64_t now_us = NowUtime();
+  int64_t held_back = 0;
+  {
+    // Rejections no registered client can be blamed for (unknown or bad ids,
+    // bad signatures, undecodable bytes) share the key "": forging a client's
+    // id cannot spend that client's budget.
+    std::lock_guard<std::mutex> lock(mutex_);
+    held_back = rejection_throttle_.Admit(attributed ? client_id : "", now_us);
+  }
+  LogRejection(client_id, seq, rejection, now_us);
+  if (held_back < 0) return;
   rejection_t msg;
-  msg.utime = NowUtime();
+  msg.utime = now_us;
   msg.client_id = client_id;
   msg.seq = seq;
   msg.reason = rejection.reason;
   msg.message = rejection.message;
-  msg.suppressed = 0;  // Publication rate limits come with step two of the issue.
-  // Logged at a limited rate: at most 10 lines a second, then a count.
+  msg.suppressed = held_back;
+  SafePublish([&] { publisher_->PublishRejection(msg); }, "rejection");
+}
+
+// Logged at a limited rate: at most 10 lines a second, then a count.
+void CollisionService::LogRejection(const std::string& client_id, int64_t seq,
+                                    const Rejection& rejection, int64_t now_us) {
   bool log = false;
   int64_t suppressed = 0;
   {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (msg.utime - rejection_log_window_start_us_ >= 1'000'000) {
-      rejection_log_window_start_us_ = msg.utime;
+    if (now_us - rejection_log_window_start_us_ >= 1'000'000) {
+      rejection_log_window_start_us_ = now_us;
       rejection_logs_in_window_ = 0;
       suppressed = rejection_logs_suppressed_;
       rejection_logs_suppressed_ = 0;
@@ -183,7 +240,6 @@ void CollisionService::Reject(const std::string& client_id, int64_t seq,
     spdlog::warn("rejected pose of client '{}' seq {}: {}: {}", EscapeForDisplay(client_id), seq,
                  rejection.reason, EscapeForDisplay(rejection.message, 1024));
   }
-  SafePublish([&] { publisher_->PublishRejection(msg); }, "rejection");
 }
 
 void CollisionService::SafePublish(const std::function<void()>& publish, const char* what) {
@@ -300,11 +356,12 @@ status_t CollisionService::Status() const {
   for (const auto& c : clients_) {
     const ClientSession& cs = c->session;
     s.client_id.push_back(cs.client_id());
-    s.poses_received.push_back(cs.poses_received());
+    s.poses_received.push_back(cs.poses_received() + c->rate_limited);
     s.pairs_answered.push_back(cs.pairs_finished());
     s.pairs_skipped.push_back(cs.pairs_skipped());
     s.rejected.push_back(cs.rejected());
     s.seq_gaps.push_back(cs.seq_gaps());
+    s.rate_limited.push_back(c->rate_limited);
     std::vector<double> lat(c->latencies_us.begin(), c->latencies_us.end());
     s.latency_median_us.push_back(Percentile(lat, 0.5));
     s.latency_p99_us.push_back(Percentile(std::move(lat), 0.99));
@@ -314,6 +371,7 @@ status_t CollisionService::Status() const {
   s.queue_depth = pending;
   s.dropped_total = dropped;
   s.rejected_unattributed = rejected_unattributed_;
+  s.rejections_suppressed = rejection_throttle_.suppressed_total();
   return s;
 }
 
@@ -330,6 +388,11 @@ int64_t CollisionService::publish_errors() const {
 int64_t CollisionService::ignored_after_stop() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return ignored_after_stop_;
+}
+
+int64_t CollisionService::rejections_suppressed() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return rejection_throttle_.suppressed_total();
 }
 
 int64_t CollisionService::rejected_unattributed() const {

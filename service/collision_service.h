@@ -21,6 +21,7 @@
 #include "core/avatar/skeleton.h"
 #include "service/client_session.h"
 #include "service/publisher.h"
+#include "service/token_bucket.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -57,6 +58,15 @@ struct ServiceOptions {
   std::string security = "signed";
   /// Horizon of the utime_jump rule per client stream (ClientSession), > 0.
   int64_t max_utime_jump_us = kDefaultMaxUtimeJumpUs;
+  /// Input rate limit per client (a token bucket checked first in OnPose,
+  /// before any validation or geometry): > 0 Hz, burst >= 1.
+  double max_pose_rate_hz = 240;
+  int pose_burst = 16;
+  /// Rejections published per key (client id, "" for unattributed ones),
+  /// burst, and the number of keys tracked apart (RejectionThrottle).
+  double rejection_rate_hz = 10;
+  int rejection_burst = 10;
+  int rejection_max_keys = 1024;
 };
 
 /// Owns the client sessions and the worker pool.
@@ -112,6 +122,8 @@ class CollisionService {
   /// Rejections not attributable to a registered client (unknown client,
   /// decode errors).
   int64_t rejected_unattributed() const;
+  /// Rejections held back by the publication rate bound, all keys.
+  int64_t rejections_suppressed() const;
 
  private:
   struct Client {
@@ -119,12 +131,23 @@ class CollisionService {
     std::unique_ptr<CcdEngine> engine;
     ClientSession session;
     std::deque<double> latencies_us;  // Newest at the back.
-    Client(ClientConfig c, const Environment& env, int64_t max_utime_jump_us);
+    TokenBucket pose_bucket;          // Input rate limit.
+    int64_t rate_limited = 0;         // Poses shed by pose_bucket.
+    Client(ClientConfig c, const Environment& env, const ServiceOptions& options);
   };
 
   void WorkerLoop();
   contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
-  void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection);
+  // Publishes through the throttle, keyed by client_id when `attributed` (the
+  // pose came from that registered client), else by "".
+  void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection,
+              bool attributed);
+  // Under mutex_: the rejection (if any) of a pose of the registered client
+  // `index`, rate limit first; queues the client when a pair became ready.
+  std::optional<Rejection> AdmitLocked(int index, const tracker_pose_t& pose,
+                                       int64_t receive_utime, SteadyClock::time_point receive_time);
+  void LogRejection(const std::string& client_id, int64_t seq, const Rejection& rejection,
+                    int64_t now_us);
   void SafePublish(const std::function<void()>& publish, const char* what);
   int64_t NowUtime() const;
 
@@ -143,6 +166,7 @@ class CollisionService {
   int64_t publish_errors_ = 0;
   int64_t ignored_after_stop_ = 0;
   int64_t rejected_unattributed_ = 0;
+  RejectionThrottle rejection_throttle_;  // Under mutex_.
   int64_t rejection_log_window_start_us_ = 0;
   int rejection_logs_in_window_ = 0;
   int64_t rejection_logs_suppressed_ = 0;

@@ -135,7 +135,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
              "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
-             "max_links"},
+             "max_links", "max_pose_rate_hz"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
@@ -173,6 +173,9 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   if (root["workers"]) c.workers = Get<int>(root["workers"], at + "workers");
   if (root["status_period_s"]) {
     c.status_period_s = Get<double>(root["status_period_s"], at + "status_period_s");
+  }
+  if (root["max_pose_rate_hz"]) {
+    c.max_pose_rate_hz = Get<double>(root["max_pose_rate_hz"], at + "max_pose_rate_hz");
   }
   if (root["log_level"]) c.log_level = Get<std::string>(root["log_level"], at + "log_level");
   if (root["security"]) c.security = ParseSecurity(root["security"], at, base_dir);
@@ -230,6 +233,9 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
+  if (!(c.max_pose_rate_hz > 0 && c.max_pose_rate_hz <= 1e6)) {
+    throw InputError("configuration: max_pose_rate_hz must be in (0, 1e6] Hz");
+  }
   if (c.max_mesh_bytes == 0) throw InputError("configuration: max_mesh_bytes must be >= 1 byte");
   if (c.max_links < 1) {
     throw InputError("configuration: max_links must be >= 1, got " + std::to_string(c.max_links));

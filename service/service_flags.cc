@@ -65,6 +65,9 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
                 "GPU backend: refuse software renderers (llvmpipe)");
   app->add_option("--status-period", f->status_period_s, "Seconds between status messages")
       ->check(CLI::Range(0.001, 3600.0));
+  app->add_option("--max-pose-rate", f->max_pose_rate_hz,
+                  "Input rate limit per client, Hz (poses beyond it are shed and counted)")
+      ->check(CLI::Range(0.001, 1e6));
   app->add_option("--log-level", f->log_level, "trace, debug, info, warn, error or off");
   app->add_option("--pose-channel", f->pose_channel, "Channel of tracker_pose_t (in)");
   app->add_option("--contact-channel", f->contact_channel, "Channel of contact_event_t (out)");
@@ -98,6 +101,7 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
   if (flags.gpu_device != -2) config->gpu_device = flags.gpu_device;
   if (flags.require_hardware) config->require_hardware = true;
   if (flags.status_period_s >= 0) config->status_period_s = flags.status_period_s;
+  if (flags.max_pose_rate_hz >= 0) config->max_pose_rate_hz = flags.max_pose_rate_hz;
   SetIfGiven(flags.log_level, &config->log_level);
   SetIfGiven(flags.security_mode, &config->security.mode);
   SetIfGiven(flags.room_key, &config->security.room_key);

@@ -24,7 +24,7 @@ struct ServiceFlags {
   std::vector<std::string> filter_flags;  // ID=FILTER.json.
   std::vector<std::string> ignore_flags;  // ID=LINK:OBJECT.
   std::string pose_channel, contact_channel, reject_channel, status_channel;
-  double eps_s = -1, delta_m = -1, status_period_s = -1;
+  double eps_s = -1, delta_m = -1, status_period_s = -1, max_pose_rate_hz = -1;
   int workers = 0;
   std::string backend;  // cpu, gpu or auto.
   int gpu_device = -2;  // -2: not given (-1 is a valid value).

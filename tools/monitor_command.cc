@@ -284,10 +284,15 @@ class Monitor {
                 {"seq", r.seq},
                 {"reason", r.reason},
                 {"message", r.message},
+                {"suppressed", r.suppressed},
                 {"utime", r.utime}});
     } else {
-      Show(fmt::format("reject {} seq {} {}: {}", Name(r.client_id), r.seq,
-                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024)));
+      // The count held back since the previous published one, at the end so
+      // that the fields before keep their places.
+      Show(fmt::format("reject {} seq {} {}: {}{}", Name(r.client_id), r.seq,
+                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024),
+                       r.suppressed > 0 ? fmt::format(" [{} suppressed before]", r.suppressed)
+                                        : std::string()));
     }
   }
 
@@ -303,15 +308,17 @@ class Monitor {
                   {"pairs_skipped", s.pairs_skipped[i]},
                   {"rejected", s.rejected[i]},
                   {"seq_gaps", s.seq_gaps[i]},
+                  {"rate_limited", s.rate_limited[i]},
                   {"latency_median_us", s.latency_median_us[i]},
                   {"latency_p99_us", s.latency_p99_us[i]},
                   {"utime", s.utime}});
       } else {
         Show(fmt::format(
-            "status {} poses {} answered {} skipped {} rejected {} seq_missing {} latency median "
-            "{:.0f} us p99 {:.0f} us",
+            "status {} poses {} answered {} skipped {} rejected {} seq_missing {} rate_limited {} "
+            "latency median {:.0f} us p99 {:.0f} us",
             Name(s.client_id[i]), s.poses_received[i], s.pairs_answered[i], s.pairs_skipped[i],
-            s.rejected[i], s.seq_gaps[i], s.latency_median_us[i], s.latency_p99_us[i]));
+            s.rejected[i], s.seq_gaps[i], s.rate_limited[i], s.latency_median_us[i],
+            s.latency_p99_us[i]));
       }
     }
     if (o_.json) {
@@ -322,11 +329,14 @@ class Monitor {
                 {"queue_depth", s.queue_depth},
                 {"dropped_total", s.dropped_total},
                 {"rejected_unattributed", s.rejected_unattributed},
+                {"rejections_suppressed", s.rejections_suppressed},
                 {"utime", s.utime}});
     } else {
-      Show(fmt::format("status service backend {} security {} queue {} dropped {} unattributed {}",
-                       EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
-                       s.dropped_total, s.rejected_unattributed));
+      Show(fmt::format(
+          "status service backend {} security {} queue {} dropped {} unattributed {} "
+          "rejections_suppressed {}",
+          EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
+          s.dropped_total, s.rejected_unattributed, s.rejections_suppressed));
     }
   }
 

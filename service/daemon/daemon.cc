@@ -97,6 +97,7 @@ ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
   options.prepare_engine = [backend](CcdEngine* engine) { backend->Attach(engine); };
   options.security = config.security.mode;
   options.max_utime_jump_us = static_cast<int64_t>(config.security.max_utime_jump_s * 1e6);
+  options.max_pose_rate_hz = config.max_pose_rate_hz;
   return options;
 }
 

@@ -204,7 +204,8 @@ def messages(m):
     s.utime, s.backend, s.renderer, s.security, s.num_clients = 5, "gpu", "llvmpipe", "signed", 1
     s.client_id, s.poses_received, s.pairs_answered, s.pairs_skipped = ["alice"], [10], [9], [0]
     s.rejected, s.seq_gaps, s.latency_median_us, s.latency_p99_us = [1], [0], [800.0], [2100.0]
-    s.queue_depth, s.dropped_total, s.rejected_unattributed = 0, 0, 3
+    s.rate_limited = [0]
+    s.queue_depth, s.dropped_total, s.rejected_unattributed, s.rejections_suppressed = 0, 0, 3, 0
     s.mac = bytes(32)
     write("fuzz_decode_status_t", "one_client.lcm", s.encode())
     write("fuzz_decode_status_t", "one_client_signed.lcm", sign(s.encode()))

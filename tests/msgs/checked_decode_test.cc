@@ -151,7 +151,7 @@ TEST(CheckedDecode, StatusClientIdWithBadLengthIsRefused) {
   s.backend = "b", s.renderer = "", s.security = "signed";
   s.num_clients = 1;
   s.client_id = {"alice"};
-  s.poses_received = s.pairs_answered = s.pairs_skipped = s.rejected = s.seq_gaps = {1};
+  s.poses_received = s.pairs_answered = s.pairs_skipped = s.rejected = s.seq_gaps = s.rate_limited = {1};
   s.latency_median_us = s.latency_p99_us = {1.0};
   std::vector<uint8_t> bytes = Encode(s);
   // fingerprint 8, utime 8, "b" 6, "" 5, "signed" 11, count 4 -> client_id[0] at 42.

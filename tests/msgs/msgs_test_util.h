@@ -109,12 +109,14 @@ class RandomMessages {
       s.pairs_skipped.push_back(Int());
       s.rejected.push_back(Int());
       s.seq_gaps.push_back(Int());
+      s.rate_limited.push_back(Int());
       s.latency_median_us.push_back(Real());
       s.latency_p99_us.push_back(Real());
     }
     s.queue_depth = static_cast<int32_t>(Int());
     s.dropped_total = Int();
     s.rejected_unattributed = Int();
+    s.rejections_suppressed = Int();
     Mac(s.mac);
     return s;
   }

@@ -24,8 +24,21 @@ tracker_pose_t Sample(const std::string& client, int64_t k) {
 
 class CollisionServiceTest : public ::testing::Test {
  protected:
+  // The fake clock ticks 1 us a call, so the rate limits are set out of the
+  // way here; the rate-limit tests set their own (MakeWith).
   std::unique_ptr<CollisionService> Make(std::vector<std::string> ids, int workers = 2,
                                          bool per_link = false) {
+    ServiceOptions options;
+    options.num_workers = workers;
+    options.query.per_link = per_link;
+    options.clock_utime = [this] { return ++fake_utime_; };
+    options.max_pose_rate_hz = 1e6;
+    options.pose_burst = 1 << 20;
+    options.rejection_burst = 1 << 20;
+    return MakeWith(std::move(ids), options);
+  }
+
+  std::unique_ptr<CollisionService> MakeWith(std::vector<std::string> ids, ServiceOptions options) {
     std::vector<ClientConfig> clients;
     for (const std::string& id : ids) {
       ClientConfig c;
@@ -33,10 +46,6 @@ class CollisionServiceTest : public ::testing::Test {
       c.skeleton = skeleton_;
       clients.push_back(c);
     }
-    ServiceOptions options;
-    options.num_workers = workers;
-    options.query.per_link = per_link;
-    options.clock_utime = [this] { return ++fake_utime_; };
     query_ = options.query;
     return std::make_unique<CollisionService>(env_, std::move(clients), options, &publisher_);
   }
@@ -362,6 +371,124 @@ TEST_F(CollisionServiceTest, BadConfigurationIsRefused) {
   EXPECT_THROW(CollisionService(env_, {c}, no_window, &publisher_), InputError);
   EXPECT_THROW(CollisionService(nullptr, {c}, options, &publisher_), InputError);
   EXPECT_THROW(CollisionService(env_, {c}, options, nullptr), InputError);
+}
+
+}  // namespace
+}  // namespace sweptccd
+
+namespace sweptccd {
+namespace {
+
+// Finding 6 of the hostile-network issue: a registered client flooding.
+// Rate limits with a clock the test sets (microseconds).
+class RateLimitTest : public CollisionServiceTest {
+ protected:
+  ServiceOptions LimitedOptions() {
+    ServiceOptions options;
+    options.num_workers = 2;
+    options.clock_utime = [this] { return now_us_.load(); };
+    options.max_pose_rate_hz = 100;
+    options.pose_burst = 4;
+    options.rejection_rate_hz = 10;
+    options.rejection_burst = 10;
+    return options;
+  }
+  int64_t SuppressedSum() {
+    int64_t sum = 0;
+    for (const rejection_t& r : publisher_.rejections()) sum += r.suppressed;
+    return sum;
+  }
+  std::atomic<int64_t> now_us_{1'000'000};
+};
+
+TEST_F(RateLimitTest, ClientAtTenTimesItsRateGetsExactlyTheBucketsAdmissions) {
+  const ServiceOptions options = LimitedOptions();
+  auto service = MakeWith({"flood"}, options);
+  TokenBucket twin(options.max_pose_rate_hz, options.pose_burst);
+  constexpr int kPoses = 1000;  // 1 s at 1 kHz, 10x the limit.
+  std::vector<int64_t> admitted;
+  for (int64_t k = 0; k < kPoses; ++k) {
+    now_us_ = 1'000'000 + k * 1000;
+    if (twin.TryTake(now_us_)) admitted.push_back(k);
+    service->OnPose(Sample("flood", k));
+    service->WaitUntilIdle();  // No latest-wins skipping: every admitted pair is answered.
+  }
+  // 4 at once, then one every 10 ms over the remaining 999 ms.
+  ASSERT_EQ(admitted.size(), 4u + 99u);
+  const auto events = publisher_.contacts_of("flood");
+  ASSERT_EQ(events.size(), admitted.size() - 1);
+  for (size_t i = 0; i < events.size(); ++i) {
+    EXPECT_EQ(events[i].seq0, admitted[i]);
+    EXPECT_EQ(events[i].seq1, admitted[i + 1]);
+    test::ExpectMatchesEngine(events[i], Sample("flood", admitted[i]),
+                              Sample("flood", admitted[i + 1]), *skeleton_, *env_, query_);
+  }
+  const status_t s = service->Status();
+  const int64_t shed = kPoses - static_cast<int64_t>(admitted.size());
+  EXPECT_EQ(s.rate_limited[0], shed);
+  EXPECT_EQ(s.poses_received[0], kPoses);
+  EXPECT_EQ(s.rejected[0], 0);  // Shed before validation, so never validated.
+  EXPECT_EQ(s.pairs_answered[0], static_cast<int64_t>(events.size()));
+  // rate_limited rejections go through the throttle: 10 at once, 10 a second.
+  const auto rejections = publisher_.rejections();
+  EXPECT_LE(rejections.size(), 10u + 10u);
+  for (const rejection_t& r : rejections) EXPECT_EQ(r.reason, rejection_code::kRateLimited);
+  EXPECT_EQ(static_cast<int64_t>(rejections.size()) + s.rejections_suppressed, shed);
+}
+
+TEST_F(RateLimitTest, TenThousandUnknownPosesPublishABoundedCountThatAddsUp) {
+  auto service = MakeWith({"good"}, LimitedOptions());
+  constexpr int kPoses = 10'000;  // 1 s at 10 kHz.
+  for (int64_t k = 0; k < kPoses; ++k) {
+    now_us_ = 1'000'000 + k * 100;
+    service->OnPose(Sample("stranger", k));
+  }
+  // Two seconds later one more: published, carrying the count held back.
+  now_us_ = 3'000'000;
+  service->OnPose(Sample("stranger", kPoses));
+  const auto rejections = publisher_.rejections();
+  // Burst 10, then 10 a second over 1 s, then the last one.
+  EXPECT_LE(rejections.size(), 10u + 10u + 1u);
+  EXPECT_GE(rejections.size(), 10u);
+  for (const rejection_t& r : rejections) EXPECT_EQ(r.reason, rejection_code::kUnknownClient);
+  EXPECT_GT(rejections.back().suppressed, 0);
+  EXPECT_EQ(static_cast<int64_t>(rejections.size()) + SuppressedSum(), kPoses + 1);
+  const status_t s = service->Status();
+  EXPECT_EQ(s.rejected_unattributed, kPoses + 1);
+  EXPECT_EQ(s.rejections_suppressed, SuppressedSum());
+  EXPECT_EQ(service->rejections_suppressed(), SuppressedSum());
+}
+
+// Unknown ids and forged signatures in a registered client's name share the
+// key "": they cannot spend that client's own budget.
+TEST_F(RateLimitTest, AFloodOfUnknownIdsAndForgeriesDoesNotSilenceAClientsRejections) {
+  auto service = MakeWith({"good"}, LimitedOptions());
+  for (int64_t k = 0; k < 1000; ++k) {
+    now_us_ = 1'000'000 + k * 100;
+    service->OnPose(Sample("stranger", k));
+    service->OnRefused("good", Rejection{rejection_code::kBadSignature, "forged"});
+  }
+  service->OnPose(Sample("good", 5));
+  tracker_pose_t replay = Sample("good", 5);
+  replay.utime += 1;
+  service->OnPose(replay);
+  const auto rejections = publisher_.rejections();
+  ASSERT_FALSE(rejections.empty());
+  EXPECT_EQ(rejections.back().client_id, "good");
+  EXPECT_EQ(rejections.back().reason, rejection_code::kNonIncreasingSeq);
+  EXPECT_EQ(rejections.back().suppressed, 0);
+}
+
+TEST_F(RateLimitTest, BadRatesAreRefused) {
+  ServiceOptions options = LimitedOptions();
+  options.max_pose_rate_hz = 0;
+  EXPECT_THROW(MakeWith({"a"}, options), InputError);
+  options = LimitedOptions();
+  options.pose_burst = 0;
+  EXPECT_THROW(MakeWith({"a"}, options), InputError);
+  options = LimitedOptions();
+  options.rejection_max_keys = 0;
+  EXPECT_THROW(MakeWith({"a"}, options), InputError);
 }
 
 }  // namespace

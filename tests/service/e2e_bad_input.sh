@@ -20,7 +20,7 @@ query_walk "$sweptccd" "$env_ply" "$work"
 "$sweptccd" keygen --out "$work/room.key"
 "$service" --lcm-url "$url" --env "$env_ply" --client "alice=$work/skeleton.json" \
   --client "bob=$work/skeleton.json" --room-key "$work/room.key" --log-level info \
-  2> "$work/daemon.log" &
+  --max-pose-rate 100000 2> "$work/daemon.log" &  # Lock-step outruns any tracker.
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready

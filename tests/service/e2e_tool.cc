@@ -23,8 +23,13 @@
 //     Subscribes to contact events, touches READY_FILE once subscribed, and
 //     collects until every ID has an event ending at the last pose (or fails
 //     after TIMEOUT_S). Checks per client: pair numbers 0, 1, ... without
-//     gaps, the events chain the poses (seq0 = previous seq1, first seq0 0,
-//     last seq1 the last pose), poses - 1 = answered + skipped, and every
+//     gaps, the events chain the poses (seq0 = previous seq1, first seq0 0),
+//     answered + skipped + seq_gaps (poses the daemon reports it never
+//     received, from a status_t published after the last event) = the last
+//     answered pose, poses lost after it are printed (a client is done at
+//     the last pose, or 3 s after its events stop; with --skip-forged, events
+//     lost before this subscriber read them are counted and the chain
+//     resumes after them), and every
 //     event equals `sweptccd query`: consecutive pairs against EXPECTED
 //     line seq0, a skipped-over pair against `sweptccd query` run on the
 //     two-line pose file (seq0, seq1).
@@ -38,7 +43,9 @@
 //
 // Every mode takes `--key FILE` first (e2e_tool --key FILE MODE ...): poses
 // are then signed with that key (a daemon in signed mode refuses others) and
-// every message received from the daemon must verify with it; without it
+// every message received from the daemon must verify with it (`--key FILE
+// --skip-forged`: one that does not, or does not decode, is counted and
+// dropped: the attack test forges on purpose); without it
 // poses go unsigned and nothing is verified. badinput then also checks
 // bad_signature. Received messages are decoded through DecodeChecked.
 //
@@ -47,6 +54,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -73,8 +81,13 @@ namespace {
 using sweptccd::kContactChannel;
 using sweptccd::kPoseChannel;
 using sweptccd::kRejectChannel;
+using sweptccd::kStatusChannel;
 
 std::optional<sweptccd::MacKey> g_key;  // --key: signs every pose, verifies every answer.
+// --skip-forged (after --key): an undecodable or unverified message is counted
+// and dropped instead of ending the run (the attack test forges on purpose).
+bool g_skip_forged = false;
+int64_t g_skipped_forged = 0;
 
 // Publishes a pose signed with --key (unsigned without it).
 void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
@@ -87,25 +100,32 @@ void Send(lcm::LCM& lcm, const sweptccd::tracker_pose_t& m) {
 struct Receiver {
   std::vector<sweptccd::contact_event_t> events;
   std::vector<sweptccd::rejection_t> rejections;
+  std::optional<sweptccd::status_t> status;  // The newest.
   template <class T>
-  static T Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+  static std::optional<T> Checked(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
     sweptccd::DecodeResult<T> r = sweptccd::DecodeChecked<T>(rbuf->data, rbuf->data_size, {});
+    const bool verified = !g_key || sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key);
+    if (r.ok() && verified) return std::move(*r.message);
+    if (g_skip_forged && g_key) {
+      ++g_skipped_forged;
+      return std::nullopt;
+    }
     if (!r.ok()) {
       std::fprintf(stderr, "e2e_tool: undecodable message on %s: %s\n", channel.c_str(),
                    r.problem.c_str());
-      std::exit(1);
-    }
-    if (g_key && !sweptccd::VerifyEncoded(rbuf->data, rbuf->data_size, *g_key)) {
+    } else {
       std::fprintf(stderr, "e2e_tool: a message on %s does not verify\n", channel.c_str());
-      std::exit(1);
     }
-    return std::move(*r.message);
+    std::exit(1);
   }
   void On(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    events.push_back(Checked<sweptccd::contact_event_t>(rbuf, channel));
+    if (auto m = Checked<sweptccd::contact_event_t>(rbuf, channel)) events.push_back(std::move(*m));
   }
   void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    rejections.push_back(Checked<sweptccd::rejection_t>(rbuf, channel));
+    if (auto m = Checked<sweptccd::rejection_t>(rbuf, channel)) rejections.push_back(std::move(*m));
+  }
+  void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
+    if (auto m = Checked<sweptccd::status_t>(rbuf, channel)) status = std::move(*m);
   }
 };
 
@@ -241,23 +261,47 @@ int Collect(int argc, char** argv) {
   const int64_t last = static_cast<int64_t>(poses.size()) - 1;
   Receiver rx;
   lcm.subscribe(kContactChannel, &Receiver::On, &rx);
+  lcm.subscribe(kStatusChannel, &Receiver::OnStatus, &rx);
   { std::ofstream ready(argv[8]); ready << "ready\n"; }
   std::map<std::string, std::vector<sweptccd::contact_event_t>> by_id;
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(timeout_s));
   size_t seen = 0;
+  // A client is done at its event ending at the last pose, or (the last
+  // poses lost on the way) once its events have stopped for kQuiet.
+  constexpr auto kQuiet = std::chrono::seconds(3);
+  auto last_event = std::chrono::steady_clock::now();
   auto done = [&] {
+    const bool quiet = std::chrono::steady_clock::now() - last_event > kQuiet;
     for (const auto& id : ids) {
       const auto it = by_id.find(id);
-      if (it == by_id.end() || it->second.empty() || it->second.back().seq1 != last) return false;
+      if (it == by_id.end() || it->second.empty()) return false;
+      if (it->second.back().seq1 != last && !quiet) return false;
     }
     return true;
   };
   while (!done() && std::chrono::steady_clock::now() < deadline) {
     lcm.handleTimeout(20);
+    if (seen < rx.events.size()) last_event = std::chrono::steady_clock::now();
     for (; seen < rx.events.size(); ++seen) by_id[rx.events[seen].client_id].push_back(rx.events[seen]);
   }
+  // seq_gaps (poses the daemon never received) from a status published after
+  // the last event; bounded wait.
+  int64_t newest_event_utime = 0;
+  for (const auto& e : rx.events) newest_event_utime = std::max(newest_event_utime, e.utime);
+  for (int waited_ms = 0; waited_ms < 10000 && (!rx.status || rx.status->utime <= newest_event_utime);
+       waited_ms += 20) {
+    lcm.handleTimeout(20);
+  }
+  auto status_of = [&](const std::string& id, const char* field) -> int64_t {
+    if (!rx.status) return 0;
+    for (int32_t i = 0; i < rx.status->num_clients; ++i) {
+      if (rx.status->client_id[i] != id) continue;
+      return std::string(field) == "seq_gaps" ? rx.status->seq_gaps[i] : rx.status->rate_limited[i];
+    }
+    return 0;
+  };
   int failures = 0;
   if (!done()) {
     std::fprintf(stderr, "e2e_tool collect: not every client answered up to pose %lld within %g s\n",
@@ -298,10 +342,17 @@ int Collect(int argc, char** argv) {
   int compared = 0, nonconsecutive = 0;
   for (const auto& id : ids) {
     const auto& ev = by_id[id];
-    int64_t prev_seq1 = 0;
+    int64_t prev_seq1 = 0, next_pair = 0, lost_in_transit = 0;
     for (size_t k = 0; k < ev.size(); ++k) {
       const auto& e = ev[k];
-      if (e.pair != static_cast<int64_t>(k) || e.seq0 != prev_seq1 || e.seq1 <= e.seq0 ||
+      // --skip-forged (a flooded bus): an event the daemon published may be
+      // lost before this subscriber reads it; counted, the chain resumes.
+      if (g_skip_forged && e.pair > next_pair && e.seq0 > prev_seq1) {
+        lost_in_transit += e.pair - next_pair;
+        next_pair = e.pair;
+        prev_seq1 = e.seq0;
+      }
+      if (e.pair != next_pair++ || e.seq0 != prev_seq1 || e.seq1 <= e.seq0 ||
           e.seq1 > last) {
         std::fprintf(stderr, "e2e_tool collect: %s event %zu out of order: pair %lld seq %lld-%lld\n",
                      id.c_str(), k, static_cast<long long>(e.pair),
@@ -329,17 +380,36 @@ int Collect(int argc, char** argv) {
       }
     }
     const int64_t skipped = ev.empty() ? 0 : ev.back().skipped_pairs_total;
-    if (static_cast<int64_t>(ev.size()) + skipped != last) {
-      std::fprintf(stderr, "e2e_tool collect: %s: %zu answered + %lld skipped != %lld poses - 1\n",
-                   id.c_str(), ev.size(), static_cast<long long>(skipped),
-                   static_cast<long long>(last + 1));
+    const int64_t answered = ev.empty() ? 0 : ev.back().pair + 1;  // By the daemon.
+    // UDP may lose poses before the daemon reads them: the daemon counts
+    // those between received poses in status_t.seq_gaps; lost trailing poses
+    // (after the last event) are counted apart and printed.
+    const int64_t gaps = status_of(id, "seq_gaps");
+    const int64_t final_seq1 = ev.empty() ? 0 : ev.back().seq1;
+    const int64_t trailing = last - final_seq1;
+    if (!rx.status || rx.status->utime <= newest_event_utime) {
+      std::fprintf(stderr, "e2e_tool collect: no status_t after the last event within 10 s\n");
       ++failures;
     }
-    std::printf("e2e_tool collect: %s: %zu events, %lld skipped\n", id.c_str(), ev.size(),
-                static_cast<long long>(skipped));
+    if (answered + skipped + gaps != final_seq1) {
+      std::fprintf(stderr,
+                   "e2e_tool collect: %s: %lld answered + %lld skipped + %lld seq_gaps != %lld "
+                   "(last answered pose)\n",
+                   id.c_str(), static_cast<long long>(answered), static_cast<long long>(skipped),
+                   static_cast<long long>(gaps), static_cast<long long>(final_seq1));
+      ++failures;
+    }
+    std::printf("e2e_tool collect: %s: %lld answered (%zu events received, %lld lost in transit), "
+                "%lld skipped, %lld seq_gaps, %lld lost at the end, %lld rate_limited (poses %lld)\n",
+                id.c_str(), static_cast<long long>(answered), ev.size(),
+                static_cast<long long>(lost_in_transit), static_cast<long long>(skipped),
+                static_cast<long long>(gaps), static_cast<long long>(trailing),
+                static_cast<long long>(status_of(id, "rate_limited")),
+                static_cast<long long>(last + 1));
   }
-  std::printf("e2e_tool collect: %d events compared (%d skipped-over pairs), %d failures\n",
-              compared, nonconsecutive, failures);
+  std::printf("e2e_tool collect: %d events compared (%d skipped-over pairs), %d failures, %lld "
+              "forged or undecodable messages dropped\n",
+              compared, nonconsecutive, failures, static_cast<long long>(g_skipped_forged));
   return failures == 0 ? 0 : 1;
 }
 
@@ -537,6 +607,12 @@ int main(int argc, char** argv) {
     argv[2] = argv[0];
     argv += 2;
     argc -= 2;
+    if (argc > 1 && std::string(argv[1]) == "--skip-forged") {
+      g_skip_forged = true;
+      argv[1] = argv[0];
+      argv += 1;
+      argc -= 1;
+    }
   }
   const std::string mode = argc > 1 ? argv[1] : "";
   int rc = 2;
