@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "sweptccd/tracker_pose_t.hpp"
+#include "tests/common/temp_dir_test.h"
 #include "tests/tools/run_binary.h"
 
 namespace sweptccd {
@@ -28,25 +29,9 @@ namespace fs = std::filesystem;
 using testing::RunBinary;
 using testing::RunResult;
 
-class SimulateTrackerTest : public ::testing::Test {
+class SimulateTrackerTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("sweptccd_simulate_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string Write(const std::string& name, const std::string& text) const {
-    std::ofstream out(Path(name), std::ios::binary);
-    out << text;
-    return Path(name);
-  }
+  SimulateTrackerTest() : TempDirTest("simulate_test") {}
   // Runs the command with its messages logged to log_path.
   RunResult Simulate(const std::string& poses, const std::string& log_path,
                      std::vector<std::string> extra = {}) const {
@@ -57,7 +42,6 @@ class SimulateTrackerTest : public ::testing::Test {
     return RunBinary(SWEPTCCD_BINARY, args, Path("out.txt"), Path("err.txt"), 60);
   }
 
-  fs::path dir_;
 };
 
 // The messages in an LCM log, up to the first incomplete event.

@@ -30,6 +30,7 @@
 #include <thread>
 #include <vector>
 
+#include "tests/common/temp_dir_test.h"
 #include "core/errors.h"
 
 namespace sweptccd {
@@ -40,27 +41,9 @@ namespace fs = std::filesystem;
 using Tri = std::vector<Eigen::Vector3f>;  // Three vertices.
 
 // A fresh temporary folder per test, removed afterwards.
-class MeshTest : public ::testing::Test {
+class MeshTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::temp_directory_path() /
-           ("sweptccd_mesh_test_" + std::to_string(::getpid()) + "_" + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(dir_, ec);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string Write(const std::string& name, const std::string& bytes) const {
-    const std::string path = Path(name);
-    std::ofstream out(path, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    EXPECT_TRUE(out.good()) << path;
-    return path;
-  }
+  MeshTest() : TempDirTest("mesh_test") {}
   // Writes `bytes` gzip-compressed through zlib's gzopen/gzwrite.
   std::string WriteGz(const std::string& name, const std::string& bytes) const {
     const std::string path = Path(name);
@@ -75,7 +58,6 @@ class MeshTest : public ::testing::Test {
     return path;
   }
 
-  fs::path dir_;
 };
 
 std::string ReadBytes(const std::string& path) {
