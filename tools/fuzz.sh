@@ -8,12 +8,15 @@
 # build-fuzz/artifacts/<target>/ (add it to the corpus under a name that
 # says what it is once the bug is fixed).
 #   tools/fuzz.sh [TARGET...]        (default: every target below)
-# Environment: FUZZ_SECONDS (per target, default 30), JOBS (build, default 2).
+# Environment: FUZZ_SECONDS (per target, default 30), JOBS (build, default 2),
+# FUZZ_SEED (libFuzzer's -seed, default 1: a run is reproducible up to where
+# its time cap cuts it; set FUZZ_SEED=0 for a random seed when hunting).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 src=$PWD
 build=build-fuzz
 seconds=${FUZZ_SECONDS:-30}
+seed=${FUZZ_SEED:-1}
 jobs=${JOBS:-2}
 
 # Every parser of outside input.
@@ -70,7 +73,7 @@ for t in "${targets[@]}"; do
   # -malloc_limit_mb: no input of at most 64 KiB (the largest seed) may ask
   # for one block of 512 MiB; that is an amplification bug (the decoders'
   # counts, a mesh header's element count), not a big input.
-  "$build/bin/$t" -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 \
+  "$build/bin/$t" -seed="$seed" -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 \
     -close_fd_mask=1 -print_final_stats=1 -artifact_prefix="$artifacts/" "$work" \
     > "$build/$t.log" 2>&1 || status=$?
   grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb)' "$build/$t.log" | tr '\n' ' ' || true

@@ -94,38 +94,86 @@ PlyElement ParsePlyElement(std::istringstream& words, const std::string& line,
   return e;
 }
 
+// The header's lines, strictly: "ply", one "format", then "element NAME
+// COUNT" lines each followed by its "property TYPE NAME" / "property list
+// COUNT_TYPE ITEM_TYPE NAME" lines, with "comment" and "obj_info" lines
+// anywhere, up to "end_header". Element names are unique, and so are property
+// names within an element. Anything else is refused: assimp 5.2's PLY reader
+// sizes its buffers from one declaration and fills them from another when a
+// header repeats an element or a format line, and writes past the heap block
+// (found by tools/fuzz.sh: tests/fuzz/corpus/fuzz_mesh_ply/
+// repeated_vertex_element_heap_overflow).
 PlyHeader ParsePlyHeader(const std::string& data, const std::string& path) {
   PlyHeader h;
   h.body = FindPlyBody(data, path);
   std::istringstream header(data.substr(0, h.body));
   std::string line;
+  int number = 0;
+  std::vector<std::vector<std::string>> property_names;
+  auto refuse = [&](const std::string& why) {
+    throw InputError(path + ": PLY header line " + std::to_string(number) + ": " + why);
+  };
   while (std::getline(header, line)) {
+    ++number;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
     std::istringstream words(line);
-    std::string key;
-    words >> key;
+    std::vector<std::string> w;
+    for (std::string word; words >> word;) w.push_back(word);
+    const std::string key = w.empty() ? "" : w[0];
+    if (number == 1) {
+      if (w.size() != 1 || (key != "ply" && key != "PLY")) refuse("the first line is not 'ply'");
+      continue;
+    }
+    if (key == "comment" || key == "obj_info") continue;
+    if (key == "end_header") break;
     if (key == "format") {
-      words >> h.format;
+      if (!h.format.empty()) refuse("a second format line");
+      if (!h.elements.empty()) refuse("the format line comes after an element");
+      if (w.size() != 3) refuse("the format line is not 'format TYPE VERSION'");
+      h.format = w[1];
+      if (h.format != "ascii" && h.format != "binary_little_endian" &&
+          h.format != "binary_big_endian") {
+        throw InputError(path + ": the PLY header has no valid format line (got '" + h.format +
+                         "')");
+      }
     } else if (key == "element") {
-      h.elements.push_back(ParsePlyElement(words, line, path));
+      if (w.size() != 3) throw InputError(path + ": bad PLY element line '" + line + "'");
+      std::istringstream rest(line.substr(line.find("element") + 7));
+      h.elements.push_back(ParsePlyElement(rest, line, path));
+      for (size_t e = 0; e + 1 < h.elements.size(); ++e) {
+        if (h.elements[e].name == h.elements.back().name) {
+          refuse("the element '" + h.elements.back().name + "' is declared twice");
+        }
+      }
+      property_names.emplace_back();
     } else if (key == "property") {
       if (h.elements.empty()) throw InputError(path + ": PLY property before any element");
-      std::string type;
-      words >> type;
       PlyProperty prop;
-      if (type == "list") {
-        std::string count_type, item_type;
-        words >> count_type >> item_type;
-        prop.count_size = PlyTypeSize(count_type, path);
-        prop.size = PlyTypeSize(item_type, path);
+      std::string name;
+      if (w.size() >= 2 && w[1] == "list") {
+        if (w.size() != 5) refuse("the list property is not 'property list COUNT_TYPE ITEM_TYPE NAME'");
+        prop.count_size = PlyTypeSize(w[2], path);
+        prop.size = PlyTypeSize(w[3], path);
+        name = w[4];
       } else {
-        prop.size = PlyTypeSize(type, path);
+        if (w.size() != 3) refuse("the property line is not 'property TYPE NAME'");
+        prop.size = PlyTypeSize(w[1], path);
+        name = w[2];
       }
+      for (const std::string& seen : property_names.back()) {
+        if (seen == name) {
+          refuse("the property '" + name + "' of element '" + h.elements.back().name +
+                 "' is declared twice");
+        }
+      }
+      property_names.back().push_back(name);
       h.elements.back().properties.push_back(prop);
+    } else {
+      refuse("'" + key.substr(0, 32) + "' is not a PLY header keyword (corrupt header)");
     }
   }
-  if (h.format != "ascii" && h.format != "binary_little_endian" &&
-      h.format != "binary_big_endian") {
-    throw InputError(path + ": the PLY header has no valid format line (got '" + h.format + "')");
+  if (h.format.empty()) {
+    throw InputError(path + ": the PLY header has no valid format line (got '')");
   }
   return h;
 }

@@ -17,8 +17,10 @@ inline constexpr uint64_t kMaxPlyElementCount = 0x7fffffff;
 
 /// Checks `data` (the whole, already decompressed, file) for the format named
 /// by `format` ("obj", "ply" or "stl"):
-/// - PLY: a header ending in end_header within 1 MiB, known property types, a
-///   valid format line; every element count <= kMaxPlyElementCount; no element
+/// - PLY: a header ending in end_header within 1 MiB whose lines are, strictly,
+///   "ply", one valid format line before any element, element and property
+///   lines of the right shape (known property types; element names unique,
+///   property names unique within their element), comments; every element count <= kMaxPlyElementCount; no element
 ///   with a non-zero count and no properties; the counts must fit the bytes
 ///   after the header (binary: count x the element's minimum size, a list
 ///   counting its length prefix only; ASCII: two bytes per property value,
