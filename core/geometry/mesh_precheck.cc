@@ -121,7 +121,7 @@ PlyHeader ParsePlyHeader(const std::string& data, const std::string& path) {
     for (std::string word; words >> word;) w.push_back(word);
     const std::string key = w.empty() ? "" : w[0];
     if (number == 1) {
-      if (w.size() != 1 || (key != "ply" && key != "PLY")) refuse("the first line is not 'ply'");
+      if (w.size() != 1 || key.size() != 3) refuse("the first line is not 'ply'");
       continue;
     }
     if (key == "comment" || key == "obj_info") continue;
@@ -280,7 +280,12 @@ void WalkAsciiPly(const std::string& data, const PlyHeader& h, const std::string
 }
 
 void PrecheckPly(const std::string& data, const std::string& path, uint64_t max_line_bytes) {
-  if (data.compare(0, 3, "ply") != 0) return;  // Not a PLY: assimp will say so.
+  // assimp takes any case mix of "ply" as the magic number, so the check does.
+  if (data.size() < 3 || std::tolower(static_cast<unsigned char>(data[0])) != 'p' ||
+      std::tolower(static_cast<unsigned char>(data[1])) != 'l' ||
+      std::tolower(static_cast<unsigned char>(data[2])) != 'y') {
+    return;  // Not a PLY: assimp will say so.
+  }
   const PlyHeader h = ParsePlyHeader(data, path);
   const bool ascii = h.format == "ascii";
   CheckLineLengths(data, 0, ascii ? data.size() : h.body, max_line_bytes, path);

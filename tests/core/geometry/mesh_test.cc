@@ -582,6 +582,11 @@ TEST_F(MeshTest, PlyHeadersOutsideTheGrammarAreRefused) {
        "'elendement' is not a PLY header keyword"},
       {"first_line", "ply junk\nformat ascii 1.0\n" + vertex + face + body,
        "the first line is not 'ply'"},
+      // assimp reads "PLY" as a PLY too, and loops forever on this header
+      // with no end_header (found by the fuzzer: corpus seed
+      // upper_case_magic_without_end_header_hang).
+      {"upper_case_magic", "PLY\nformat ascii 1.0\n" + vertex + face,
+       "the PLY header has no end_header line"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
