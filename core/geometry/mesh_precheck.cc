@@ -1,5 +1,6 @@
 #include "core/geometry/mesh_precheck.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
@@ -280,11 +281,18 @@ void WalkAsciiPly(const std::string& data, const PlyHeader& h, const std::string
 }
 
 void PrecheckPly(const std::string& data, const std::string& path, uint64_t max_line_bytes) {
-  // assimp takes any case mix of "ply" as the magic number, so the check does.
-  if (data.size() < 3 || std::tolower(static_cast<unsigned char>(data[0])) != 'p' ||
-      std::tolower(static_cast<unsigned char>(data[1])) != 'l' ||
-      std::tolower(static_cast<unsigned char>(data[2])) != 'y') {
-    return;  // Not a PLY: assimp will say so.
+  // A .ply is checked whatever it holds: assimp picks its PLY reader by the
+  // name, skips leading blank lines and takes any case mix of "ply" as the
+  // magic number, so anything short of the exact first line "ply" is refused
+  // here (fuzz findings: "PLY" and "\nply" headers reached assimp unchecked,
+  // and it hung on one and read past a buffer on the other).
+  const size_t eol = std::min(data.find('\n'), data.size());
+  std::string first = data.substr(0, std::min<size_t>(eol, 8));
+  if (!first.empty() && first.back() == '\r') first.pop_back();
+  for (char& c : first) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (first != "ply") {
+    throw InputError(path +
+                     ": cannot parse the ply mesh: its first line is not 'ply' (not a PLY file)");
   }
   const PlyHeader h = ParsePlyHeader(data, path);
   const bool ascii = h.format == "ascii";

@@ -581,12 +581,16 @@ TEST_F(MeshTest, PlyHeadersOutsideTheGrammarAreRefused) {
       {"unknown_keyword", "ply\nformat ascii 1.0\n" + vertex + "elendement face 1\n" + face + body,
        "'elendement' is not a PLY header keyword"},
       {"first_line", "ply junk\nformat ascii 1.0\n" + vertex + face + body,
-       "the first line is not 'ply'"},
+       "its first line is not 'ply'"},
       // assimp reads "PLY" as a PLY too, and loops forever on this header
       // with no end_header (found by the fuzzer: corpus seed
       // upper_case_magic_without_end_header_hang).
       {"upper_case_magic", "PLY\nformat ascii 1.0\n" + vertex + face,
        "the PLY header has no end_header line"},
+      // ... and skips blank lines before it (fuzzer: blank_line_before_magic).
+      {"blank_line_first", "\nply\nformat ascii 1.0\n" + vertex + face + body,
+       "its first line is not 'ply'"},
+      {"not_ply", "solid x\nendsolid x\n", "its first line is not 'ply'"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
