@@ -16,9 +16,15 @@
 #               package (lib/cmake/SweptCCD) and lib/pkgconfig/sweptccd.pc
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
+# `cmake --install` and cpack install what is built and never build (cpack's
+# preinstall step would otherwise build every target, tests included): build
+# first (cmake --build build), then install or package.
+set(CMAKE_SKIP_INSTALL_ALL_DEPENDENCY ON)
 
 set(SWEPTCCD_INSTALL_INCLUDEDIR ${CMAKE_INSTALL_INCLUDEDIR}/sweptccd)
 set(SWEPTCCD_INSTALL_CMAKEDIR ${CMAKE_INSTALL_LIBDIR}/cmake/SweptCCD)
+# Debian names doc folders after the package: share/doc/sweptccd.
+set(SWEPTCCD_INSTALL_DOCDIR ${CMAKE_INSTALL_DATAROOTDIR}/doc/sweptccd)
 
 # What an exported target may link besides other exported targets: imported
 # targets the installed SweptCCDConfig.cmake can recreate in a consumer, each
@@ -203,10 +209,10 @@ install(CODE "
 " COMPONENT runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/deploy/sweptccd.yaml
               ${PROJECT_SOURCE_DIR}/deploy/sweptccd-service-gpu.conf
-        DESTINATION ${CMAKE_INSTALL_DOCDIR}/examples COMPONENT runtime)
+        DESTINATION ${SWEPTCCD_INSTALL_DOCDIR}/examples COMPONENT runtime)
 install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
               ${PROJECT_SOURCE_DIR}/docs/SECURITY.md
-        DESTINATION ${CMAKE_INSTALL_DOCDIR} COMPONENT runtime)
+        DESTINATION ${SWEPTCCD_INSTALL_DOCDIR} COMPONENT runtime)
 # The Java classes of the message types (msgs/CMakeLists.txt), for lcm-spy.
 if(TARGET sweptccd_msgs_jar)
   get_target_property(jar sweptccd_msgs_jar JAR_FILE)
