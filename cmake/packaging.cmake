@@ -28,23 +28,25 @@ set(SWEPTCCD_INSTALL_DOCDIR ${CMAKE_INSTALL_DATAROOTDIR}/doc/sweptccd)
 
 # What an exported target may link besides other exported targets: imported
 # targets the installed SweptCCDConfig.cmake can recreate in a consumer, each
-# as "TARGET|how" where how is pkg:<VAR>:<module> (pkg-config) or
-# cmake:<Package> (find_dependency). A target linking anything else stops the
+# as "TARGET|how|pc" where how is pkg:<VAR>:<module> (pkg-config) or
+# cmake:<Package> (find_dependency), and pc the pkg-config module sweptccd.pc
+# then requires (empty: none). A target linking anything else stops the
 # configuration with a message naming it: add it here.
 set(SWEPTCCD_EXPORT_DEPENDENCIES
-  "PkgConfig::SODIUM|pkg:SODIUM:libsodium"
-  "PkgConfig::LCM|pkg:LCM:lcm"
-  "Threads::Threads|cmake:Threads"
-  "spdlog::spdlog|cmake:spdlog"
-  "nlohmann_json::nlohmann_json|cmake:nlohmann_json"
-  "Eigen3::Eigen|cmake:Eigen3"
-  "CLI11::CLI11|cmake:CLI11"
-  "yaml-cpp|cmake:yaml-cpp"
-  "ZLIB::ZLIB|cmake:ZLIB"
-  "assimp::assimp|cmake:assimp")
-# pkg-config modules sweptccd.pc requires: lcm for the generated headers
-# (lcm/lcm_coretypes.h) and lcm::LCM, libsodium for the static msgs library.
-set(SWEPTCCD_PC_REQUIRES lcm libsodium)
+  "PkgConfig::SODIUM|pkg:SODIUM:libsodium|libsodium"
+  "PkgConfig::LCM|pkg:LCM:lcm|lcm"
+  "Threads::Threads|cmake:Threads|"
+  "spdlog::spdlog|cmake:spdlog|spdlog"
+  "nlohmann_json::nlohmann_json|cmake:nlohmann_json|nlohmann_json"
+  "Eigen3::Eigen|cmake:Eigen3|eigen3"
+  "CLI11::CLI11|cmake:CLI11|"
+  "yaml-cpp|cmake:yaml-cpp|yaml-cpp"
+  "ZLIB::ZLIB|cmake:ZLIB|zlib"
+  "assimp::assimp|cmake:assimp|assimp")
+# sweptccd.pc always requires lcm (the generated headers include
+# lcm/lcm_coretypes.h); the modules of what the exported libraries link are
+# added (static libraries: private dependencies too).
+set(SWEPTCCD_PC_REQUIRES lcm)
 
 set_property(GLOBAL PROPERTY SWEPTCCD_EXPORTED_TARGETS "")
 set_property(GLOBAL PROPERTY SWEPTCCD_EXPORTED_DEPENDENCIES "")
@@ -109,7 +111,9 @@ sweptccd_export_library(sweptccd_msgs HEADERS msgs)
 # exactly this line here, after the msgs line, when it lands:
 #   sweptccd_export_library(sweptccd_client HEADERS client)
 # (if it links a package not in SWEPTCCD_EXPORT_DEPENDENCIES, the
-# configuration says which; add it there).
+# configuration says which; add it there). Nothing else: its headers, the
+# config file's find_dependency lines and sweptccd.pc's Libs and Requires
+# follow from the line and the target's links.
 # ----------------------------------------------------------------------------
 
 # The lcm-gen C++ headers of every msgs/*.lcm type: include/sweptccd/sweptccd/.
@@ -140,6 +144,13 @@ foreach(target IN LISTS sweptccd_exported)
       list(GET parts 0 dep_target)
       if(dep_target STREQUAL item)
         list(GET parts 1 how)
+        list(LENGTH parts n)
+        if(n GREATER 2)
+          list(GET parts 2 pc_module)
+          if(NOT pc_module STREQUAL "" AND NOT pc_module IN_LIST SWEPTCCD_PC_REQUIRES)
+            list(APPEND SWEPTCCD_PC_REQUIRES ${pc_module})
+          endif()
+        endif()
       endif()
     endforeach()
     if(how STREQUAL "")

@@ -33,11 +33,13 @@ done
 
 "$writer" "file://$work/all_types.lcmlog?mode=w" "$work/manifest.txt"
 [ -s "$work/all_types.lcmlog" ] || fail "lcm_log_writer wrote no log"
-javac -nowarn -d "$work/classes" -cp "$lcm_jar:$jar" "$src/tests/packaging/DecodeLog.java"
+javac -nowarn -d "$work/classes" -cp "$lcm_jar" "$src/tests/packaging/DecodeLog.java"
+# The jar reaches the type lookup as it reaches lcm-spy: through CLASSPATH
+# (lcm-spy's own -cp is lcm.jar; README "Install and use from your project").
 # LCMTypeDatabase scans the whole class path, lcm.jar's lcm-spy GUI classes
 # included, which need jchart2d (not needed here): drop those notices.
 rc=0
-java -Djava.awt.headless=true -cp "$lcm_jar:$jar:$work/classes" DecodeLog \
+CLASSPATH="$jar" java -Djava.awt.headless=true -cp "$lcm_jar:$work/classes" DecodeLog \
   "$work/all_types.lcmlog" "$work/manifest.txt" "${types[@]}" > "$work/decode.log" 2>&1 || rc=$?
 grep -v -e '^ClassDiscoverer: java.lang.NoClassDefFoundError: info/monitorenter/' \
         -e '^ *jar: .*/lcm.jar$' -e '^ *class: lcm/spy/' "$work/decode.log" || true
