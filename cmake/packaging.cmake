@@ -247,11 +247,11 @@ set(CPACK_DEBIAN_RUNTIME_PACKAGE_NAME sweptccd)
 # Depends: from dpkg-shlibdeps (Debian dpkg-dev) over the ELF files.
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_RUNTIME_DESCRIPTION
-    "Continuous collision detection service for VR avatars\n The daemon sweptccd-service answers every pair of tracker poses received\n over LCM with the certified first time of contact; the sweptccd tool\n (query, simulate-tracker, monitor, keygen, ...); a hardened systemd unit\n and an example configuration (/usr/share/doc/sweptccd/examples); the Java\n classes of the message types for lcm-spy.")
+    "The daemon sweptccd-service answers every pair of tracker poses received over\nLCM with the certified first time of contact; the sweptccd tool (query,\nsimulate-tracker, monitor, keygen, ...); a hardened systemd unit; an example\nconfiguration (/usr/share/doc/sweptccd/examples); the Java classes of the\nmessage types for lcm-spy (/usr/share/java/sweptccd_msgs.jar).")
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME sweptccd-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
     "sweptccd (= ${PROJECT_VERSION}), liblcm-dev, libsodium-dev, pkg-config")
 set(CPACK_DEBIAN_DEV_DESCRIPTION
-    "SweptCCD message library and headers\n Static libraries, headers (LCM message types, signing, checked decoding),\n the CMake package SweptCCD and the pkg-config file sweptccd.")
+    "SweptCCD's static libraries and headers (LCM message types, checked decoding,\nmessage signing), the CMake package SweptCCD and the pkg-config file sweptccd.")
 include(CPack)
