@@ -6,9 +6,10 @@
 # (tests/packaging/consumer, copied out of the tree) is built against that
 # prefix with find_package(SweptCCD CONFIG REQUIRED), and its source again
 # with pkg-config, and both run (sign, verify, decode, memq:// round trip).
-#   install_consumer_test.sh SOURCE_DIR BUILD_DIR WORK_DIR CXX
+#   install_consumer_test.sh SOURCE_DIR BUILD_DIR WORK_DIR CXX [CXXFLAGS]
+# (CXXFLAGS: the sanitizer flags when the libraries were built with them)
 set -euo pipefail
-src=$1 build=$2 work=$3 cxx=$4
+src=$1 build=$2 work=$3 cxx=$4 cxxflags=${5:-}
 fail() { echo "install_consumer_test: $*" >&2; exit 1; }
 command -v pkg-config >/dev/null || fail "no pkg-config: install Debian package pkg-config"
 rm -rf "$work"
@@ -44,7 +45,8 @@ grep -q -- '--config' "$work/help.txt" || fail "installed daemon --help says not
 # The consumer, outside the tree, through find_package.
 cp -r "$src/tests/packaging/consumer" "$work/consumer"
 cmake -S "$work/consumer" -B "$work/consumer-build" -DCMAKE_PREFIX_PATH="$prefix" \
-      -DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_BUILD_TYPE=Release > "$work/consumer-cmake.log" 2>&1 ||
+      -DCMAKE_CXX_COMPILER="$cxx" -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS="$cxxflags" \
+      > "$work/consumer-cmake.log" 2>&1 ||
   { cat "$work/consumer-cmake.log" >&2; fail "consumer: cmake (find_package) failed"; }
 grep -q "SweptCCD_DIR:PATH=$prefix/lib/cmake/SweptCCD" "$work/consumer-build/CMakeCache.txt" ||
   fail "find_package found SweptCCD elsewhere than $prefix"
@@ -58,8 +60,8 @@ export PKG_CONFIG_PATH=$prefix/lib/pkgconfig
   fail "pkg-config does not read sweptccd.pc"
 flags=$(pkg-config --cflags --libs sweptccd) || fail "pkg-config --cflags --libs sweptccd failed"
 echo "pkg-config sweptccd: $flags"
-# shellcheck disable=SC2086
-"$cxx" -std=c++17 -O1 "$work/consumer/consumer.cc" -o "$work/consumer-pc" $flags ||
+# shellcheck disable=SC2086  # word splitting of the flags is wanted
+"$cxx" -std=c++17 -O1 $cxxflags "$work/consumer/consumer.cc" -o "$work/consumer-pc" $flags ||
   fail "consumer: build with pkg-config failed"
 "$work/consumer-pc" || fail "consumer (pkg-config) failed"
 echo "install_consumer_test: passed"
