@@ -20,8 +20,8 @@ mkdir -p "$work/root"
 
 (cd "$work" && cpack -G DEB -B "$work/out" --config "$build/CPackConfig.cmake") > "$work/cpack.log" 2>&1 ||
   { cat "$work/cpack.log" >&2; fail "cpack -G DEB failed"; }
-deb=$(ls "$work"/out/sweptccd_*.deb 2>/dev/null | head -1)
-dev=$(ls "$work"/out/sweptccd-dev_*.deb 2>/dev/null | head -1)
+deb=$(find "$work/out" -maxdepth 1 -name 'sweptccd_*.deb' | head -1)
+dev=$(find "$work/out" -maxdepth 1 -name 'sweptccd-dev_*.deb' | head -1)
 [ -n "$deb" ] || { cat "$work/cpack.log" >&2; fail "no sweptccd_*.deb in $work/out"; }
 [ -n "$dev" ] || fail "no sweptccd-dev_*.deb in $work/out"
 echo "packages: $(basename "$deb") $(basename "$dev")"

@@ -31,6 +31,8 @@ expect=(bin/sweptccd-service bin/sweptccd
         share/doc/sweptccd/examples/sweptccd-service-gpu.conf
         share/java/sweptccd_msgs.jar)
 for f in "$src"/msgs/*.lcm; do expect+=("include/sweptccd/sweptccd/$(basename "$f" .lcm).hpp"); done
+[ -f "$prefix/share/java/sweptccd_msgs.jar" ] || fail "not installed: share/java/sweptccd_msgs.jar" \
+  "(built only when Debian packages default-jdk-headless and liblcm-java were installed at configure time)"
 for f in "${expect[@]}"; do [ -f "$prefix/$f" ] || fail "not installed: $f"; done
 # The installed unit starts the installed daemon.
 grep -qx "ExecStart=$prefix/bin/sweptccd-service --config /etc/sweptccd/sweptccd.yaml --backend cpu" \

@@ -15,6 +15,7 @@ lcm_jar=${LCM_JAVA_JAR:-/usr/share/java/lcm.jar}
 fail() { echo "java_decode_test: $*" >&2; exit 1; }
 command -v javac >/dev/null || fail "no javac: install Debian package default-jdk-headless"
 command -v java >/dev/null || fail "no java: install Debian package default-jdk-headless"
+command -v jar >/dev/null || fail "no jar: install Debian package default-jdk-headless"
 [ -f "$lcm_jar" ] || fail "no $lcm_jar: install Debian package liblcm-java"
 [ -f "$jar" ] || fail "no $jar: it is built when javac (default-jdk-headless) and lcm.jar (liblcm-java) are installed at configure time; install them, re-run cmake and build"
 
@@ -25,7 +26,7 @@ for f in "$src"/msgs/*.lcm; do types+=("$(basename "$f" .lcm)"); done
 [ ${#types[@]} -gt 0 ] || fail "no msgs/*.lcm"
 echo "types: ${types[*]}"
 # Every type is in the jar (class sweptccd/<type>.class).
-listing=$(cd "$work" && jar tf "$jar" 2>/dev/null || unzip -Z1 "$jar")
+listing=$(jar tf "$jar") || fail "jar tf $jar failed"
 for t in "${types[@]}"; do
   grep -qx "sweptccd/$t.class" <<< "$listing" ||
     fail "sweptccd_msgs.jar lacks sweptccd/$t.class: add $t to SWEPTCCD_LCM_TYPES in msgs/CMakeLists.txt"
