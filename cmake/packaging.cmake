@@ -49,7 +49,6 @@ set(SWEPTCCD_EXPORT_DEPENDENCIES
 set(SWEPTCCD_PC_REQUIRES lcm)
 
 set_property(GLOBAL PROPERTY SWEPTCCD_EXPORTED_TARGETS "")
-set_property(GLOBAL PROPERTY SWEPTCCD_EXPORTED_DEPENDENCIES "")
 
 # sweptccd_export_library(TARGET [HEADERS path...])
 # Installs library TARGET (component dev) into the export set SweptCCDTargets
