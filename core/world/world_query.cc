@@ -1,0 +1,157 @@
+#include "core/world/world_query.h"
+
+#include <chrono>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "core/query/result_json.h"
+
+namespace sweptccd::world {
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()}); }
+
+// s of tau in the pair, rounded down (lo) or up (hi) so that the printed
+// normalised time never narrows the certified bracket.
+double SOf(double tau, double dur, bool up) {
+  double s = tau / dur;
+  const long double back = static_cast<long double>(s) * dur;
+  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
+  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
+  return std::clamp(s, 0.0, 1.0);
+}
+
+ojson ContactJson(const OtherContact& c, double dur) {
+  ojson j;
+  j["link"] = c.link;
+  if (c.other_link >= 0) j["other_link"] = c.other_link;
+  if (c.triangle >= 0) j["triangle"] = c.triangle;
+  j["s"] = std::clamp(c.tau / dur, 0.0, 1.0);
+  j["point_link"] = Vec(c.point_link);
+  j["point_other"] = Vec(c.point_other);
+  j["normal"] = Vec(c.normal);
+  j["separation"] = c.separation;
+  return j;
+}
+
+void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, ojson* j) {
+  const double dur = static_cast<double>(u1 - u0);
+  const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
+  (*j)["initially_colliding"] = b.initially_colliding;
+  (*j)["undecided"] = b.undecided;
+  (*j)["s_lo"] = b.initially_colliding ? static_cast<double>(t_from - u0) / dur : s_lo;
+  (*j)["s_hi"] = s_hi;
+  (*j)["t_lo"] = b.initially_colliding ? static_cast<double>(t_from)
+                                       : BracketTimeLo(u0, u1, s_lo);
+  (*j)["t_hi"] = BracketTimeHi(u0, u1, s_hi);
+}
+
+}  // namespace
+
+WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& options)
+    : w_(world), options_(options) {
+  entity_options_.eps_s = options.eps_s;
+  entity_options_.delta_m = options.delta_m;
+  entity_options_.per_link = options.per_link;
+  entity_options_.max_intervals = options.max_intervals;
+  for (size_t a = 0; a < w_.world.avatars.size(); ++a) {
+    engines_.push_back(std::make_unique<CcdEngine>(w_.world.avatars[a].skeleton, w_.env,
+                                                   w_.env_filters[a]));
+    avatar_scale_.push_back(EntityScale(w_.world.avatars[a]));
+    avatar_times_.emplace_back();
+    for (const Pose& p : w_.world.avatars[a].used) avatar_times_.back().push_back(p.utime);
+  }
+  for (const ObjectEntity& o : w_.world.objects) {
+    object_scale_.push_back(EntityScale(o));
+    object_times_.emplace_back();
+    for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
+  }
+}
+
+void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
+  if (w_.env.num_objects() == 0) return;
+  for (auto& e : engines_) f(e.get());
+}
+
+bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer,
+                                 int64_t* t_from, int64_t* t_to) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
+  const std::vector<int64_t>& times = b >= 0 ? avatar_times_[b] : object_times_[o];
+  if (times.empty()) return false;
+  *t_from = std::max(u0, times.front());
+  *t_to = std::min(u1, times.back());
+  if (*t_from > *t_to) return false;
+  const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
+  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  const std::unique_ptr<OtherTarget> target =
+      b >= 0 ? MakeAvatarTarget(w_.world, a, b, avatar_scale_[b])
+             : MakeObjectTarget(w_.world, a, o, object_scale_[o]);
+  *answer = AnswerOther(A.skeleton, motion, u0, u1, pieces, *target, entity_options_);
+  return true;
+}
+
+std::string WorldAnswerer::RecordJson(int a, size_t r) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  ojson j;
+  if (!rec.valid) {
+    j = ojson::parse(InvalidResultToJson(rec.pair, rec.utime0, rec.utime1, rec.error));
+    j["avatar"] = A.id;
+    j["others"] = ojson::array();
+    return j.dump(-1, ' ', false, ojson::error_handler_t::replace);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  QueryResult env_result;  // `free` when there is no environment.
+  if (w_.env.num_objects() > 0) env_result = engines_[a]->Query(rec.pose0, rec.pose1, options_);
+  const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
+  const double dur = static_cast<double>(u1 - u0);
+  ojson others = ojson::array();
+  auto add = [&](int b, int o) {
+    OtherAnswer ans;
+    int64_t t_from = 0, t_to = 0;
+    if (!AnswerEntity(a, r, b, o, &ans, &t_from, &t_to)) return;
+    ojson e;
+    e["entity"] = b >= 0 ? w_.world.avatars[b].id : w_.world.objects[o].id;
+    e["kind"] = b >= 0 ? "avatar" : "object";
+    e["window"] = ojson::array({t_from, t_to});
+    e["result"] = ans.contact ? "contact" : "free";
+    if (ans.contact) {
+      BracketFields(ans.bracket, u0, u1, t_from, &e);
+      ojson contacts = ojson::array();
+      if (ans.bracket.has_witness) contacts.push_back(ContactJson(ans.bracket.witness, dur));
+      e["contacts"] = contacts;
+    } else {
+      e["initially_colliding"] = false;
+      e["undecided"] = false;
+    }
+    if (options_.per_link) {
+      ojson links = ojson::array();
+      for (const OtherBracket& br : ans.links) {
+        ojson l;
+        l["link"] = br.link;
+        BracketFields(br, u0, u1, t_from, &l);
+        if (br.has_witness) l["contact"] = ContactJson(br.witness, dur);
+        links.push_back(l);
+      }
+      e["links"] = links;
+    }
+    e["stats"] = {{"intervals", ans.intervals}, {"culled_by_box", ans.culled_by_box}};
+    others.push_back(e);
+  };
+  for (int b = 0; b < static_cast<int>(w_.world.avatars.size()); ++b) {
+    if (b != a) add(b, -1);
+  }
+  for (int o = 0; o < static_cast<int>(w_.world.objects.size()); ++o) add(-1, o);
+  const double elapsed_us =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+  j = ojson::parse(ResultToJson(rec.pair, u0, u1, env_result, options_.per_link, elapsed_us));
+  j["avatar"] = A.id;
+  j["others"] = others;
+  return j.dump();
+}
+
+}  // namespace sweptccd::world

@@ -1,0 +1,227 @@
+// `sweptccd world` (SPEC section 8, "Offline"), run as the real binary on
+// files this test writes: a small world with analytic contact times (records
+// per avatar in world-file order, `others` avatars then objects, windows that
+// start mid-pair, an invalid record with "others": []), --per-link,
+// --output, filters from either avatar, worlds with avatars only, objects
+// only or an empty `env`, and refusals (exit 2, one line on stderr naming the
+// file and the problem).
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/common/temp_dir_test.h"
+#include "tests/tools/run_binary.h"
+
+namespace sweptccd {
+namespace {
+
+using nlohmann::json;
+using testing::RunResult;
+
+const std::string kBinary = SWEPTCCD_BINARY;
+
+constexpr char kBar[] =
+    R"({"name": "bar", "links": [{"name": "bar", "parent": null, "a": [-0.5, 0, 0], "b": [0.5, 0, 0], "radius": 0.1}]})";
+
+std::string Line(int64_t utime, double y) {
+  return "{\"utime\": " + std::to_string(utime) + ", \"links\": [[0, " + std::to_string(y) +
+         ", 0, 1, 0, 0, 0]]}\n";
+}
+
+class WorldCommandTest : public test::TempDirTest {
+ protected:
+  WorldCommandTest() : TempDirTest("world") {}
+
+  void SetUp() override {
+    TempDirTest::SetUp();
+    Write("bar.json", kBar);
+    // alice stays at the origin; line 1 is garbage (an invalid record).
+    Write("alice.jsonl", Line(1'000'000, 0) + "garbage\n" + Line(1'010'000, 0) + Line(1'020'000, 0));
+    // bob comes down from y = 1 to y = 0 over 20 ms: the bars touch at
+    // y = 0.2, i.e. at t = 1'016'000.
+    Write("bob.jsonl", Line(1'000'000, 1.0) + Line(1'020'000, 0.0));
+    Write("cup.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n");
+    // The cup appears mid-pair, far away, and stays.
+    Write("cup.jsonl", "{\"utime\": 1015000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n"
+                       "{\"utime\": 1030000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n");
+    Write("floor.obj", "v -9 -1 -9\nv 9 -1 -9\nv 9 -1 9\nv -9 -1 9\nf 1 2 3 4\n");
+  }
+
+  RunResult Run(const std::vector<std::string>& args) {
+    return testing::RunBinary(kBinary, args, Path("out.txt"), Path("err.txt"), 120);
+  }
+
+  std::vector<json> Records(const std::string& text) {
+    std::vector<json> out;
+    std::istringstream in(text);
+    std::string line;
+    while (std::getline(in, line)) {
+      if (!line.empty()) out.push_back(json::parse(line));
+    }
+    return out;
+  }
+
+  std::string World(const std::string& alice_ignore = "[]", bool objects = true,
+                    bool env = true) {
+    std::string w = R"({"avatars": [
+      {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl", "ignore": )" +
+                    alice_ignore + R"(},
+      {"id": "bob", "skeleton": "bar.json", "poses": "bob.jsonl", "motion": "independent"}])";
+    if (objects) w += R"(, "objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}])";
+    w += env ? R"(, "env": ["floor.obj"]})" : R"(, "env": []})";
+    return Write("world.json", w);
+  }
+};
+
+const json* Other(const json& record, const std::string& id) {
+  for (const json& e : record["others"]) {
+    if (e["entity"] == id) return &e;
+  }
+  return nullptr;
+}
+
+TEST_F(WorldCommandTest, AnswersEveryAvatarPairWithOthers) {
+  const RunResult r = Run({"world", "--world", World(), "--backend", "cpu"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const std::vector<json> recs = Records(r.out);
+  ASSERT_EQ(recs.size(), 4u) << r.out;  // alice: 3 records, bob: 1.
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(recs[i]["avatar"], "alice");
+    EXPECT_EQ(recs[i]["pair"], i);
+  }
+  EXPECT_EQ(recs[3]["avatar"], "bob");
+  // The garbage line: invalid, no others.
+  EXPECT_EQ(recs[0]["result"], "invalid");
+  EXPECT_EQ(recs[0]["others"], json::array());
+  // alice [1.00 s, 1.01 s]: bob far (y >= 0.5), the cup not there yet.
+  EXPECT_EQ(recs[1]["result"], "free");
+  ASSERT_EQ(recs[1]["others"].size(), 1u);
+  EXPECT_EQ(recs[1]["others"][0]["entity"], "bob");
+  EXPECT_EQ(recs[1]["others"][0]["result"], "free");
+  // alice [1.01 s, 1.02 s]: bob touches at 1'016'000; the cup's window
+  // starts mid-pair.
+  const json& rec = recs[2];
+  EXPECT_EQ(rec["result"], "free");  // The floor is 0.9 m below.
+  ASSERT_EQ(rec["others"].size(), 2u);
+  EXPECT_EQ(rec["others"][0]["entity"], "bob");
+  EXPECT_EQ(rec["others"][1]["entity"], "cup");
+  const json& bob = rec["others"][0];
+  EXPECT_EQ(bob["kind"], "avatar");
+  EXPECT_EQ(bob["window"], json::array({1'010'000, 1'020'000}));
+  ASSERT_EQ(bob["result"], "contact");
+  EXPECT_FALSE(bob["initially_colliding"].get<bool>());
+  EXPECT_LE(bob["t_lo"].get<double>(), 1'016'000.0);
+  EXPECT_GE(bob["t_hi"].get<double>(), 1'016'000.0 - 20);  // within delta = 1 mm (20 us)
+  EXPECT_LE(bob["t_hi"].get<double>() - bob["t_lo"].get<double>(), 100.0);
+  EXPECT_NEAR(bob["s_lo"].get<double>(), (bob["t_lo"].get<double>() - 1'010'000) / 10'000, 1e-9);
+  ASSERT_GE(bob["contacts"].size(), 1u);
+  const json& c = bob["contacts"][0];
+  EXPECT_EQ(c["link"], 0);
+  EXPECT_EQ(c["other_link"], 0);
+  EXPECT_NEAR(c["normal"][1].get<double>(), -1.0, 1e-9);  // From bob (above) towards alice.
+  EXPECT_LE(c["separation"].get<double>(), 1e-3);
+  const json& cup = rec["others"][1];
+  EXPECT_EQ(cup["kind"], "object");
+  EXPECT_EQ(cup["window"], json::array({1'015'000, 1'020'000}));
+  EXPECT_EQ(cup["result"], "free");
+  // bob's record sees alice (both halves of her stream) and the cup.
+  const json* alice = Other(recs[3], "alice");
+  ASSERT_NE(alice, nullptr);
+  EXPECT_EQ((*alice)["window"], json::array({1'000'000, 1'020'000}));
+  EXPECT_EQ((*alice)["result"], "contact");
+  EXPECT_LE((*alice)["t_lo"].get<double>(), 1'016'000.0);
+  EXPECT_NEAR((*alice)["contacts"][0]["normal"][1].get<double>(), 1.0, 1e-9);
+  EXPECT_NE(Other(recs[3], "cup"), nullptr);
+}
+
+TEST_F(WorldCommandTest, PerLinkAndOutputFile) {
+  const RunResult r = Run({"world", "--world", World(), "--per-link", "--output", Path("res.jsonl"),
+                           "--eps", "1e-3"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  EXPECT_TRUE(r.out.empty());
+  const std::vector<json> recs = Records(testing::ReadFile(Path("res.jsonl")));
+  ASSERT_EQ(recs.size(), 4u);
+  const json& bob = recs[2]["others"][0];
+  ASSERT_EQ(bob["links"].size(), 1u);
+  EXPECT_EQ(bob["links"][0]["link"], 0);
+  EXPECT_LE(bob["links"][0]["t_hi"].get<double>() - bob["links"][0]["t_lo"].get<double>(),
+            1000.0);
+}
+
+TEST_F(WorldCommandTest, FilterOfEitherAvatarAppliesToBoth) {
+  const RunResult r =
+      Run({"world", "--world", World(R"([{"link": "bar", "entity": "bob", "other_link": 0}])")});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const std::vector<json> recs = Records(r.out);
+  ASSERT_EQ(recs.size(), 4u);
+  EXPECT_EQ(Other(recs[2], "bob")->at("result"), "free");
+  EXPECT_EQ(Other(recs[3], "alice")->at("result"), "free");
+}
+
+TEST_F(WorldCommandTest, AvatarsOnlyObjectsOnlyAndNoEnvironment) {
+  {
+    const RunResult r = Run({"world", "--world", World("[]", /*objects=*/false, /*env=*/false)});
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+    const std::vector<json> recs = Records(r.out);
+    ASSERT_EQ(recs.size(), 4u);
+    EXPECT_EQ(recs[2]["result"], "free");
+    EXPECT_EQ(recs[2]["others"].size(), 1u);
+  }
+  {
+    Write("objects.json",
+          R"({"objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}]})");
+    const RunResult r = Run({"world", "--world", Path("objects.json")});
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+    EXPECT_TRUE(r.out.empty());
+  }
+}
+
+TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
+  struct Case {
+    std::string name, text, expect;
+  };
+  const std::vector<Case> cases = {
+      {"duplicate id",
+       R"({"avatars": [{"id": "x", "skeleton": "bar.json", "poses": "alice.jsonl"}],
+           "objects": [{"id": "x", "mesh": "cup.obj", "poses": "cup.jsonl"}]})",
+       "duplicate id 'x'"},
+      {"malformed id",
+       R"({"avatars": [{"id": "bad id!", "skeleton": "bar.json", "poses": "alice.jsonl"}]})",
+       "malformed id 'bad id!'"},
+      {"too long id",
+       R"({"avatars": [{"id": ")" + std::string(65, 'a') +
+           R"(", "skeleton": "bar.json", "poses": "alice.jsonl"}]})",
+       "malformed id"},
+      {"missing mesh",
+       R"({"objects": [{"id": "cup", "mesh": "nope.obj", "poses": "cup.jsonl"}]})",
+       "nope.obj"},
+      {"unknown link",
+       R"({"avatars": [{"id": "a", "skeleton": "bar.json", "poses": "alice.jsonl",
+                        "ignore": [{"link": "nosuch", "entity": "b"}]}]})",
+       "unknown link 'nosuch'"},
+      {"unknown other link",
+       R"({"avatars": [{"id": "a", "skeleton": "bar.json", "poses": "alice.jsonl",
+                        "ignore": [{"link": "*", "entity": "b", "other_link": "elbow"}]},
+                       {"id": "b", "skeleton": "bar.json", "poses": "bob.jsonl"}]})",
+       "unknown link 'elbow'"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string path = Write("bad.json", c.text);
+    const RunResult r = Run({"world", "--world", path});
+    ASSERT_TRUE(r.exited) << r.Describe();
+    EXPECT_EQ(r.code, 2) << r.Describe();
+    EXPECT_TRUE(r.out.empty());
+    ASSERT_FALSE(r.err.empty());
+    EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "not one line: " << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << r.err;
+    if (c.name != "missing mesh") EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace sweptccd
