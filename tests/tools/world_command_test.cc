@@ -180,6 +180,32 @@ TEST_F(WorldCommandTest, AvatarsOnlyObjectsOnlyAndNoEnvironment) {
   }
 }
 
+// The static environment on the GPU (llvmpipe here, never skipped: the test
+// fails when the GPU was not chosen), the entities on the CPU: the same
+// records as --backend cpu, timings and work counters aside.
+TEST_F(WorldCommandTest, GpuAndCpuBackendsGiveTheSameRecords) {
+  Write("floor.obj", "v -9 -0.05 -9\nv 9 -0.05 -9\nv 9 -0.05 9\nv -9 -0.05 9\nf 1 2 3 4\n");
+  const std::string world = World();
+  const RunResult cpu = Run({"world", "--world", world, "--backend", "cpu", "--per-link"});
+  ASSERT_TRUE(cpu.exited && cpu.code == 0) << cpu.Describe();
+  const RunResult gpu = Run({"world", "--world", world, "--backend", "gpu", "--per-link"});
+  ASSERT_TRUE(gpu.exited && gpu.code == 0) << gpu.Describe();
+  EXPECT_NE(gpu.err.find("backend gpu"), std::string::npos) << gpu.err;
+  std::vector<json> a = Records(cpu.out), b = Records(gpu.out);
+  ASSERT_EQ(a.size(), 4u);
+  ASSERT_EQ(a.size(), b.size());
+  int env_contacts = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (json* r : {&a[i], &b[i]}) {
+      r->erase("elapsed_us");
+      r->erase("stats");
+    }
+    env_contacts += a[i]["result"] == "contact";
+    EXPECT_EQ(a[i], b[i]) << "record " << i;
+  }
+  EXPECT_GE(env_contacts, 2);  // alice lies on the floor.
+}
+
 TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
   struct Case {
     std::string name, text, expect;
