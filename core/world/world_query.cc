@@ -1,6 +1,7 @@
 #include "core/world/world_query.h"
 
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -36,17 +37,57 @@ ojson ContactJson(const OtherContact& c, double dur) {
   return j;
 }
 
-void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, ojson* j) {
+void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, int64_t t_to,
+                   ojson* j) {
   const double dur = static_cast<double>(u1 - u0);
   const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
   (*j)["initially_colliding"] = b.initially_colliding;
   (*j)["undecided"] = b.undecided;
   (*j)["s_lo"] = b.initially_colliding ? static_cast<double>(t_from - u0) / dur : s_lo;
   (*j)["s_hi"] = s_hi;
-  (*j)["t_lo"] = b.initially_colliding ? static_cast<double>(t_from)
-                                       : BracketTimeLo(u0, u1, s_lo);
-  (*j)["t_hi"] = BracketTimeHi(u0, u1, s_hi);
+  // Inside the window (its ends are exact integers; the rounding of s must
+  // not move a bracket end out of it).
+  (*j)["t_lo"] = b.initially_colliding
+                     ? static_cast<double>(t_from)
+                     : std::max(BracketTimeLo(u0, u1, s_lo), static_cast<double>(t_from));
+  (*j)["t_hi"] = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(t_to));
 }
+
+Aabb CapsuleBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
+  Aabb box;
+  box.lo = a.cwiseMin(b).array() - r;
+  box.hi = a.cwiseMax(b).array() + r;
+  return box;
+}
+
+void Grow(Aabb* box, const Aabb& o) {
+  box->lo = box->lo.cwiseMin(o.lo);
+  box->hi = box->hi.cwiseMax(o.hi);
+}
+
+Aabb EmptyBox() {
+  Aabb box;
+  box.lo = Eigen::Vector3d::Constant(HUGE_VAL);
+  box.hi = Eigen::Vector3d::Constant(-HUGE_VAL);
+  return box;
+}
+
+// Every link of the skeleton over the pair, padded by `pad` metres.
+Aabb MotionBox(const Skeleton& skeleton, const PairMotion& motion, double pad) {
+  Aabb box = EmptyBox();
+  for (int l = 0; l < skeleton.num_links(); ++l) {
+    Eigen::Vector3d a, b;
+    double g;
+    motion.SweptCapsule(l, 0, 1, &a, &b, &g);
+    Grow(&box, CapsuleBox(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
+  }
+  return box;
+}
+
+// Padding of the broad phase's boxes: far above any rounding slack of the
+// engine (whose own bounds are tighter), so a box test never clears what
+// the exact test would keep.
+double BoxPad(double scale) { return 1e-6 + std::ldexp(scale + 10.0, -18); }
 
 }  // namespace
 
@@ -68,6 +109,34 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     object_times_.emplace_back();
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
+  for (size_t b = 0; b < w_.world.avatars.size(); ++b) {
+    const AvatarEntity& e = w_.world.avatars[b];
+    avatar_boxes_.emplace_back();
+    for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
+      const size_t k1 = std::min(k + 1, e.used.size() - 1);
+      const PairMotion m(e.skeleton, e.used[k], e.used[k1], e.motion);
+      avatar_boxes_.back().push_back(MotionBox(e.skeleton, m, BoxPad(avatar_scale_[b])));
+    }
+  }
+  for (size_t o = 0; o < w_.world.objects.size(); ++o) {
+    const ObjectEntity& e = w_.world.objects[o];
+    double rho = 0;
+    const Aabb bounds = e.mesh.object(0).bvh.bounds();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
+                                   (c & 2) ? bounds.hi.y() : bounds.lo.y(),
+                                   (c & 4) ? bounds.hi.z() : bounds.lo.z());
+      rho = std::max(rho, corner.norm());
+    }
+    object_boxes_.emplace_back();
+    for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
+      const size_t k1 = std::min(k + 1, e.used.size() - 1);
+      // Every mesh point is within rho of the frame origin, which moves on
+      // the straight line between the two samples.
+      object_boxes_.back().push_back(CapsuleBox(e.used[k].p, e.used[k1].p,
+                                                rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
+    }
+  }
 }
 
 void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
@@ -85,6 +154,25 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   *t_from = std::max(u0, times.front());
   *t_to = std::min(u1, times.back());
   if (*t_from > *t_to) return false;
+  // Broad phase: the boxes of E's sample intervals that the window meets.
+  const std::vector<Aabb>& boxes = b >= 0 ? avatar_boxes_[b] : object_boxes_[o];
+  if (box_a_ != a || box_r_ != r) {
+    box_ = PairBox(a, r);
+    box_a_ = a;
+    box_r_ = r;
+  }
+  const Aabb& box_a = box_;
+  bool near = false;
+  const size_t first = static_cast<size_t>(std::max<std::ptrdiff_t>(
+      0, std::upper_bound(times.begin(), times.end(), *t_from) - times.begin() - 1));
+  for (size_t k = first; k < boxes.size() && times[k] <= *t_to && !near; ++k) {
+    near = box_a.Overlaps(boxes[k]);
+  }
+  if (!near) {
+    *answer = OtherAnswer();
+    answer->culled_by_box = true;
+    return true;
+  }
   const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
   const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
   const std::unique_ptr<OtherTarget> target =
@@ -92,6 +180,13 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
              : MakeObjectTarget(w_.world, a, o, object_scale_[o]);
   *answer = AnswerOther(A.skeleton, motion, u0, u1, pieces, *target, entity_options_);
   return true;
+}
+
+Aabb WorldAnswerer::PairBox(int a, size_t r) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  return MotionBox(A.skeleton, motion, BoxPad(avatar_scale_[a]));
 }
 
 std::string WorldAnswerer::RecordJson(int a, size_t r) const {
@@ -120,7 +215,7 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
     e["window"] = ojson::array({t_from, t_to});
     e["result"] = ans.contact ? "contact" : "free";
     if (ans.contact) {
-      BracketFields(ans.bracket, u0, u1, t_from, &e);
+      BracketFields(ans.bracket, u0, u1, t_from, t_to, &e);
       ojson contacts = ojson::array();
       if (ans.bracket.has_witness) contacts.push_back(ContactJson(ans.bracket.witness, dur));
       e["contacts"] = contacts;
@@ -133,7 +228,7 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
       for (const OtherBracket& br : ans.links) {
         ojson l;
         l["link"] = br.link;
-        BracketFields(br, u0, u1, t_from, &l);
+        BracketFields(br, u0, u1, t_from, t_to, &l);
         if (br.has_witness) l["contact"] = ContactJson(br.witness, dur);
         links.push_back(l);
       }

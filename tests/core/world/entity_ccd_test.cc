@@ -28,6 +28,7 @@
 
 #include "core/geometry/distance.h"
 #include "core/world/entity_ccd.h"
+#include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
 
@@ -506,6 +507,93 @@ TEST(EntityCcdCases, SplitWindowAtSampleTimes) {
   const std::vector<Piece> instant = SplitWindow(95, 111, 111, samples);
   ASSERT_EQ(instant.size(), 1u);
   EXPECT_EQ(instant[0].tau0, instant[0].tau1);
+}
+
+// The world's broad phase (per-entity boxes of every sample interval) never
+// changes an answer: every (record, entity) of random worlds of four avatars
+// and two objects, through WorldAnswerer, equals AnswerOther run directly,
+// and an entity the boxes clear is free by AnswerOther too.
+TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
+  int culled = 0, contacts = 0;
+  for (int seed = 0; seed < 12; ++seed) {
+    Rng rng(9000 + seed);
+    LoadedWorld lw;
+    World& w = lw.world;
+    for (int e = 0; e < 4; ++e) {
+      AvatarEntity A;
+      A.id = "a" + std::to_string(e);
+      A.skeleton = RandomSkeleton(rng, 1 + rng.I(4), true);
+      A.motion = rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+      const int64_t step = 8'000 + rng.I(8'000);
+      Pose p = RandomPose(rng, A.skeleton.num_links(), rng.I(20'000), Vector3d(rng.Box(1.0)), 0.3);
+      for (int k = 0; k < 8; ++k) {
+        A.used.push_back(p);
+        if (k > 0) {
+          PairOutcome out;
+          out.pair = k - 1;
+          out.valid = true;
+          out.pose0 = A.used[k - 1];
+          out.pose1 = p;
+          A.records.push_back(out);
+        }
+        p = NextPose(rng, p, p.utime + step, 0.2);
+      }
+      w.avatars.push_back(A);
+      lw.env_filters.emplace_back(A.skeleton.num_links(), 0);
+    }
+    w.rules.assign(4, {});
+    for (int e = 0; e < 2; ++e) {
+      ObjectEntity O;
+      O.id = "o" + std::to_string(e);
+      O.mesh.AddMesh(RandomMesh(rng, false), "mesh");
+      RigidSample x;
+      x.utime = rng.I(30'000);
+      x.p = rng.Box(1.0);
+      for (int k = 0; k < 6; ++k) {
+        O.used.push_back(x);
+        x.utime += 11'111;
+        x.p += rng.Box(0.2);
+        x.q = (rng.Turn(rng.U(0, 1.0)) * x.q).normalized();
+      }
+      w.objects.push_back(std::move(O));
+    }
+    QueryOptions qo;
+    const WorldAnswerer answerer(lw, qo);
+    EntityQueryOptions eo;
+    for (int a = 0; a < 4; ++a) {
+      for (size_t r = 0; r < w.avatars[a].records.size(); ++r) {
+        const PairOutcome& rec = w.avatars[a].records[r];
+        for (int e = 0; e < 6; ++e) {
+          const int b = e < 4 ? e : -1, o = e < 4 ? -1 : e - 4;
+          if (b == a) continue;
+          OtherAnswer via_world;
+          int64_t t_from, t_to;
+          if (!answerer.AnswerEntity(a, r, b, o, &via_world, &t_from, &t_to)) continue;
+          std::vector<int64_t> times;
+          if (b >= 0) {
+            for (const Pose& p : w.avatars[b].used) times.push_back(p.utime);
+          } else {
+            for (const RigidSample& x : w.objects[o].used) times.push_back(x.utime);
+          }
+          const PairMotion motion(w.avatars[a].skeleton, rec.pose0, rec.pose1, w.avatars[a].motion);
+          const auto target = b >= 0 ? MakeAvatarTarget(w, a, b) : MakeObjectTarget(w, a, o);
+          const OtherAnswer direct =
+              AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime,
+                          SplitWindow(rec.pose0.utime, t_from, t_to, times), *target, eo);
+          ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
+          culled += via_world.culled_by_box;
+          contacts += direct.contact;
+          if (direct.contact) {
+            EXPECT_EQ(via_world.bracket.tau_lo, direct.bracket.tau_lo);
+            EXPECT_EQ(via_world.bracket.tau_hi, direct.bracket.tau_hi);
+          }
+        }
+      }
+    }
+  }
+  std::printf("%d culled by the world's boxes, %d contacts\n", culled, contacts);
+  EXPECT_GT(culled, 50);
+  EXPECT_GT(contacts, 10);
 }
 
 // ---------------------------------------------------------------- real mocap
