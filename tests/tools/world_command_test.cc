@@ -180,6 +180,38 @@ TEST_F(WorldCommandTest, AvatarsOnlyObjectsOnlyAndNoEnvironment) {
   }
 }
 
+// A thin plate thrown down through alice's bar at 200 m/s: its triangle
+// reaches the bar's surface (y = 0.1) at t = 1'014'500.
+TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
+  Write("plate.obj", "v -0.05 0 -0.05\nv 0.05 0 -0.05\nv 0 0 0.05\nf 1 2 3\n");
+  Write("plate.jsonl", "{\"utime\": 1010000, \"pose\": [0, 1, 0, 1, 0, 0, 0]}\n"
+                       "not json\n"
+                       "{\"utime\": 1020000, \"pose\": [0, -1, 0, 0, 0, 1, 0]}\n");  // Half a turn about y.
+  const std::string world = Write("plate_world.json", R"({"avatars": [
+      {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl"}],
+      "objects": [{"id": "plate", "mesh": "plate.obj", "poses": "plate.jsonl"}]})");
+  const RunResult r = Run({"world", "--world", world});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const std::vector<json> recs = Records(r.out);
+  ASSERT_EQ(recs.size(), 3u);
+  // [1.00 s, 1.01 s] ends as the plate appears: a zero-length window.
+  ASSERT_EQ(recs[1]["others"].size(), 1u);
+  EXPECT_EQ(recs[1]["others"][0]["window"], json::array({1'010'000, 1'010'000}));
+  EXPECT_EQ(recs[1]["others"][0]["result"], "free");
+  ASSERT_EQ(recs[2]["others"].size(), 1u);
+  const json& e = recs[2]["others"][0];
+  EXPECT_EQ(e["kind"], "object");
+  ASSERT_EQ(e["result"], "contact");
+  EXPECT_LE(e["t_lo"].get<double>(), 1'014'500.0);
+  EXPECT_GE(e["t_hi"].get<double>(), 1'014'500.0 - 5);  // delta = 1 mm is 5 us here.
+  const json& c = e["contacts"][0];
+  EXPECT_EQ(c["triangle"], 0);
+  EXPECT_FALSE(c.contains("other_link"));
+  EXPECT_NEAR(c["normal"][1].get<double>(), -1.0, 1e-6);  // From the plate down to the bar.
+  EXPECT_LE(c["separation"].get<double>(), 1e-3);
+  EXPECT_NEAR(c["point_link"][1].get<double>(), 0.0, 1e-9);
+}
+
 // The static environment on the GPU (llvmpipe here, never skipped: the test
 // fails when the GPU was not chosen), the entities on the CPU: the same
 // records as --backend cpu, timings and work counters aside.
