@@ -117,6 +117,8 @@ int main(int argc, char** argv) {
       "cpu, gpu or auto (static environment only; entities run on the CPU)");
   world->add_flag("--per-link", wo.query.per_link, "A bracket for every touching link");
   world->add_option("--output", wo.output_path, "Results file (default: standard output)");
+  world->add_flag("--bench", wo.bench,
+                  "Print a table (counts, time per record) instead of the records");
   world->add_option("--max-intervals", wo.query.max_intervals,
                     "Work limit per query (default 2000000)");
 

@@ -2,9 +2,13 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <nlohmann/json.hpp>
+#include <vector>
 
 #include "core/errors.h"
 #include "core/world/world_query.h"
@@ -33,12 +37,42 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       std::fprintf(stderr, "sweptccd world: backend %s\n", backend.reason().c_str());
     }
     answerer.ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
-    int64_t records = 0;
+    int64_t records = 0, entries = 0, contacts = 0, culled = 0;
+    std::vector<double> record_us;
     for (int a = 0; a < static_cast<int>(loaded.world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
-        *out << answerer.RecordJson(a, r) << '\n';
+        const auto start = std::chrono::steady_clock::now();
+        const std::string line = answerer.RecordJson(a, r);
+        record_us.push_back(std::chrono::duration<double, std::micro>(
+                                std::chrono::steady_clock::now() - start)
+                                .count());
         ++records;
+        if (!options.bench) {
+          *out << line << '\n';
+          continue;
+        }
+        const nlohmann::json record = nlohmann::json::parse(line);
+        for (const auto& e : record["others"]) {
+          ++entries;
+          contacts += e["result"] == "contact";
+          culled += e["stats"]["culled_by_box"].get<bool>();
+        }
       }
+    }
+    if (options.bench) {
+      std::sort(record_us.begin(), record_us.end());
+      auto pct = [&](double p) {
+        return record_us.empty() ? 0.0
+                                 : record_us[static_cast<size_t>(p * (record_us.size() - 1))];
+      };
+      double total = 0;
+      for (double v : record_us) total += v;
+      std::fprintf(stderr, "sweptccd world --bench: %s\n", options.world_path.c_str());
+      *out << "avatars " << loaded.world.avatars.size() << "\nobjects "
+           << loaded.world.objects.size() << "\nrecords " << records << "\nentity_entries "
+           << entries << "\nentity_contacts " << contacts << "\nculled_by_box " << culled
+           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << pct(0.5)
+           << "\nrecord_us_p99 " << pct(0.99) << "\nrecord_us_max " << pct(1.0) << '\n';
     }
     out->flush();
     if (!*out) {

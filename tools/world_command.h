@@ -16,6 +16,9 @@ struct WorldCommandOptions {
   gpu::BackendKind backend = gpu::BackendKind::kAuto;
   QueryOptions query;       // eps, delta, per-link, work limit (motion: per avatar).
   world::WorldLoadOptions load;
+  /// --bench: answer every record as usual but print a table (counts and
+  /// time per record) instead of the records.
+  bool bench = false;
 };
 
 /// Runs the command. Returns 0 when the inputs could be read, 2 with a

@@ -212,6 +212,20 @@ TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
   EXPECT_NEAR(c["point_link"][1].get<double>(), 0.0, 1e-9);
 }
 
+// --bench: the same work, a table of counts instead of the records (the
+// timings are printed, never asserted).
+TEST_F(WorldCommandTest, BenchPrintsATable) {
+  const RunResult r = Run({"world", "--world", World(), "--bench"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  EXPECT_NE(r.out.find("avatars 2\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("objects 1\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("records 4\n"), std::string::npos) << r.out;
+  // Entries: alice 1 + 2 (2 valid records), bob 2; contacts: bob both ways.
+  EXPECT_NE(r.out.find("entity_entries 5\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("entity_contacts 2\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("record_us_p99 "), std::string::npos) << r.out;
+}
+
 // The static environment on the GPU (llvmpipe here, never skipped: the test
 // fails when the GPU was not chosen), the entities on the CPU: the same
 // records as --backend cpu, timings and work counters aside.
