@@ -276,8 +276,10 @@ std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
     return pieces;
   }
   // The first segment that can overlap: the last sample at or before t_from.
-  const size_t first = static_cast<size_t>(std::max<std::ptrdiff_t>(
-      0, std::upper_bound(samples.begin(), samples.end(), t_from) - samples.begin() - 1));
+  // (At most the last interval: a window that is the last sample's instant.)
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(samples.size());
+  const size_t first = static_cast<size_t>(std::clamp<std::ptrdiff_t>(
+      std::upper_bound(samples.begin(), samples.end(), t_from) - samples.begin() - 1, 0, n - 2));
   for (size_t k = first; k + 1 < samples.size() && samples[k] <= t_to; ++k) {
     const int64_t lo = std::max(t_from, samples[k]);
     const int64_t hi = std::min(t_to, samples[k + 1]);
@@ -317,6 +319,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
                         int64_t utime1, const std::vector<Piece>& pieces,
                         const OtherTarget& target, const EntityQueryOptions& options) {
   OtherAnswer answer;
+  if (pieces.empty()) return answer;  // No window (SplitWindow of a non-overlapping entity).
   const int num_links = skeleton_a.num_links();
   const double dur = static_cast<double>(utime1 - utime0);
   const double tau_from = pieces.front().tau0, tau_to = pieces.back().tau1;

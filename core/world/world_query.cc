@@ -163,8 +163,10 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   }
   const Aabb& box_a = box_;
   bool near = false;
-  const size_t first = static_cast<size_t>(std::max<std::ptrdiff_t>(
-      0, std::upper_bound(times.begin(), times.end(), *t_from) - times.begin() - 1));
+  // (At most the last box: a window that is the last sample's instant.)
+  const size_t first = static_cast<size_t>(std::clamp<std::ptrdiff_t>(
+      std::upper_bound(times.begin(), times.end(), *t_from) - times.begin() - 1, 0,
+      static_cast<std::ptrdiff_t>(boxes.size()) - 1));
   for (size_t k = first; k < boxes.size() && times[k] <= *t_to && !near; ++k) {
     near = box_a.Overlaps(boxes[k]);
   }

@@ -507,6 +507,20 @@ TEST(EntityCcdCases, SplitWindowAtSampleTimes) {
   const std::vector<Piece> instant = SplitWindow(95, 111, 111, samples);
   ASSERT_EQ(instant.size(), 1u);
   EXPECT_EQ(instant[0].tau0, instant[0].tau1);
+  // Regression: the instant of the last sample (an entity that stops as
+  // the pair starts) is the end of the last interval.
+  const std::vector<Piece> last = SplitWindow(133, 133, 133, samples);
+  ASSERT_EQ(last.size(), 1u);
+  EXPECT_EQ(last[0].k, 3);
+  EXPECT_EQ(last[0].SE(0), 1.0);
+  const std::vector<Piece> first = SplitWindow(80, 90, 90, samples);
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(first[0].k, 0);
+  EXPECT_EQ(first[0].SE(10), 0.0);
+  // A window over the whole stream: one piece per interval, contiguous.
+  const std::vector<Piece> all = SplitWindow(90, 90, 133, samples);
+  ASSERT_EQ(all.size(), 4u);
+  for (size_t i = 1; i < all.size(); ++i) EXPECT_EQ(all[i].tau0, all[i - 1].tau1);
 }
 
 // The world's broad phase (per-entity boxes of every sample interval) never
@@ -594,6 +608,32 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
   std::printf("%d culled by the world's boxes, %d contacts\n", culled, contacts);
   EXPECT_GT(culled, 50);
   EXPECT_GT(contacts, 10);
+}
+
+// Regression: an entity whose last sample is the pair's first instant
+// exists for that instant only; touching then is a contact (the broad phase
+// once skipped the last sample interval and answered `free`).
+TEST(EntityCcdWorld, EntityEndingAsThePairStarts) {
+  LoadedWorld lw;
+  lw.world = TwoCapsules(0.1, 0.1);
+  lw.world.avatars[0].used = {At(0, {0, 0, 0}), At(10'000, {0, 0, 0})};
+  PairOutcome rec;
+  rec.valid = true;
+  rec.pose0 = lw.world.avatars[0].used[0];
+  rec.pose1 = lw.world.avatars[0].used[1];
+  lw.world.avatars[0].records = {rec};
+  lw.world.avatars[1].used = {At(-10'000, {0, 1, 0}), At(0, {0, 0.15, 0})};
+  for (int e = 0; e < 2; ++e) lw.env_filters.emplace_back(1, 0);
+  const WorldAnswerer answerer(lw, QueryOptions());
+  OtherAnswer ans;
+  int64_t t_from, t_to;
+  ASSERT_TRUE(answerer.AnswerEntity(0, 0, 1, -1, &ans, &t_from, &t_to));
+  EXPECT_EQ(t_from, 0);
+  EXPECT_EQ(t_to, 0);
+  ASSERT_TRUE(ans.contact);
+  EXPECT_TRUE(ans.bracket.initially_colliding);
+  EXPECT_EQ(ans.bracket.tau_lo, 0);
+  EXPECT_EQ(ans.bracket.tau_hi, 0);
 }
 
 // ---------------------------------------------------------------- real mocap
