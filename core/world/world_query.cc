@@ -203,7 +203,11 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
   }
   const auto start = std::chrono::steady_clock::now();
   QueryResult env_result;  // `free` when there is no environment.
-  if (w_.env.num_objects() > 0) env_result = engines_[a]->Query(rec.pose0, rec.pose1, options_);
+  if (w_.env.num_objects() > 0) {
+    QueryOptions options = options_;
+    options.motion = A.motion;  // Each avatar moves by its own model.
+    env_result = engines_[a]->Query(rec.pose0, rec.pose1, options);
+  }
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
   const double dur = static_cast<double>(u1 - u0);
   ojson others = ojson::array();

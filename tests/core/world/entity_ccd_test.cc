@@ -280,6 +280,8 @@ void RandomAvatarWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
   int64_t t = u0 - step * (rng.I(3)) + rng.I(static_cast<int>(step));
   if (rng.P(0.25)) t = u0 + rng.I(13'889);  // Starts mid-pair.
   const int count = 1 + rng.I(5);         // May stop mid-pair (or be one instant).
+  if (rng.P(0.08)) t = u0 - step * (count - 1);  // Ends as the pair starts.
+  if (rng.P(0.08)) t = u1;                       // Starts as the pair ends.
   Pose q = RandomPose(rng, n1, t, Vector3d(rng.Box(0.3)), 0.3);
   for (int i = 0; i < count; ++i) {
     w->avatars[1].used.push_back(q);
@@ -330,6 +332,8 @@ void RandomObjectWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
   int64_t t = u0 - step + rng.I(static_cast<int>(step));
   if (rng.P(0.25)) t = u0 + rng.I(13'889);
   const int count = 1 + rng.I(4);
+  if (rng.P(0.08)) t = u0 - step * (count - 1);  // Ends as the pair starts.
+  if (rng.P(0.08)) t = u1;                       // Starts as the pair ends.
   RigidSample x;
   x.utime = t;
   x.p = rng.Box(0.3);
