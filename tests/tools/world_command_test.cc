@@ -212,6 +212,43 @@ TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
   EXPECT_NEAR(c["point_link"][1].get<double>(), 0.0, 1e-9);
 }
 
+// The static-environment part moves each avatar by its own motion model and
+// equals `sweptccd query` with that model: a two-link arm swings 90 degrees;
+// articulated, its tip sweeps out to x + y = 2.83 and meets a wall at
+// x + y = 2.7; independent, it stays below 2.42 and is free.
+TEST_F(WorldCommandTest, EnvironmentPartUsesEachAvatarsMotionModel) {
+  Write("arm.json", R"({"name": "arm", "links": [
+      {"name": "upper", "parent": null, "a": [0, 0, 0], "b": [1, 0, 0], "radius": 0.05},
+      {"name": "lower", "parent": "upper", "a": [0, 0, 0], "b": [1, 0, 0], "radius": 0.05}]})");
+  Write("arm.jsonl",
+        "{\"utime\": 0, \"links\": [[0, 0, 0, 1, 0, 0, 0], [1, 0, 0, 1, 0, 0, 0]]}\n"
+        "{\"utime\": 100000, \"links\": [[0, 0, 0, 0.7071067811865476, 0, 0, 0.7071067811865476],"
+        " [0, 1, 0, 0.7071067811865476, 0, 0, 0.7071067811865476]]}\n");
+  Write("wall.obj", "v 2.7 0 -5\nv 0 2.7 -5\nv 1.35 1.35 5\nf 1 2 3\n");
+  for (const std::string motion : {"articulated", "independent"}) {
+    SCOPED_TRACE(motion);
+    const std::string world = Write("arm_world.json", R"({"avatars": [{"id": "arm",
+        "skeleton": "arm.json", "poses": "arm.jsonl", "motion": ")" + motion + R"("}],
+        "env": ["wall.obj"]})");
+    const RunResult w = Run({"world", "--world", world});
+    ASSERT_TRUE(w.exited && w.code == 0) << w.Describe();
+    const RunResult q = Run({"query", "--skeleton", Path("arm.json"), "--poses", Path("arm.jsonl"),
+                             "--env", Path("wall.obj"), "--motion", motion});
+    ASSERT_TRUE(q.exited && q.code == 0) << q.Describe();
+    std::vector<json> a = Records(w.out), b = Records(q.out);
+    ASSERT_EQ(a.size(), 1u);
+    ASSERT_EQ(b.size(), 1u);
+    EXPECT_EQ(a[0]["result"], motion == "articulated" ? "contact" : "free");
+    for (json* r : {&a[0], &b[0]}) {
+      r->erase("elapsed_us");
+      r->erase("stats");
+      r->erase("avatar");
+      r->erase("others");
+    }
+    EXPECT_EQ(a[0], b[0]);
+  }
+}
+
 // --bench: the same work, a table of counts instead of the records (the
 // timings are printed, never asserted).
 TEST_F(WorldCommandTest, BenchPrintsATable) {
