@@ -43,9 +43,9 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
         const auto start = std::chrono::steady_clock::now();
         const std::string line = answerer.RecordJson(a, r);
-        record_us.push_back(std::chrono::duration<double, std::micro>(
-                                std::chrono::steady_clock::now() - start)
-                                .count());
+        record_us.push_back(
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+                .count());
         ++records;
         if (!options.bench) {
           *out << line << '\n';
@@ -62,8 +62,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     if (options.bench) {
       std::sort(record_us.begin(), record_us.end());
       auto pct = [&](double p) {
-        return record_us.empty() ? 0.0
-                                 : record_us[static_cast<size_t>(p * (record_us.size() - 1))];
+        return record_us.empty() ? 0.0 : record_us[static_cast<size_t>(p * (record_us.size() - 1))];
       };
       double total = 0;
       for (double v : record_us) total += v;
@@ -71,14 +70,14 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       *out << "avatars " << loaded.world.avatars.size() << "\nobjects "
            << loaded.world.objects.size() << "\nrecords " << records << "\nentity_entries "
            << entries << "\nentity_contacts " << contacts << "\nculled_by_box " << culled
-           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << pct(0.5)
-           << "\nrecord_us_p99 " << pct(0.99) << "\nrecord_us_max " << pct(1.0) << '\n';
+           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << pct(0.5) << "\nrecord_us_p99 "
+           << pct(0.99) << "\nrecord_us_max " << pct(1.0) << '\n';
     }
     out->flush();
     if (!*out) {
-      throw InputError((options.output_path.empty() ? std::string("standard output")
-                                                    : options.output_path) +
-                       ": error while writing the results");
+      throw InputError(
+          (options.output_path.empty() ? std::string("standard output") : options.output_path) +
+          ": error while writing the results");
     }
     spdlog::info("{} records", records);
     return 0;

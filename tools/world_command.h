@@ -14,7 +14,7 @@ struct WorldCommandOptions {
   std::string world_path;
   std::string output_path;  // Empty: standard output.
   gpu::BackendKind backend = gpu::BackendKind::kAuto;
-  QueryOptions query;       // eps, delta, per-link, work limit (motion: per avatar).
+  QueryOptions query;  // eps, delta, per-link, work limit (motion: per avatar).
   world::WorldLoadOptions load;
   /// --bench: answer every record as usual but print a table (counts and
   /// time per record) instead of the records.

@@ -316,8 +316,8 @@ std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, 
 }
 
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
-                        int64_t utime1, const std::vector<Piece>& pieces,
-                        const OtherTarget& target, const EntityQueryOptions& options) {
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options) {
   OtherAnswer answer;
   if (pieces.empty()) return answer;  // No window (SplitWindow of a non-overlapping entity).
   const int num_links = skeleton_a.num_links();
@@ -374,7 +374,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       Grow(&box_a, CapsuleBox(a, b, skeleton_a.link(l).radius + g + tol));
     }
     bool overlaps = false;
-    for (const Piece& p : pieces) overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
+    for (const Piece& p : pieces)
+      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
     if (!overlaps) answer.culled_by_box = true;
     if (!overlaps) std::fill(done.begin(), done.end(), true);
   }

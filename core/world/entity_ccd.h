@@ -34,10 +34,10 @@ struct EntityQueryOptions {
 
 /// One witness between A and E, world frame.
 struct OtherContact {
-  int link = 0;         // A's link.
-  int other_link = -1;  // E's link (avatar), else -1.
+  int link = 0;           // A's link.
+  int other_link = -1;    // E's link (avatar), else -1.
   int64_t triangle = -1;  // E's triangle id (object), else -1.
-  double tau = 0;       // Microseconds since utime0.
+  double tau = 0;         // Microseconds since utime0.
   Eigen::Vector3d point_link{0, 0, 0}, point_other{0, 0, 0};
   Eigen::Vector3d normal{0, 0, 1};  // Unit, from E's point towards A's.
   double separation = 0;
@@ -55,10 +55,10 @@ struct OtherBracket {
 
 struct OtherAnswer {
   bool contact = false;
-  OtherBracket bracket;               // When contact: the earliest bracket.
-  std::vector<OtherBracket> links;    // Per-link mode: by link index.
-  int64_t intervals = 0;              // Items visited.
-  bool culled_by_box = false;         // The entity-level broad phase cleared it.
+  OtherBracket bracket;             // When contact: the earliest bracket.
+  std::vector<OtherBracket> links;  // Per-link mode: by link index.
+  int64_t intervals = 0;            // Items visited.
+  bool culled_by_box = false;       // The entity-level broad phase cleared it.
 };
 
 /// One piece of the window: [tau0, tau1] in which E moves with one motion,
@@ -66,8 +66,8 @@ struct OtherAnswer {
 struct Piece {
   double tau0 = 0, tau1 = 0;
   int k = 0;
-  double e_tau0 = 0;  // Sample k's time in tau.
-  double e_dur = 0;   // Microseconds from sample k to k+1 (0: static).
+  double e_tau0 = 0;            // Sample k's time in tau.
+  double e_dur = 0;             // Microseconds from sample k to k+1 (0: static).
   double SE(double tau) const;  // E's normalised time at tau, in [0, 1].
 };
 
@@ -109,15 +109,13 @@ double EntityScale(const ObjectEntity& entity);
 
 /// The other entity's targets; `scale` is EntityScale of it (< 0: computed
 /// here, O(samples); callers answering many pairs compute it once).
-std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b,
-                                              double scale = -1);
-std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o,
-                                              double scale = -1);
+std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale = -1);
+std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale = -1);
 
 /// Answers A's pair (poses pose0, pose1 under `motion_a`) against `target`
 /// over `pieces` (chronological, contiguous, non-empty). Deterministic.
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
-                        int64_t utime1, const std::vector<Piece>& pieces,
-                        const OtherTarget& target, const EntityQueryOptions& options);
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options);
 
 }  // namespace sweptccd::world

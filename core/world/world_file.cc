@@ -37,10 +37,11 @@ int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string&
     const int64_t i = key.get<int64_t>();
     if (i >= 0 && i < skeleton.num_links()) return static_cast<int>(i);
     throw InputError(where + ": \"" + field + "\" index " + std::to_string(i) +
-                     " is out of range (the skeleton has " +
-                     std::to_string(skeleton.num_links()) + " links)");
+                     " is out of range (the skeleton has " + std::to_string(skeleton.num_links()) +
+                     " links)");
   }
-  if (!key.is_string()) throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
+  if (!key.is_string())
+    throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
   const std::string name = key.get<std::string>();
   if (name == "*") return -1;
   const int found = skeleton.FindLink(name);
@@ -144,7 +145,8 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
   } catch (const json::exception& e) {
     throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
   }
-  if (!doc.is_object()) throw InputError(path + ": expected a JSON object with \"avatars\", \"objects\", \"env\"");
+  if (!doc.is_object())
+    throw InputError(path + ": expected a JSON object with \"avatars\", \"objects\", \"env\"");
   const fs::path dir = fs::path(path).parent_path();
   auto array_of = [&](const char* key) {
     if (!doc.contains(key) || doc[key].is_null()) return json::array();
@@ -164,18 +166,22 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
     }
     const auto [it, inserted] = seen.emplace(id, where);
     if (!inserted) {
-      throw InputError(path + ": " + where + ": duplicate id '" + id + "' (also " + it->second + ")");
+      throw InputError(path + ": " + where + ": duplicate id '" + id + "' (also " + it->second +
+                       ")");
     }
     return id;
   };
   std::vector<std::string> avatar_ids, object_ids;
-  for (size_t i = 0; i < avatars.size(); ++i) avatar_ids.push_back(check_id(avatars[i], "avatars[" + std::to_string(i) + "]"));
-  for (size_t i = 0; i < objects.size(); ++i) object_ids.push_back(check_id(objects[i], "objects[" + std::to_string(i) + "]"));
+  for (size_t i = 0; i < avatars.size(); ++i)
+    avatar_ids.push_back(check_id(avatars[i], "avatars[" + std::to_string(i) + "]"));
+  for (size_t i = 0; i < objects.size(); ++i)
+    object_ids.push_back(check_id(objects[i], "objects[" + std::to_string(i) + "]"));
 
   LoadedWorld out;
   std::vector<std::string> env_paths, env_written;
   for (size_t i = 0; i < env.size(); ++i) {
-    if (!env[i].is_string()) throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
+    if (!env[i].is_string())
+      throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
     env_written.push_back(env[i].get<std::string>());
     env_paths.push_back(Resolve(dir, env_written.back()));
   }
@@ -183,14 +189,17 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
 
   for (size_t i = 0; i < avatars.size(); ++i) {
     const json& e = avatars[i];
-    const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
+    const std::string where =
+        path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
     AvatarEntity a;
     a.id = avatar_ids[i];
-    a.skeleton = LoadSkeletonFile(Resolve(dir, StringField(e, "skeleton", where)), options.max_links);
+    a.skeleton =
+        LoadSkeletonFile(Resolve(dir, StringField(e, "skeleton", where)), options.max_links);
     const std::string motion = StringField(e, "motion", where, /*required=*/false);
     if (!motion.empty()) {
       const std::optional<MotionModel> m = ParseMotionModel(motion);
-      if (!m) throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
+      if (!m)
+        throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
       a.motion = *m;
     }
     ReadAvatarPoses(Resolve(dir, StringField(e, "poses", where)), &a);
@@ -198,7 +207,8 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
   }
   for (size_t i = 0; i < objects.size(); ++i) {
     const json& e = objects[i];
-    const std::string where = path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
+    const std::string where =
+        path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
     ObjectEntity o;
     o.id = object_ids[i];
     const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
@@ -214,14 +224,19 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
     CollisionFilter filter(skeleton.num_links(), out.env.num_objects());
     const json& e = avatars[i];
     if (e.contains("ignore") && !e["ignore"].is_null()) {
-      if (!e["ignore"].is_array()) throw InputError(path + ": avatars[" + std::to_string(i) + "]: \"ignore\" must be an array");
+      if (!e["ignore"].is_array())
+        throw InputError(path + ": avatars[" + std::to_string(i) +
+                         "]: \"ignore\" must be an array");
       const json& rules = e["ignore"];
       for (size_t k = 0; k < rules.size(); ++k) {
-        const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" +
-                                  avatar_ids[i] + "') ignore[" + std::to_string(k) + "]";
+        const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] +
+                                  "') ignore[" + std::to_string(k) + "]";
         const json& r = rules[k];
-        if (!r.is_object() || !r.contains("link") || (r.contains("object") == r.contains("entity"))) {
-          throw InputError(where + ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
+        if (!r.is_object() || !r.contains("link") ||
+            (r.contains("object") == r.contains("entity"))) {
+          throw InputError(
+              where +
+              ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
         }
         const int link = ResolveLinkKey(r["link"], skeleton, where, "link");
         if (r.contains("object")) {
@@ -255,12 +270,16 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
             if (avatar_ids[b] == rule.entity) other = static_cast<int>(b);
           }
           for (const std::string& id : object_ids) {
-            if (id == rule.entity) throw InputError(where + ": \"other_link\" given for object '" + id + "' (objects have no links)");
+            if (id == rule.entity)
+              throw InputError(where + ": \"other_link\" given for object '" + id +
+                               "' (objects have no links)");
           }
           if (other >= 0) {
-            rule.other_link = ResolveLinkKey(r["other_link"], out.world.avatars[other].skeleton, where, "other_link");
+            rule.other_link = ResolveLinkKey(r["other_link"], out.world.avatars[other].skeleton,
+                                             where, "other_link");
           } else if (r["other_link"].is_number_integer() && r["other_link"].get<int64_t>() >= 0) {
-            rule.other_link = static_cast<int>(std::min<int64_t>(r["other_link"].get<int64_t>(), 1 << 30));
+            rule.other_link =
+                static_cast<int>(std::min<int64_t>(r["other_link"].get<int64_t>(), 1 << 30));
           } else if (!(r["other_link"].is_string())) {
             throw InputError(where + ": \"other_link\" must be a link name, an index or \"*\"");
           } else if (r["other_link"].get<std::string>() != "*") {

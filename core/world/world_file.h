@@ -14,7 +14,7 @@ namespace sweptccd::world {
 
 struct LoadedWorld {
   World world;
-  Environment env;                          // The static environment (may be empty).
+  Environment env;                           // The static environment (may be empty).
   std::vector<CollisionFilter> env_filters;  // Per avatar: its {"link", "object"} rules.
 };
 

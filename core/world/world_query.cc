@@ -1,7 +1,7 @@
 #include "core/world/world_query.h"
 
-#include <chrono>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
 
@@ -98,8 +98,8 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
   entity_options_.per_link = options.per_link;
   entity_options_.max_intervals = options.max_intervals;
   for (size_t a = 0; a < w_.world.avatars.size(); ++a) {
-    engines_.push_back(std::make_unique<CcdEngine>(w_.world.avatars[a].skeleton, w_.env,
-                                                   w_.env_filters[a]));
+    engines_.push_back(
+        std::make_unique<CcdEngine>(w_.world.avatars[a].skeleton, w_.env, w_.env_filters[a]));
     avatar_scale_.push_back(EntityScale(w_.world.avatars[a]));
     avatar_times_.emplace_back();
     for (const Pose& p : w_.world.avatars[a].used) avatar_times_.back().push_back(p.utime);
@@ -133,8 +133,8 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       // Every mesh point is within rho of the frame origin, which moves on
       // the straight line between the two samples.
-      object_boxes_.back().push_back(CapsuleBox(e.used[k].p, e.used[k1].p,
-                                                rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
+      object_boxes_.back().push_back(
+          CapsuleBox(e.used[k].p, e.used[k1].p, rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
     }
   }
 }

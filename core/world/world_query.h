@@ -41,7 +41,7 @@ class WorldAnswerer {
   QueryOptions options_;
   EntityQueryOptions entity_options_;
   std::vector<std::unique_ptr<CcdEngine>> engines_;
-  std::vector<double> avatar_scale_, object_scale_;  // EntityScale, once.
+  std::vector<double> avatar_scale_, object_scale_;                // EntityScale, once.
   std::vector<std::vector<int64_t>> avatar_times_, object_times_;  // Used samples' utimes.
   // Per entity, a box holding it over each interval between used samples
   // (one box for an entity with one sample).

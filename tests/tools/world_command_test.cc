@@ -40,14 +40,16 @@ class WorldCommandTest : public test::TempDirTest {
     TempDirTest::SetUp();
     Write("bar.json", kBar);
     // alice stays at the origin; line 1 is garbage (an invalid record).
-    Write("alice.jsonl", Line(1'000'000, 0) + "garbage\n" + Line(1'010'000, 0) + Line(1'020'000, 0));
+    Write("alice.jsonl",
+          Line(1'000'000, 0) + "garbage\n" + Line(1'010'000, 0) + Line(1'020'000, 0));
     // bob comes down from y = 1 to y = 0 over 20 ms: the bars touch at
     // y = 0.2, i.e. at t = 1'016'000.
     Write("bob.jsonl", Line(1'000'000, 1.0) + Line(1'020'000, 0.0));
     Write("cup.obj", "v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n");
     // The cup appears mid-pair, far away, and stays.
-    Write("cup.jsonl", "{\"utime\": 1015000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n"
-                       "{\"utime\": 1030000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n");
+    Write("cup.jsonl",
+          "{\"utime\": 1015000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n"
+          "{\"utime\": 1030000, \"pose\": [5, 0, 0, 1, 0, 0, 0]}\n");
     Write("floor.obj", "v -9 -1 -9\nv 9 -1 -9\nv 9 -1 9\nv -9 -1 9\nf 1 2 3 4\n");
   }
 
@@ -65,8 +67,7 @@ class WorldCommandTest : public test::TempDirTest {
     return out;
   }
 
-  std::string World(const std::string& alice_ignore = "[]", bool objects = true,
-                    bool env = true) {
+  std::string World(const std::string& alice_ignore = "[]", bool objects = true, bool env = true) {
     std::string w = R"({"avatars": [
       {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl", "ignore": )" +
                     alice_ignore + R"(},
@@ -139,8 +140,8 @@ TEST_F(WorldCommandTest, AnswersEveryAvatarPairWithOthers) {
 }
 
 TEST_F(WorldCommandTest, PerLinkAndOutputFile) {
-  const RunResult r = Run({"world", "--world", World(), "--per-link", "--output", Path("res.jsonl"),
-                           "--eps", "1e-3"});
+  const RunResult r = Run(
+      {"world", "--world", World(), "--per-link", "--output", Path("res.jsonl"), "--eps", "1e-3"});
   ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
   EXPECT_TRUE(r.out.empty());
   const std::vector<json> recs = Records(testing::ReadFile(Path("res.jsonl")));
@@ -148,8 +149,7 @@ TEST_F(WorldCommandTest, PerLinkAndOutputFile) {
   const json& bob = recs[2]["others"][0];
   ASSERT_EQ(bob["links"].size(), 1u);
   EXPECT_EQ(bob["links"][0]["link"], 0);
-  EXPECT_LE(bob["links"][0]["t_hi"].get<double>() - bob["links"][0]["t_lo"].get<double>(),
-            1000.0);
+  EXPECT_LE(bob["links"][0]["t_hi"].get<double>() - bob["links"][0]["t_lo"].get<double>(), 1000.0);
 }
 
 TEST_F(WorldCommandTest, FilterOfEitherAvatarAppliesToBoth) {
@@ -184,9 +184,10 @@ TEST_F(WorldCommandTest, AvatarsOnlyObjectsOnlyAndNoEnvironment) {
 // reaches the bar's surface (y = 0.1) at t = 1'014'500.
 TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
   Write("plate.obj", "v -0.05 0 -0.05\nv 0.05 0 -0.05\nv 0 0 0.05\nf 1 2 3\n");
-  Write("plate.jsonl", "{\"utime\": 1010000, \"pose\": [0, 1, 0, 1, 0, 0, 0]}\n"
-                       "not json\n"
-                       "{\"utime\": 1020000, \"pose\": [0, -1, 0, 0, 0, 1, 0]}\n");  // Half a turn about y.
+  Write("plate.jsonl",
+        "{\"utime\": 1010000, \"pose\": [0, 1, 0, 1, 0, 0, 0]}\n"
+        "not json\n"
+        "{\"utime\": 1020000, \"pose\": [0, -1, 0, 0, 0, 1, 0]}\n");  // Half a turn about y.
   const std::string world = Write("plate_world.json", R"({"avatars": [
       {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl"}],
       "objects": [{"id": "plate", "mesh": "plate.obj", "poses": "plate.jsonl"}]})");
@@ -228,7 +229,8 @@ TEST_F(WorldCommandTest, EnvironmentPartUsesEachAvatarsMotionModel) {
   for (const std::string motion : {"articulated", "independent"}) {
     SCOPED_TRACE(motion);
     const std::string world = Write("arm_world.json", R"({"avatars": [{"id": "arm",
-        "skeleton": "arm.json", "poses": "arm.jsonl", "motion": ")" + motion + R"("}],
+        "skeleton": "arm.json", "poses": "arm.jsonl", "motion": ")" +
+                                                          motion + R"("}],
         "env": ["wall.obj"]})");
     const RunResult w = Run({"world", "--world", world});
     ASSERT_TRUE(w.exited && w.code == 0) << w.Describe();
@@ -305,8 +307,7 @@ TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
        R"({"avatars": [{"id": ")" + std::string(65, 'a') +
            R"(", "skeleton": "bar.json", "poses": "alice.jsonl"}]})",
        "malformed id"},
-      {"missing mesh",
-       R"({"objects": [{"id": "cup", "mesh": "nope.obj", "poses": "cup.jsonl"}]})",
+      {"missing mesh", R"({"objects": [{"id": "cup", "mesh": "nope.obj", "poses": "cup.jsonl"}]})",
        "nope.obj"},
       {"unknown link",
        R"({"avatars": [{"id": "a", "skeleton": "bar.json", "poses": "alice.jsonl",
@@ -328,7 +329,9 @@ TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
     ASSERT_FALSE(r.err.empty());
     EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "not one line: " << r.err;
     EXPECT_NE(r.err.find(c.expect), std::string::npos) << r.err;
-    if (c.name != "missing mesh") EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
+    if (c.name != "missing mesh") {
+      EXPECT_NE(r.err.find(path), std::string::npos) << r.err;
+    }
   }
 }
 

@@ -15,19 +15,20 @@
 // reference, is <= delta), and the witness itself (points, normal,
 // separation) recomputed.
 
+#include "core/world/entity_ccd.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <string>
 #include <vector>
 
 #include "core/geometry/distance.h"
-#include "core/world/entity_ccd.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
@@ -66,7 +67,12 @@ int64_t RigidUtime(const RigidSample& x) { return x.utime; }
 // Separation of A's link l (or all links, l = -1) from entity E at utime t.
 struct Reference {
   Reference(const World& w_in, int a_in, int b_in, int o_in, const Pose& p0, const Pose& p1)
-      : w(w_in), a(a_in), b(b_in), o(o_in), pose0(p0), pose1(p1),
+      : w(w_in),
+        a(a_in),
+        b(b_in),
+        o(o_in),
+        pose0(p0),
+        pose1(p1),
         ma(w.avatars[a].skeleton, p0, p1, w.avatars[a].motion) {}
   const World& w;
   int a;
@@ -115,8 +121,9 @@ struct Reference {
         for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
           Vector3d ta, tb, tc;
           bvh.Triangle(slot, &ta, &tb, &tc);
-          best = std::min(best, SegmentTriangleDistance(pa, pb, x + R * ta, x + R * tb,
-                                                        x + R * tc).distance - ra);
+          best = std::min(
+              best,
+              SegmentTriangleDistance(pa, pb, x + R * ta, x + R * tb, x + R * tc).distance - ra);
         }
       }
     }
@@ -278,8 +285,8 @@ void RandomAvatarWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
   w->avatars[0].used = {*p0, *p1};
   const int64_t step = rng.P(0.7) ? 11'111 : 3'000 + rng.I(20'000);
   int64_t t = u0 - step * (rng.I(3)) + rng.I(static_cast<int>(step));
-  if (rng.P(0.25)) t = u0 + rng.I(13'889);  // Starts mid-pair.
-  const int count = 1 + rng.I(5);         // May stop mid-pair (or be one instant).
+  if (rng.P(0.25)) t = u0 + rng.I(13'889);       // Starts mid-pair.
+  const int count = 1 + rng.I(5);                // May stop mid-pair (or be one instant).
   if (rng.P(0.08)) t = u0 - step * (count - 1);  // Ends as the pair starts.
   if (rng.P(0.08)) t = u1;                       // Starts as the pair ends.
   Pose q = RandomPose(rng, n1, t, Vector3d(rng.Box(0.3)), 0.3);
@@ -344,7 +351,8 @@ void RandomObjectWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
     O.used.push_back(x);
     x.utime += step;
     x.p += thrown ? velocity : Vector3d(rng.Box(0.2));
-    x.q = rng.P(0.1) ? Quaterniond(x.q * Quaterniond(0, 1, 0, 0)) : Quaterniond((rng.Turn(rng.U(0, 1.5)) * x.q).normalized());
+    x.q = rng.P(0.1) ? Quaterniond(x.q * Quaterniond(0, 1, 0, 0))
+                     : Quaterniond((rng.Turn(rng.U(0, 1.5)) * x.q).normalized());
   }
 }
 
