@@ -211,6 +211,17 @@ TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
   EXPECT_NEAR(c["normal"][1].get<double>(), -1.0, 1e-6);  // From the plate down to the bar.
   EXPECT_LE(c["separation"].get<double>(), 1e-3);
   EXPECT_NEAR(c["point_link"][1].get<double>(), 0.0, 1e-9);
+
+  // A {"link", "entity"} rule naming the object silences it.
+  const std::string ignoring = Write("plate_world.json", R"({"avatars": [
+      {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl",
+       "ignore": [{"link": "*", "entity": "plate"}, {"link": 0, "entity": "nobody"}]}],
+      "objects": [{"id": "plate", "mesh": "plate.obj", "poses": "plate.jsonl"}]})");
+  const RunResult r2 = Run({"world", "--world", ignoring});
+  ASSERT_TRUE(r2.exited && r2.code == 0) << r2.Describe();
+  const std::vector<json> recs2 = Records(r2.out);
+  ASSERT_EQ(recs2.size(), 3u);
+  EXPECT_EQ(recs2[2]["others"][0]["result"], "free");
 }
 
 // The static-environment part moves each avatar by its own motion model and
