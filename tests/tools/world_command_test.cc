@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -274,6 +275,47 @@ TEST_F(WorldCommandTest, BenchPrintsATable) {
   EXPECT_NE(r.out.find("entity_entries 5\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("entity_contacts 2\n"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("record_us_p99 "), std::string::npos) << r.out;
+}
+
+// Seeded random corruptions of the world file and of the object pose file:
+// never a crash or a hang; exit 0 (with JSON lines) or 2 (one line on
+// stderr).
+TEST_F(WorldCommandTest, CorruptedInputsNeverCrash) {
+  const std::string world_text = testing::ReadFile(World());
+  const std::string cup_text = testing::ReadFile(Path("cup.jsonl"));
+  std::mt19937_64 rng(20261124);
+  const std::string alphabet = "{}[]\",:0123456789.-eE \n*abnrtu\xff";
+  for (int trial = 0; trial < 24; ++trial) {
+    SCOPED_TRACE(trial);
+    std::string w = world_text, c = cup_text;
+    std::string* target = trial % 2 == 0 ? &w : &c;
+    const int edits = 1 + static_cast<int>(rng() % 4);
+    for (int k = 0; k < edits && !target->empty(); ++k) {
+      const size_t at = rng() % target->size();
+      switch (rng() % 3) {
+        case 0:
+          (*target)[at] = alphabet[rng() % alphabet.size()];
+          break;
+        case 1:
+          target->erase(at, 1 + rng() % 8);
+          break;
+        default:
+          target->insert(at, 1, alphabet[rng() % alphabet.size()]);
+          break;
+      }
+    }
+    Write("world.json", w);
+    Write("cup.jsonl", c);
+    const RunResult r = Run({"world", "--world", Path("world.json")});
+    ASSERT_TRUE(r.exited) << r.Describe();
+    ASSERT_TRUE(r.code == 0 || r.code == 2) << r.Describe();
+    if (r.code == 2) {
+      EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << r.err;
+      EXPECT_TRUE(r.out.empty());
+    } else {
+      for (const json& rec : Records(r.out)) EXPECT_TRUE(rec.contains("others"));
+    }
+  }
 }
 
 // The static environment on the GPU (llvmpipe here, never skipped: the test
