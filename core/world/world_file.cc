@@ -3,6 +3,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 
@@ -78,14 +79,36 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot open the object pose file");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.find_first_not_of(" \t\r\n") == std::string::npos) continue;
+  // A line holds 7 numbers and a utime: a line over 64 KiB is read to its
+  // newline without being kept, and is not used (as a malformed line).
+  constexpr std::streamsize kMaxLine = 64 << 10;
+  std::vector<char> buffer(kMaxLine + 1);
+  for (;;) {
+    in.getline(buffer.data(), kMaxLine + 1);
+    if (in.bad()) break;
+    const bool too_long = in.fail() && !in.eof() && in.gcount() == kMaxLine;
+    if (in.fail() && !too_long && in.gcount() == 0) break;  // End of the stream.
+    if (too_long) {
+      in.clear();
+      in.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+      continue;
+    }
+    const bool last = in.eof();
+    // The bytes read, NULs included, without the newline.
+    const std::string line(buffer.data(), static_cast<size_t>(in.gcount() - (last ? 0 : 1)));
+    in.clear(in.rdstate() & ~std::ios::failbit);
+    if (line.find_first_not_of(" \t\r\n") == std::string::npos) {
+      if (last) break;
+      continue;
+    }
     RigidSample x;
     std::string error;
-    if (!ParseObjectPoseLine(line, &x, &error)) continue;  // Not used (SPEC 8).
-    if (!object->used.empty() && x.utime <= object->used.back().utime) continue;
-    object->used.push_back(x);
+    if (!ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
+      if (last) break;
+      continue;
+    }
+    if (object->used.empty() || x.utime > object->used.back().utime) object->used.push_back(x);
+    if (last) break;
   }
   if (in.bad()) throw InputError(path + ": error while reading");
 }
@@ -93,6 +116,12 @@ void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
 }  // namespace
 
 bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::string* error) {
+  // nlohmann::json ends its input at a NUL byte: a line with one is
+  // malformed, whatever JSON precedes it.
+  if (line.find('\0') != std::string::npos) {
+    *error = "NUL byte in the line";
+    return false;
+  }
   json j = json::parse(line, nullptr, /*allow_exceptions=*/false);
   if (!j.is_object() || !j.contains("utime") || !j.contains("pose")) {
     *error = "expected {\"utime\": ..., \"pose\": [7 numbers]}";

@@ -213,6 +213,20 @@ TEST_F(WorldCommandTest, ThinObjectThrownThroughALimb) {
   EXPECT_LE(c["separation"].get<double>(), 1e-3);
   EXPECT_NEAR(c["point_link"][1].get<double>(), 0.0, 1e-9);
 
+  // Lines that are not used: one of 100 KB, one whose valid JSON is
+  // followed by a NUL and more bytes (it would put the plate at y = 5); the
+  // last line has no newline. The answer is the same.
+  Write("plate.jsonl",
+        "{\"utime\": 1010000, \"pose\": [0, 1, 0, 1, 0, 0, 0]}\n" + std::string(100'000, '[') +
+            "\n" + std::string("{\"utime\": 1015000, \"pose\": [0, 5, 0, 1, 0, 0, 0]}\0x\n", 52) +
+            "{\"utime\": 1020000, \"pose\": [0, -1, 0, 0, 0, 1, 0]}");
+  const RunResult r3 = Run({"world", "--world", world});
+  ASSERT_TRUE(r3.exited && r3.code == 0) << r3.Describe();
+  const std::vector<json> recs3 = Records(r3.out);
+  ASSERT_EQ(recs3.size(), 3u);
+  EXPECT_EQ(recs3[2]["others"][0], recs[2]["others"][0]);
+  ASSERT_EQ(recs3[2]["others"][0]["window"], json::array({1'010'000, 1'020'000}));
+
   // A {"link", "entity"} rule naming the object silences it.
   const std::string ignoring = Write("plate_world.json", R"({"avatars": [
       {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl",
