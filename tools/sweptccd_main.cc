@@ -16,6 +16,7 @@
 #include "tools/query_command.h"
 #include "tools/render_command.h"
 #include "tools/simulate_tracker_command.h"
+#include "tools/world_command.h"
 
 int main(int argc, char** argv) {
   // Diagnostics go to standard error, never into the results.
@@ -99,6 +100,28 @@ int main(int argc, char** argv) {
       "keygen", "Write a new random HMAC key (64 hex digits, mode 600) for signed messages");
   keygen->add_option("--out", keygen_out, "Key file to create (never overwritten)")->required();
 
+  sweptccd::WorldCommandOptions wo;
+  CLI::App* world = app.add_subcommand("world", "Answer every avatar pair of a shared world file (SPEC 8)");
+  world->add_option("--world", wo.world_path, "World JSON file")->required();
+  world->add_option("--eps", wo.query.eps_s, "Time tolerance, seconds (default 1e-4)");
+  world->add_option("--delta", wo.query.delta_m, "Distance tolerance, metres (default 1e-3)");
+  world->add_option_function<std::string>(
+      "--backend",
+      [&wo](const std::string& name) {
+        try {
+          wo.backend = sweptccd::gpu::ParseBackendKind(name, "--backend");
+        } catch (const sweptccd::InputError& e) {
+          throw CLI::ValidationError(e.what());
+        }
+      },
+      "cpu, gpu or auto (static environment only; entities run on the CPU)");
+  world->add_flag("--per-link", wo.query.per_link, "A bracket for every touching link");
+  world->add_option("--output", wo.output_path, "Results file (default: standard output)");
+  world->add_flag("--bench", wo.bench,
+                  "Print a table (counts, time per record) instead of the records");
+  world->add_option("--max-intervals", wo.query.max_intervals,
+                    "Work limit per query (default 2000000)");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -115,6 +138,7 @@ int main(int argc, char** argv) {
     q.query.motion = *sweptccd::ParseMotionModel(motion);
     return sweptccd::RunQueryCommand(q);
   }
+  if (world->parsed()) return sweptccd::RunWorldCommand(wo);
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
   if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
   if (render->parsed()) return sweptccd::RunRenderCommand(rn);

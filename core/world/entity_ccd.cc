@@ -1,0 +1,483 @@
+#include "core/world/entity_ccd.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <queue>
+
+#include "core/geometry/distance.h"
+
+namespace sweptccd::world {
+namespace {
+
+// Widens a normalised time range by a relative 1e-12 (the rounding of the
+// tau -> s mapping), clamped to [0, 1].
+void WidenS(double* s0, double* s1) {
+  *s0 = std::max(0.0, *s0 - 1e-12);
+  *s1 = std::min(1.0, *s1 + 1e-12);
+}
+
+Aabb CapsuleBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
+  Aabb box;
+  box.lo = a.cwiseMin(b).array() - r;
+  box.hi = a.cwiseMax(b).array() + r;
+  return box;
+}
+
+void Grow(Aabb* box, const Aabb& o) {
+  box->lo = box->lo.cwiseMin(o.lo);
+  box->hi = box->hi.cwiseMax(o.hi);
+}
+
+Aabb EmptyBox() {
+  Aabb box;
+  box.lo = Eigen::Vector3d::Constant(HUGE_VAL);
+  box.hi = Eigen::Vector3d::Constant(-HUGE_VAL);
+  return box;
+}
+
+Eigen::Vector3d UnitOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback) {
+  const double n = v.norm();
+  return n > 0 ? Eigen::Vector3d(v / n) : fallback;
+}
+
+// Another avatar: candidates are its link indices.
+class AvatarTarget : public OtherTarget {
+ public:
+  AvatarTarget(const World& world, int a, int b, double scale)
+      : world_(world), a_(a), b_(b), e_(world.avatars[b]) {
+    tol_ = std::ldexp((scale >= 0 ? scale : EntityScale(e_)) + 10.0, -22) + 1e-9;
+  }
+
+  std::vector<int> RootCandidates(int link_a) const override {
+    std::vector<int> out;
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      if (!world_.IgnoresLinkPair(a_, link_a, b_, j)) out.push_back(j);
+    }
+    return out;
+  }
+
+  Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
+    const PairMotion& m = MotionOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    Aabb box = EmptyBox();
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      Eigen::Vector3d a, b;
+      double g;
+      m.SweptCapsule(j, s0, s1, &a, &b, &g);
+      Grow(&box, CapsuleBox(a, b, e_.skeleton.link(j).radius + g));
+    }
+    return box;
+  }
+
+  void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
+            const Eigen::Vector3d& b, double radius_a, double growth_a,
+            std::vector<int>* cands) const override {
+    const PairMotion& m = MotionOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    const double tol = tolerance();
+    size_t kept = 0;
+    for (int j : *cands) {
+      Eigen::Vector3d pa, pb, c1, c2;
+      double g;
+      m.SweptCapsule(j, s0, s1, &pa, &pb, &g);
+      const double reach = radius_a + growth_a + e_.skeleton.link(j).radius + g + tol;
+      const double d2 = SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2);
+      if (d2 <= reach * reach * (1 + 1e-9)) (*cands)[kept++] = j;
+    }
+    cands->resize(kept);
+  }
+
+  bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+               const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
+               double search, OtherContact* out) const override {
+    const PairMotion& m = MotionOf(piece.k);
+    const double s = piece.SE(tau);
+    bool have = false;
+    for (int j : cands) {
+      Eigen::Vector3d pa, pb, c1, c2;
+      m.SegmentAt(j, s, &pa, &pb);
+      const double d = std::sqrt(SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2));
+      const double sep = d - radius_a - e_.skeleton.link(j).radius;
+      if (sep > search || (have && sep >= out->separation)) continue;
+      have = true;
+      out->link = link_a;
+      out->other_link = j;
+      out->triangle = -1;
+      out->tau = tau;
+      out->point_link = c1;
+      out->point_other = c2;
+      out->normal = UnitOr(c1 - c2, Eigen::Vector3d(0, 0, 1));
+      out->separation = sep;
+    }
+    return have;
+  }
+
+  double tolerance() const override { return tol_; }
+
+ private:
+  const PairMotion& MotionOf(int k) const {
+    auto it = motions_.find(k);
+    if (it == motions_.end()) {
+      const int k1 = std::min<int>(k + 1, static_cast<int>(e_.used.size()) - 1);
+      it = motions_.emplace(k, PairMotion(e_.skeleton, e_.used[k], e_.used[k1], e_.motion)).first;
+    }
+    return it->second;
+  }
+
+  const World& world_;
+  int a_, b_;
+  const AvatarEntity& e_;
+  double tol_ = 0;
+  mutable std::map<int, PairMotion> motions_;
+};
+
+// A tracked object: one candidate (0); its triangles come from its BVH, in
+// the object's frame, with A's link taken relative to the object's frame.
+class ObjectTarget : public OtherTarget {
+ public:
+  ObjectTarget(const World& world, int a, int o, double scale)
+      : world_(world), a_(a), o_(o), e_(world.objects[o]), bvh_(e_.mesh.object(0).bvh) {
+    const Aabb bounds = bvh_.bounds();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
+                                   (c & 2) ? bounds.hi.y() : bounds.lo.y(),
+                                   (c & 4) ? bounds.hi.z() : bounds.lo.z());
+      rho_ = std::max(rho_, corner.norm());
+    }
+    if (scale < 0) scale = EntityScale(e_);
+    tol_ = e_.mesh.coordinate_tolerance() + std::ldexp(scale + 10.0, -22) + 1e-9;
+  }
+
+  std::vector<int> RootCandidates(int link_a) const override {
+    if (bvh_.num_triangles() == 0 || world_.IgnoresObject(a_, link_a, o_)) return {};
+    return {0};
+  }
+
+  Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
+    const RigidMotion m = MotionOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    // Every point of the mesh is within rho of the frame origin, which moves
+    // on a straight line.
+    return CapsuleBox(m.PositionAt(s0), m.PositionAt(s1), rho_ * (1 + 1e-9) + tol_);
+  }
+
+  void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
+            const Eigen::Vector3d& b, double radius_a, double growth_a,
+            std::vector<int>* cands) const override {
+    if (cands->empty()) return;
+    const RigidMotion m = MotionOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    const double sm = 0.5 * (s0 + s1), hw = 0.5 * (s1 - s0);
+    const Eigen::Vector3d x = m.PositionAt(sm);
+    const Eigen::Matrix3d R = m.RotationAt(sm).toRotationMatrix();
+    const Eigen::Vector3d a_O = R.transpose() * (a - x), b_O = R.transpose() * (b - x);
+    // p_O(t) - p_O(tm) = R(t)^T [(p(t) - p(tm)) - (x(t) - x(tm))]
+    //                    + (R(t) - R(tm))^T (p(tm) - x(tm)),
+    // so |.| <= growth_a + |x1 - x0| hw + angle hw max|p(tm) - x(tm)|.
+    const double reach = std::max((a - x).norm(), (b - x).norm());
+    const double growth_o =
+        (growth_a + (m.x1.p - m.x0.p).norm() * hw + m.angle * hw * reach) * (1 + 1e-9);
+    const double r = radius_a + growth_o + tol_;
+    bool hit = false;
+    double radius = r;
+    bvh_.QueryCapsuleShrinking(a_O, b_O, &radius, [&](uint32_t slot) {
+      Eigen::Vector3d ta, tb, tc;
+      bvh_.Triangle(slot, &ta, &tb, &tc);
+      if (SegmentTriangleDistance(a_O, b_O, ta, tb, tc).distance <= r) hit = true;
+      return !hit;
+    });
+    if (!hit) cands->clear();
+  }
+
+  bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+               const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
+               double search, OtherContact* out) const override {
+    if (cands.empty()) return false;
+    const RigidMotion m = MotionOf(piece.k);
+    const double s = piece.SE(tau);
+    const Eigen::Vector3d x = m.PositionAt(s);
+    const Eigen::Matrix3d R = m.RotationAt(s).toRotationMatrix();
+    const Eigen::Vector3d a_O = R.transpose() * (a - x), b_O = R.transpose() * (b - x);
+    double radius = radius_a + std::max(search, 0.0);
+    bool have = false;
+    double best = HUGE_VAL;
+    bvh_.QueryCapsuleShrinking(a_O, b_O, &radius, [&](uint32_t slot) {
+      Eigen::Vector3d ta, tb, tc;
+      bvh_.Triangle(slot, &ta, &tb, &tc);
+      const SegmentTriangleResult st = SegmentTriangleDistance(a_O, b_O, ta, tb, tc);
+      const double sep = st.distance - radius_a;
+      if (sep <= search && sep < best) {
+        best = sep;
+        have = true;
+        out->link = link_a;
+        out->other_link = -1;
+        out->triangle = bvh_.TriangleId(slot);
+        out->tau = tau;
+        out->point_link = x + R * st.p_segment;
+        out->point_other = x + R * st.p_triangle;
+        const Eigen::Vector3d face = R * (tb - ta).cross(tc - ta);
+        out->normal = UnitOr(out->point_link - out->point_other, UnitOr(face, {0, 0, 1}));
+        out->separation = sep;
+        radius = std::min(radius, st.distance);
+      }
+      return true;
+    });
+    return have;
+  }
+
+  double tolerance() const override { return tol_; }
+
+ private:
+  RigidMotion MotionOf(int k) const {
+    const int k1 = std::min<int>(k + 1, static_cast<int>(e_.used.size()) - 1);
+    return RigidMotion(e_.used[k], e_.used[k1]);
+  }
+
+  const World& world_;
+  int a_, o_;
+  const ObjectEntity& e_;
+  const TriangleBvh& bvh_;
+  double rho_ = 0;
+  double tol_ = 0;
+};
+
+struct Item {
+  double tau0, tau1;
+  int link;
+  int piece;
+  std::vector<int> cands;
+};
+struct Later {
+  bool operator()(const Item& x, const Item& y) const {
+    if (x.tau0 != y.tau0) return x.tau0 > y.tau0;
+    if (x.link != y.link) return x.link > y.link;
+    return x.piece > y.piece;
+  }
+};
+
+}  // namespace
+
+double Piece::SE(double tau) const {
+  if (e_dur <= 0) return 0;
+  return std::clamp((tau - e_tau0) / e_dur, 0.0, 1.0);
+}
+
+std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
+                               const std::vector<int64_t>& samples) {
+  std::vector<Piece> pieces;
+  if (samples.size() == 1) {
+    pieces.push_back({static_cast<double>(t_from - utime0), static_cast<double>(t_to - utime0), 0,
+                      static_cast<double>(samples[0] - utime0), 0});
+    return pieces;
+  }
+  // The first segment that can overlap: the last sample at or before t_from.
+  // (At most the last interval: a window that is the last sample's instant.)
+  const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(samples.size());
+  const size_t first = static_cast<size_t>(std::clamp<std::ptrdiff_t>(
+      std::upper_bound(samples.begin(), samples.end(), t_from) - samples.begin() - 1, 0, n - 2));
+  for (size_t k = first; k + 1 < samples.size() && samples[k] <= t_to; ++k) {
+    const int64_t lo = std::max(t_from, samples[k]);
+    const int64_t hi = std::min(t_to, samples[k + 1]);
+    if (lo > hi) continue;
+    if (lo == hi && t_from < t_to) continue;  // A boundary instant of a longer window.
+    pieces.push_back({static_cast<double>(lo - utime0), static_cast<double>(hi - utime0),
+                      static_cast<int>(k), static_cast<double>(samples[k] - utime0),
+                      static_cast<double>(samples[k + 1] - samples[k])});
+    if (t_from == t_to) break;
+  }
+  return pieces;
+}
+
+double EntityScale(const AvatarEntity& e) {
+  double scale = 0;
+  for (const Pose& p : e.used) {
+    for (const LinkPose& l : p.links) scale = std::max(scale, l.p.cwiseAbs().maxCoeff());
+  }
+  for (const Link& l : e.skeleton.links()) scale = std::max({scale, l.a_L.norm(), l.b_L.norm()});
+  return scale;
+}
+
+double EntityScale(const ObjectEntity& e) {
+  double scale = e.mesh.num_objects() > 0 ? e.mesh.object(0).bvh.max_abs_coordinate() : 0.0;
+  for (const RigidSample& x : e.used) scale = std::max(scale, x.p.cwiseAbs().maxCoeff());
+  return scale;
+}
+
+std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale) {
+  return std::make_unique<AvatarTarget>(world, a, b, scale);
+}
+std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale) {
+  return std::make_unique<ObjectTarget>(world, a, o, scale);
+}
+
+OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options) {
+  OtherAnswer answer;
+  if (pieces.empty()) return answer;  // No window (SplitWindow of a non-overlapping entity).
+  const int num_links = skeleton_a.num_links();
+  const double dur = static_cast<double>(utime1 - utime0);
+  const double tau_from = pieces.front().tau0, tau_to = pieces.back().tau1;
+  const double tol = target.tolerance() + std::ldexp(motion_a.coordinate_scale(), -22) + 1e-9;
+  // G2 in printed microseconds: leave room for rounding utime0 + tau.
+  const double ulp = std::ldexp(1.0, std::ilogb(std::fabs(static_cast<double>(utime1)) + 1.0) - 50);
+  const double eps_us = std::max(options.eps_s * 1e6 - 4 * ulp, 0.5 * options.eps_s * 1e6);
+  const double accept = options.delta_m > 4 * tol ? options.delta_m - tol : options.delta_m;
+  auto s_of = [&](double tau) { return std::clamp(tau / dur, 0.0, 1.0); };
+
+  std::vector<std::vector<int>> roots(num_links);
+  for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+
+  std::vector<bool> done(num_links, false);
+  std::vector<OtherBracket> brackets;  // In chronological order.
+  auto close = [&](const OtherBracket& b) {
+    done[b.link] = true;
+    brackets.push_back(b);
+  };
+  auto searching = [&] { return options.per_link || brackets.empty(); };
+
+  // Initially colliding: touching at the window's start.
+  for (int l = 0; l < num_links && searching(); ++l) {
+    if (roots[l].empty()) continue;
+    Eigen::Vector3d a, b;
+    motion_a.SegmentAt(l, s_of(tau_from), &a, &b);
+    OtherContact c;
+    if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, roots[l], 0.0,
+                       &c) &&
+        c.separation <= 0) {
+      OtherBracket br;
+      br.link = l;
+      br.tau_lo = tau_from;
+      br.tau_hi = std::min(tau_to, tau_from + eps_us);
+      br.initially_colliding = true;
+      br.has_witness = true;
+      br.witness = c;
+      close(br);
+    }
+  }
+
+  // Entity-level broad phase: A's box over the window against E's.
+  if (searching()) {
+    Aabb box_a = EmptyBox();
+    double s0 = s_of(tau_from), s1 = s_of(tau_to);
+    WidenS(&s0, &s1);
+    for (int l = 0; l < num_links; ++l) {
+      if (roots[l].empty()) continue;
+      Eigen::Vector3d a, b;
+      double g;
+      motion_a.SweptCapsule(l, s0, s1, &a, &b, &g);
+      Grow(&box_a, CapsuleBox(a, b, skeleton_a.link(l).radius + g + tol));
+    }
+    bool overlaps = false;
+    for (const Piece& p : pieces)
+      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
+    if (!overlaps) answer.culled_by_box = true;
+    if (!overlaps) std::fill(done.begin(), done.end(), true);
+  }
+
+  std::priority_queue<Item, std::vector<Item>, Later> queue;
+  for (int l = 0; l < num_links; ++l) {
+    if (done[l] || roots[l].empty()) continue;
+    for (int p = 0; p < static_cast<int>(pieces.size()); ++p) {
+      queue.push(Item{pieces[p].tau0, pieces[p].tau1, l, p, roots[l]});
+    }
+  }
+  std::vector<bool> undecided(num_links, false);
+  while (!queue.empty() && searching()) {
+    Item item = queue.top();
+    queue.pop();
+    if (done[item.link]) continue;
+    if (++answer.intervals > options.max_intervals) {
+      // Out of work: every open link undecided from its earliest item.
+      std::vector<double> earliest(num_links, HUGE_VAL);
+      earliest[item.link] = item.tau0;
+      while (!queue.empty()) {
+        const Item& t = queue.top();
+        if (!done[t.link]) earliest[t.link] = std::min(earliest[t.link], t.tau0);
+        queue.pop();
+      }
+      std::vector<int> order;
+      for (int l = 0; l < num_links; ++l) {
+        if (earliest[l] != HUGE_VAL) order.push_back(l);
+      }
+      std::sort(order.begin(), order.end(),
+                [&](int x, int y) { return earliest[x] < earliest[y]; });
+      for (int l : order) {
+        if (!searching()) break;
+        OtherBracket br;
+        br.link = l;
+        br.tau_lo = earliest[l];
+        br.tau_hi = tau_to;
+        br.undecided = true;
+        close(br);
+      }
+      break;
+    }
+    const Piece& piece = pieces[item.piece];
+    const double r_a = skeleton_a.link(item.link).radius;
+    double s0 = s_of(item.tau0), s1 = s_of(item.tau1);
+    WidenS(&s0, &s1);
+    Eigen::Vector3d a, b;
+    double g;
+    motion_a.SweptCapsule(item.link, s0, s1, &a, &b, &g);
+    target.Cull(piece, item.tau0, item.tau1, a, b, r_a + tol, g, &item.cands);
+    if (item.cands.empty()) continue;  // Certified free over the item.
+    if (item.tau1 - item.tau0 <= eps_us) {
+      OtherContact best, c;
+      bool have = false;
+      const double mid = 0.5 * (item.tau0 + item.tau1);
+      for (double tau : {item.tau0, mid, item.tau1}) {
+        Eigen::Vector3d sa, sb;
+        motion_a.SegmentAt(item.link, s_of(tau), &sa, &sb);
+        if (target.Nearest(piece, tau, item.link, sa, sb, r_a, item.cands, options.delta_m, &c) &&
+            (!have || c.separation < best.separation)) {
+          best = c;
+          have = true;
+        }
+      }
+      if (have && best.separation <= accept) {
+        OtherBracket br;
+        br.link = item.link;
+        br.tau_lo = item.tau0;
+        br.tau_hi = item.tau1;
+        br.has_witness = true;
+        br.witness = best;
+        close(br);
+        continue;
+      }
+    }
+    const double mid = 0.5 * (item.tau0 + item.tau1);
+    if (!(mid > item.tau0 && mid < item.tau1)) {
+      OtherBracket br;  // Cannot split further.
+      br.link = item.link;
+      br.tau_lo = item.tau0;
+      br.tau_hi = tau_to;
+      br.undecided = true;
+      close(br);
+      continue;
+    }
+    queue.push(Item{item.tau0, mid, item.link, item.piece, item.cands});
+    queue.push(Item{mid, item.tau1, item.link, item.piece, std::move(item.cands)});
+  }
+
+  if (!brackets.empty()) {
+    answer.contact = true;
+    answer.bracket = brackets.front();
+    for (const OtherBracket& b : brackets) {
+      if (b.tau_lo < answer.bracket.tau_lo) answer.bracket = b;
+    }
+    if (options.per_link) {
+      answer.links = brackets;
+      std::sort(answer.links.begin(), answer.links.end(),
+                [](const OtherBracket& x, const OtherBracket& y) { return x.link < y.link; });
+    }
+  }
+  return answer;
+}
+
+}  // namespace sweptccd::world

@@ -1,0 +1,121 @@
+#pragma once
+// The first time of contact between one avatar pair and another entity of a
+// shared world (SPEC section 8): link against link of another avatar, or link
+// against a tracked object's triangles, over the window where both exist,
+// with the certificate of SPEC 6 (G1-G3) restricted to the two entities.
+//
+// Time runs as tau, microseconds since the avatar pair's utime0 (exact for
+// the integer utimes of every sample). The window is split at the other
+// entity's sample times into pieces, each with one motion of the other
+// entity. The descent is chronological over (link, time interval) items,
+// as core/query's: an item is free when the swept bounds (segment at the
+// interval's midpoint grown by PairMotion's certified growth) cannot meet;
+// a narrow item (width <= eps) closes when a sample time is within delta.
+// Runs on the CPU only (every backend gives the same answers).
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "core/avatar/motion.h"
+#include "core/geometry/bvh.h"
+#include "core/world/world.h"
+
+namespace sweptccd::world {
+
+struct EntityQueryOptions {
+  double eps_s = 1e-4;    // Bracket width, seconds (> 0).
+  double delta_m = 1e-3;  // Distance tolerance of G3, metres (> 0).
+  bool per_link = false;  // A bracket for every link of A that touches E.
+  /// Work limit: items visited per (pair, entity). Past it: `undecided`.
+  int64_t max_intervals = 2'000'000;
+};
+
+/// One witness between A and E, world frame.
+struct OtherContact {
+  int link = 0;           // A's link.
+  int other_link = -1;    // E's link (avatar), else -1.
+  int64_t triangle = -1;  // E's triangle id (object), else -1.
+  double tau = 0;         // Microseconds since utime0.
+  Eigen::Vector3d point_link{0, 0, 0}, point_other{0, 0, 0};
+  Eigen::Vector3d normal{0, 0, 1};  // Unit, from E's point towards A's.
+  double separation = 0;
+};
+
+/// A bracket in tau (per link, or the answer's own).
+struct OtherBracket {
+  int link = -1;
+  double tau_lo = 0, tau_hi = 0;
+  bool initially_colliding = false;
+  bool undecided = false;
+  bool has_witness = false;
+  OtherContact witness;
+};
+
+struct OtherAnswer {
+  bool contact = false;
+  OtherBracket bracket;             // When contact: the earliest bracket.
+  std::vector<OtherBracket> links;  // Per-link mode: by link index.
+  int64_t intervals = 0;            // Items visited.
+  bool culled_by_box = false;       // The entity-level broad phase cleared it.
+};
+
+/// One piece of the window: [tau0, tau1] in which E moves with one motion,
+/// that of its samples k and k+1 (k+1 == k for an entity with one sample).
+struct Piece {
+  double tau0 = 0, tau1 = 0;
+  int k = 0;
+  double e_tau0 = 0;            // Sample k's time in tau.
+  double e_dur = 0;             // Microseconds from sample k to k+1 (0: static).
+  double SE(double tau) const;  // E's normalised time at tau, in [0, 1].
+};
+
+/// Splits the window [t_from, t_to] (utimes, t_from <= t_to, inside both
+/// the pair and [first, last] of `samples`) at the sample times.
+std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
+                               const std::vector<int64_t>& samples);
+
+/// What A's links are tested against over the pieces. Implementations:
+/// another avatar (candidates: its links) or a tracked object (one
+/// candidate: the object; triangles come from its BVH).
+class OtherTarget {
+ public:
+  virtual ~OtherTarget() = default;
+  /// Unfiltered candidates of A's link at the start.
+  virtual std::vector<int> RootCandidates(int link_a) const = 0;
+  /// A box holding E over the piece (the entity-level broad phase).
+  virtual Aabb PieceBox(const Piece& piece, double tau0, double tau1) const = 0;
+  /// Removes from *cands those that cannot come within A's link over
+  /// [tau0, tau1]: A's swept capsule is its segment (a, b) at the interval's
+  /// midpoint, every point within `growth_a` of its midpoint position,
+  /// link radius `radius_a`; `tol` is the rounding slack.
+  virtual void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
+                    const Eigen::Vector3d& b, double radius_a, double growth_a,
+                    std::vector<int>* cands) const = 0;
+  /// The nearest candidate to A's link segment (a, b) at tau, within
+  /// `search` of its capsule surface; false when none.
+  virtual bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+                       const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
+                       double search, OtherContact* out) const = 0;
+  /// Rounding slack (metres) of this target's geometry.
+  virtual double tolerance() const = 0;
+};
+
+/// Largest absolute coordinate of an entity's samples and geometry (its
+/// rounding slack scales with it); O(samples).
+double EntityScale(const AvatarEntity& entity);
+double EntityScale(const ObjectEntity& entity);
+
+/// The other entity's targets; `scale` is EntityScale of it (< 0: computed
+/// here, O(samples); callers answering many pairs compute it once).
+std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale = -1);
+std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale = -1);
+
+/// Answers A's pair (poses pose0, pose1 under `motion_a`) against `target`
+/// over `pieces` (chronological, contiguous, non-empty). Deterministic.
+OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options);
+
+}  // namespace sweptccd::world

@@ -1,0 +1,43 @@
+#include "core/world/world.h"
+
+namespace sweptccd::world {
+
+bool IsValidEntityId(const std::string& id) {
+  if (id.empty() || id.size() > 64) return false;
+  for (char c : id) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                    c == '_' || c == '.' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+namespace {
+bool RuleMatches(const EntityRule& r, int link, const std::string& entity, int other_link) {
+  return r.entity == entity && (r.link < 0 || r.link == link) &&
+         (r.other_link < 0 || other_link < 0 || r.other_link == other_link);
+}
+}  // namespace
+
+bool World::IgnoresLinkPair(int a, int link_a, int b, int link_b) const {
+  for (const EntityRule& r : rules[a]) {
+    if (RuleMatches(r, link_a, avatars[b].id, link_b)) return true;
+  }
+  for (const EntityRule& r : rules[b]) {
+    if (RuleMatches(r, link_b, avatars[a].id, link_a)) return true;
+  }
+  return false;
+}
+
+bool World::IgnoresObject(int a, int link_a, int o) const {
+  for (const EntityRule& r : rules[a]) {
+    if (RuleMatches(r, link_a, objects[o].id, -1)) return true;
+  }
+  return false;
+}
+
+RigidMotion::RigidMotion(const RigidSample& a, const RigidSample& b) : x0(a), x1(b) {
+  angle = SlerpAngle(x0.q, x1.q);
+}
+
+}  // namespace sweptccd::world

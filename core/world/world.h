@@ -1,0 +1,82 @@
+#pragma once
+// A shared world (SPEC section 8): avatars and tracked rigid objects, each
+// with its own stream of samples on one time base, plus the filters that say
+// which (link, entity) and (link, link) pairs never count as contact.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/avatar/motion.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
+#include "core/scene/environment.h"
+
+namespace sweptccd::world {
+
+/// Whether `id` is a valid entity id: 1-64 characters from [A-Za-z0-9_.-].
+bool IsValidEntityId(const std::string& id);
+
+/// A rigid pose X_WO of a tracked object at a time (unit quaternion).
+struct RigidSample {
+  int64_t utime = 0;
+  Eigen::Vector3d p{0, 0, 0};
+  Eigen::Quaterniond q{1, 0, 0, 0};
+};
+
+/// An avatar: its skeleton, motion model, the records of its stream (SPEC 2
+/// numbering) and its used samples (the first valid pose, then every pose
+/// that closed a valid pair: strictly increasing utimes, unit quaternions).
+struct AvatarEntity {
+  std::string id;
+  Skeleton skeleton;
+  MotionModel motion = MotionModel::kArticulated;
+  std::vector<PairOutcome> records;
+  std::vector<Pose> used;
+};
+
+/// A tracked object: its mesh (one-object Environment, in the object's
+/// frame) and its used samples (strictly increasing utimes).
+struct ObjectEntity {
+  std::string id;
+  Environment mesh;
+  std::vector<RigidSample> used;
+};
+
+/// One ignore rule of an avatar towards another entity (SPEC 8 "Filters").
+/// link / other_link: -1 means every link ("*"); other_link is -1 also when
+/// the rule names no other_link.
+struct EntityRule {
+  int link = -1;
+  std::string entity;
+  int other_link = -1;
+};
+
+/// The whole world. Plain data, immutable while queried.
+struct World {
+  std::vector<AvatarEntity> avatars;
+  std::vector<ObjectEntity> objects;
+  /// Per avatar (same index): its entity rules.
+  std::vector<std::vector<EntityRule>> rules;
+
+  /// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
+  /// never count as contact (a rule of either avatar applies).
+  bool IgnoresLinkPair(int a, int link_a, int b, int link_b) const;
+  /// Whether link `link_a` of avatar `a` never touches object `o`.
+  bool IgnoresObject(int a, int link_a, int o) const;
+};
+
+/// The rigid motion of a one-link `independent` body between two samples
+/// (SPEC 3): p(s) linear, q(s) shortest-arc slerp.
+struct RigidMotion {
+  RigidSample x0, x1;
+  double angle = 0;  // SlerpAngle(q0, q1): radians per unit s.
+  RigidMotion(const RigidSample& a, const RigidSample& b);
+  Eigen::Vector3d PositionAt(double s) const { return (1 - s) * x0.p + s * x1.p; }
+  Eigen::Quaterniond RotationAt(double s) const { return Slerp(x0.q, x1.q, s); }
+};
+
+}  // namespace sweptccd::world

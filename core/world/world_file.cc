@@ -1,0 +1,326 @@
+#include "core/world/world_file.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "core/bounded_file.h"
+#include "core/errors.h"
+
+namespace sweptccd::world {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string Resolve(const fs::path& dir, const std::string& p) {
+  const fs::path path(p);
+  return path.is_absolute() ? p : (dir / path).lexically_normal().string();
+}
+
+std::string StringField(const json& entry, const char* key, const std::string& where,
+                        bool required = true) {
+  if (!entry.contains(key)) {
+    if (!required) return "";
+    throw InputError(where + ": missing \"" + key + "\"");
+  }
+  if (!entry[key].is_string()) throw InputError(where + ": \"" + key + "\" must be a string");
+  return entry[key].get<std::string>();
+}
+
+// A link given by name, index or "*" (-1).
+int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string& where,
+                   const char* field) {
+  if (key.is_number_integer() || key.is_number_unsigned()) {
+    const int64_t i = key.get<int64_t>();
+    if (i >= 0 && i < skeleton.num_links()) return static_cast<int>(i);
+    throw InputError(where + ": \"" + field + "\" index " + std::to_string(i) +
+                     " is out of range (the skeleton has " + std::to_string(skeleton.num_links()) +
+                     " links)");
+  }
+  if (!key.is_string())
+    throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
+  const std::string name = key.get<std::string>();
+  if (name == "*") return -1;
+  const int found = skeleton.FindLink(name);
+  if (found >= 0) return found;
+  throw InputError(where + ": unknown link '" + name + "' in \"" + field + "\" (skeleton '" +
+                   skeleton.name() + "')");
+}
+
+void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the pose stream file");
+  const int n = avatar->skeleton.num_links();
+  PoseLineReader lines(in, n);
+  PosePairer pairer;
+  while (std::optional<PoseLine> line = lines.Next()) {
+    std::string error = line->error;
+    std::optional<Pose> pose = std::move(line->pose);
+    if (pose) {
+      const std::string problem = ValidateAndNormalizePose(&*pose, n);
+      if (!problem.empty()) {
+        error = "line " + std::to_string(line->line_number) + ": " + problem;
+        pose.reset();
+      }
+    }
+    if (pose && (avatar->used.empty() || pose->utime > avatar->used.back().utime)) {
+      avatar->used.push_back(*pose);
+    }
+    std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
+    if (outcome) avatar->records.push_back(std::move(*outcome));
+  }
+  if (lines.bad()) throw InputError(path + ": error while reading");
+}
+
+void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot open the object pose file");
+  // A line holds 7 numbers and a utime: a line over 64 KiB is read to its
+  // newline without being kept, and is not used (as a malformed line).
+  constexpr std::streamsize kMaxLine = 64 << 10;
+  std::vector<char> buffer(kMaxLine + 1);
+  for (;;) {
+    in.getline(buffer.data(), kMaxLine + 1);
+    if (in.bad()) break;
+    const bool too_long = in.fail() && !in.eof() && in.gcount() == kMaxLine;
+    if (in.fail() && !too_long && in.gcount() == 0) break;  // End of the stream.
+    if (too_long) {
+      in.clear();
+      in.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+      continue;
+    }
+    const bool last = in.eof();
+    // The bytes read, NULs included, without the newline.
+    const std::string line(buffer.data(), static_cast<size_t>(in.gcount() - (last ? 0 : 1)));
+    in.clear(in.rdstate() & ~std::ios::failbit);
+    if (line.find_first_not_of(" \t\r\n") == std::string::npos) {
+      if (last) break;
+      continue;
+    }
+    RigidSample x;
+    std::string error;
+    if (!ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
+      if (last) break;
+      continue;
+    }
+    if (object->used.empty() || x.utime > object->used.back().utime) object->used.push_back(x);
+    if (last) break;
+  }
+  if (in.bad()) throw InputError(path + ": error while reading");
+}
+
+}  // namespace
+
+bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::string* error) {
+  // nlohmann::json ends its input at a NUL byte: a line with one is
+  // malformed, whatever JSON precedes it.
+  if (line.find('\0') != std::string::npos) {
+    *error = "NUL byte in the line";
+    return false;
+  }
+  json j = json::parse(line, nullptr, /*allow_exceptions=*/false);
+  if (!j.is_object() || !j.contains("utime") || !j.contains("pose")) {
+    *error = "expected {\"utime\": ..., \"pose\": [7 numbers]}";
+    return false;
+  }
+  const json& u = j["utime"];
+  if (u.is_number_integer() || u.is_number_unsigned()) {
+    sample->utime = u.get<int64_t>();
+  } else if (u.is_number_float() && std::isfinite(u.get<double>()) &&
+             u.get<double>() == std::floor(u.get<double>()) && std::fabs(u.get<double>()) < 9e18) {
+    sample->utime = static_cast<int64_t>(u.get<double>());
+  } else {
+    *error = "utime must be an integer";
+    return false;
+  }
+  const json& p = j["pose"];
+  if (!p.is_array() || p.size() != 7) {
+    *error = "pose must be 7 numbers";
+    return false;
+  }
+  double v[7];
+  for (int k = 0; k < 7; ++k) {
+    if (!p[k].is_number()) {
+      *error = "pose must be 7 numbers";
+      return false;
+    }
+    v[k] = p[k].get<double>();
+    if (!std::isfinite(v[k])) {
+      *error = "non-finite number";
+      return false;
+    }
+  }
+  Eigen::Quaterniond q(v[3], v[4], v[5], v[6]);
+  const double norm = q.norm();
+  if (!(norm >= kMinQuaternionNorm)) {
+    *error = "quaternion norm below 1e-6";
+    return false;
+  }
+  sample->p = Eigen::Vector3d(v[0], v[1], v[2]);
+  sample->q = Eigen::Quaterniond(q.coeffs() / norm);
+  return true;
+}
+
+LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
+  const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "world file",
+                                           "a world file is at most a few MiB of JSON");
+  json doc;
+  try {
+    doc = json::parse(text);
+  } catch (const json::exception& e) {
+    throw InputError(path + ": not valid JSON (" + std::string(e.what()) + ")");
+  }
+  if (!doc.is_object())
+    throw InputError(path + ": expected a JSON object with \"avatars\", \"objects\", \"env\"");
+  const fs::path dir = fs::path(path).parent_path();
+  auto array_of = [&](const char* key) {
+    if (!doc.contains(key) || doc[key].is_null()) return json::array();
+    if (!doc[key].is_array()) throw InputError(path + ": \"" + key + "\" must be an array");
+    return doc[key];
+  };
+  const json avatars = array_of("avatars"), objects = array_of("objects"), env = array_of("env");
+
+  // Ids first: malformed or duplicate ids are refused before any file is read.
+  std::map<std::string, std::string> seen;  // id -> where
+  auto check_id = [&](const json& entry, const std::string& where) {
+    if (!entry.is_object()) throw InputError(path + ": " + where + " must be an object");
+    const std::string id = StringField(entry, "id", path + ": " + where);
+    if (!IsValidEntityId(id)) {
+      throw InputError(path + ": " + where + ": malformed id '" + id +
+                       "' (1-64 characters from [A-Za-z0-9_.-])");
+    }
+    const auto [it, inserted] = seen.emplace(id, where);
+    if (!inserted) {
+      throw InputError(path + ": " + where + ": duplicate id '" + id + "' (also " + it->second +
+                       ")");
+    }
+    return id;
+  };
+  std::vector<std::string> avatar_ids, object_ids;
+  for (size_t i = 0; i < avatars.size(); ++i)
+    avatar_ids.push_back(check_id(avatars[i], "avatars[" + std::to_string(i) + "]"));
+  for (size_t i = 0; i < objects.size(); ++i)
+    object_ids.push_back(check_id(objects[i], "objects[" + std::to_string(i) + "]"));
+
+  LoadedWorld out;
+  std::vector<std::string> env_paths, env_written;
+  for (size_t i = 0; i < env.size(); ++i) {
+    if (!env[i].is_string())
+      throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
+    env_written.push_back(env[i].get<std::string>());
+    env_paths.push_back(Resolve(dir, env_written.back()));
+  }
+  out.env = Environment::LoadFiles(env_paths, options.mesh);
+
+  for (size_t i = 0; i < avatars.size(); ++i) {
+    const json& e = avatars[i];
+    const std::string where =
+        path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
+    AvatarEntity a;
+    a.id = avatar_ids[i];
+    a.skeleton =
+        LoadSkeletonFile(Resolve(dir, StringField(e, "skeleton", where)), options.max_links);
+    const std::string motion = StringField(e, "motion", where, /*required=*/false);
+    if (!motion.empty()) {
+      const std::optional<MotionModel> m = ParseMotionModel(motion);
+      if (!m)
+        throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
+      a.motion = *m;
+    }
+    ReadAvatarPoses(Resolve(dir, StringField(e, "poses", where)), &a);
+    out.world.avatars.push_back(std::move(a));
+  }
+  for (size_t i = 0; i < objects.size(); ++i) {
+    const json& e = objects[i];
+    const std::string where =
+        path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
+    ObjectEntity o;
+    o.id = object_ids[i];
+    const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
+    o.mesh.AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
+    ReadObjectPoses(Resolve(dir, StringField(e, "poses", where)), &o);
+    out.world.objects.push_back(std::move(o));
+  }
+
+  // Filters, once every skeleton is known.
+  out.world.rules.resize(avatars.size());
+  for (size_t i = 0; i < avatars.size(); ++i) {
+    const Skeleton& skeleton = out.world.avatars[i].skeleton;
+    CollisionFilter filter(skeleton.num_links(), out.env.num_objects());
+    const json& e = avatars[i];
+    if (e.contains("ignore") && !e["ignore"].is_null()) {
+      if (!e["ignore"].is_array())
+        throw InputError(path + ": avatars[" + std::to_string(i) +
+                         "]: \"ignore\" must be an array");
+      const json& rules = e["ignore"];
+      for (size_t k = 0; k < rules.size(); ++k) {
+        const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] +
+                                  "') ignore[" + std::to_string(k) + "]";
+        const json& r = rules[k];
+        if (!r.is_object() || !r.contains("link") ||
+            (r.contains("object") == r.contains("entity"))) {
+          throw InputError(
+              where +
+              ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
+        }
+        const int link = ResolveLinkKey(r["link"], skeleton, where, "link");
+        if (r.contains("object")) {
+          const json& o = r["object"];
+          int object = -2;
+          if (o.is_number_integer() || o.is_number_unsigned()) {
+            const int64_t v = o.get<int64_t>();
+            if (v >= 0 && v < out.env.num_objects()) object = static_cast<int>(v);
+          } else if (o.is_string()) {
+            const std::string name = o.get<std::string>();
+            if (name == "*") object = -1;
+            for (size_t m = 0; m < env_written.size() && object == -2; ++m) {
+              if (name == env_written[m] || name == env_paths[m]) object = static_cast<int>(m);
+            }
+          }
+          if (object == -2) {
+            throw InputError(where + ": unknown environment object " + o.dump() +
+                             " (give an index, a path as in \"env\", or \"*\")");
+          }
+          filter.Ignore(link < 0 ? LinkIndex() : LinkIndex(link),
+                        object < 0 ? ObjectIndex() : ObjectIndex(object));
+          continue;
+        }
+        if (!r["entity"].is_string()) throw InputError(where + ": \"entity\" must be an id");
+        EntityRule rule;
+        rule.link = link;
+        rule.entity = r["entity"].get<std::string>();
+        if (r.contains("other_link")) {
+          int other = -1;
+          for (size_t b = 0; b < avatar_ids.size(); ++b) {
+            if (avatar_ids[b] == rule.entity) other = static_cast<int>(b);
+          }
+          for (const std::string& id : object_ids) {
+            if (id == rule.entity)
+              throw InputError(where + ": \"other_link\" given for object '" + id +
+                               "' (objects have no links)");
+          }
+          if (other >= 0) {
+            rule.other_link = ResolveLinkKey(r["other_link"], out.world.avatars[other].skeleton,
+                                             where, "other_link");
+          } else if (r["other_link"].is_number_integer() && r["other_link"].get<int64_t>() >= 0) {
+            rule.other_link =
+                static_cast<int>(std::min<int64_t>(r["other_link"].get<int64_t>(), 1 << 30));
+          } else if (!(r["other_link"].is_string())) {
+            throw InputError(where + ": \"other_link\" must be a link name, an index or \"*\"");
+          } else if (r["other_link"].get<std::string>() != "*") {
+            rule.entity.clear();  // Names a link of an entity that never appears: never applies.
+          }
+        }
+        if (!rule.entity.empty()) out.world.rules[i].push_back(rule);
+      }
+    }
+    out.env_filters.push_back(std::move(filter));
+  }
+  return out;
+}
+
+}  // namespace sweptccd::world

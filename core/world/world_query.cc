@@ -1,0 +1,258 @@
+#include "core/world/world_query.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "core/query/result_json.h"
+
+namespace sweptccd::world {
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()}); }
+
+// s of tau in the pair, rounded down (lo) or up (hi) so that the printed
+// normalised time never narrows the certified bracket.
+double SOf(double tau, double dur, bool up) {
+  double s = tau / dur;
+  const long double back = static_cast<long double>(s) * dur;
+  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
+  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
+  return std::clamp(s, 0.0, 1.0);
+}
+
+ojson ContactJson(const OtherContact& c, double dur) {
+  ojson j;
+  j["link"] = c.link;
+  if (c.other_link >= 0) j["other_link"] = c.other_link;
+  if (c.triangle >= 0) j["triangle"] = c.triangle;
+  j["s"] = std::clamp(c.tau / dur, 0.0, 1.0);
+  j["point_link"] = Vec(c.point_link);
+  j["point_other"] = Vec(c.point_other);
+  j["normal"] = Vec(c.normal);
+  j["separation"] = c.separation;
+  return j;
+}
+
+void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, int64_t t_to,
+                   ojson* j) {
+  const double dur = static_cast<double>(u1 - u0);
+  const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
+  (*j)["initially_colliding"] = b.initially_colliding;
+  (*j)["undecided"] = b.undecided;
+  (*j)["s_lo"] = b.initially_colliding ? static_cast<double>(t_from - u0) / dur : s_lo;
+  (*j)["s_hi"] = s_hi;
+  // Inside the window (its ends are exact integers; the rounding of s must
+  // not move a bracket end out of it).
+  (*j)["t_lo"] = b.initially_colliding
+                     ? static_cast<double>(t_from)
+                     : std::max(BracketTimeLo(u0, u1, s_lo), static_cast<double>(t_from));
+  (*j)["t_hi"] = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(t_to));
+}
+
+Aabb CapsuleBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
+  Aabb box;
+  box.lo = a.cwiseMin(b).array() - r;
+  box.hi = a.cwiseMax(b).array() + r;
+  return box;
+}
+
+void Grow(Aabb* box, const Aabb& o) {
+  box->lo = box->lo.cwiseMin(o.lo);
+  box->hi = box->hi.cwiseMax(o.hi);
+}
+
+Aabb EmptyBox() {
+  Aabb box;
+  box.lo = Eigen::Vector3d::Constant(HUGE_VAL);
+  box.hi = Eigen::Vector3d::Constant(-HUGE_VAL);
+  return box;
+}
+
+// Every link of the skeleton over the pair, padded by `pad` metres.
+Aabb MotionBox(const Skeleton& skeleton, const PairMotion& motion, double pad) {
+  Aabb box = EmptyBox();
+  for (int l = 0; l < skeleton.num_links(); ++l) {
+    Eigen::Vector3d a, b;
+    double g;
+    motion.SweptCapsule(l, 0, 1, &a, &b, &g);
+    Grow(&box, CapsuleBox(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
+  }
+  return box;
+}
+
+// Padding of the broad phase's boxes: far above any rounding slack of the
+// engine (whose own bounds are tighter), so a box test never clears what
+// the exact test would keep.
+double BoxPad(double scale) { return 1e-6 + std::ldexp(scale + 10.0, -18); }
+
+}  // namespace
+
+WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& options)
+    : w_(world), options_(options) {
+  entity_options_.eps_s = options.eps_s;
+  entity_options_.delta_m = options.delta_m;
+  entity_options_.per_link = options.per_link;
+  entity_options_.max_intervals = options.max_intervals;
+  for (size_t a = 0; a < w_.world.avatars.size(); ++a) {
+    engines_.push_back(
+        std::make_unique<CcdEngine>(w_.world.avatars[a].skeleton, w_.env, w_.env_filters[a]));
+    avatar_scale_.push_back(EntityScale(w_.world.avatars[a]));
+    avatar_times_.emplace_back();
+    for (const Pose& p : w_.world.avatars[a].used) avatar_times_.back().push_back(p.utime);
+  }
+  for (const ObjectEntity& o : w_.world.objects) {
+    object_scale_.push_back(EntityScale(o));
+    object_times_.emplace_back();
+    for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
+  }
+  for (size_t b = 0; b < w_.world.avatars.size(); ++b) {
+    const AvatarEntity& e = w_.world.avatars[b];
+    avatar_boxes_.emplace_back();
+    for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
+      const size_t k1 = std::min(k + 1, e.used.size() - 1);
+      const PairMotion m(e.skeleton, e.used[k], e.used[k1], e.motion);
+      avatar_boxes_.back().push_back(MotionBox(e.skeleton, m, BoxPad(avatar_scale_[b])));
+    }
+  }
+  for (size_t o = 0; o < w_.world.objects.size(); ++o) {
+    const ObjectEntity& e = w_.world.objects[o];
+    double rho = 0;
+    const Aabb bounds = e.mesh.object(0).bvh.bounds();
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
+                                   (c & 2) ? bounds.hi.y() : bounds.lo.y(),
+                                   (c & 4) ? bounds.hi.z() : bounds.lo.z());
+      rho = std::max(rho, corner.norm());
+    }
+    object_boxes_.emplace_back();
+    for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
+      const size_t k1 = std::min(k + 1, e.used.size() - 1);
+      // Every mesh point is within rho of the frame origin, which moves on
+      // the straight line between the two samples.
+      object_boxes_.back().push_back(
+          CapsuleBox(e.used[k].p, e.used[k1].p, rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
+    }
+  }
+}
+
+void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
+  if (w_.env.num_objects() == 0) return;
+  for (auto& e : engines_) f(e.get());
+}
+
+bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer,
+                                 int64_t* t_from, int64_t* t_to) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
+  const std::vector<int64_t>& times = b >= 0 ? avatar_times_[b] : object_times_[o];
+  if (times.empty()) return false;
+  *t_from = std::max(u0, times.front());
+  *t_to = std::min(u1, times.back());
+  if (*t_from > *t_to) return false;
+  // Broad phase: the boxes of E's sample intervals that the window meets.
+  const std::vector<Aabb>& boxes = b >= 0 ? avatar_boxes_[b] : object_boxes_[o];
+  if (box_a_ != a || box_r_ != r) {
+    box_ = PairBox(a, r);
+    box_a_ = a;
+    box_r_ = r;
+  }
+  const Aabb& box_a = box_;
+  bool near = false;
+  // (At most the last box: a window that is the last sample's instant.)
+  const size_t first = static_cast<size_t>(std::clamp<std::ptrdiff_t>(
+      std::upper_bound(times.begin(), times.end(), *t_from) - times.begin() - 1, 0,
+      static_cast<std::ptrdiff_t>(boxes.size()) - 1));
+  for (size_t k = first; k < boxes.size() && times[k] <= *t_to && !near; ++k) {
+    near = box_a.Overlaps(boxes[k]);
+  }
+  if (!near) {
+    *answer = OtherAnswer();
+    answer->culled_by_box = true;
+    return true;
+  }
+  const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
+  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  const std::unique_ptr<OtherTarget> target =
+      b >= 0 ? MakeAvatarTarget(w_.world, a, b, avatar_scale_[b])
+             : MakeObjectTarget(w_.world, a, o, object_scale_[o]);
+  *answer = AnswerOther(A.skeleton, motion, u0, u1, pieces, *target, entity_options_);
+  return true;
+}
+
+Aabb WorldAnswerer::PairBox(int a, size_t r) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  return MotionBox(A.skeleton, motion, BoxPad(avatar_scale_[a]));
+}
+
+std::string WorldAnswerer::RecordJson(int a, size_t r) const {
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  ojson j;
+  if (!rec.valid) {
+    j = ojson::parse(InvalidResultToJson(rec.pair, rec.utime0, rec.utime1, rec.error));
+    j["avatar"] = A.id;
+    j["others"] = ojson::array();
+    return j.dump(-1, ' ', false, ojson::error_handler_t::replace);
+  }
+  const auto start = std::chrono::steady_clock::now();
+  QueryResult env_result;  // `free` when there is no environment.
+  if (w_.env.num_objects() > 0) {
+    QueryOptions options = options_;
+    options.motion = A.motion;  // Each avatar moves by its own model.
+    env_result = engines_[a]->Query(rec.pose0, rec.pose1, options);
+  }
+  const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
+  const double dur = static_cast<double>(u1 - u0);
+  ojson others = ojson::array();
+  auto add = [&](int b, int o) {
+    OtherAnswer ans;
+    int64_t t_from = 0, t_to = 0;
+    if (!AnswerEntity(a, r, b, o, &ans, &t_from, &t_to)) return;
+    ojson e;
+    e["entity"] = b >= 0 ? w_.world.avatars[b].id : w_.world.objects[o].id;
+    e["kind"] = b >= 0 ? "avatar" : "object";
+    e["window"] = ojson::array({t_from, t_to});
+    e["result"] = ans.contact ? "contact" : "free";
+    if (ans.contact) {
+      BracketFields(ans.bracket, u0, u1, t_from, t_to, &e);
+      ojson contacts = ojson::array();
+      if (ans.bracket.has_witness) contacts.push_back(ContactJson(ans.bracket.witness, dur));
+      e["contacts"] = contacts;
+    } else {
+      e["initially_colliding"] = false;
+      e["undecided"] = false;
+    }
+    if (options_.per_link) {
+      ojson links = ojson::array();
+      for (const OtherBracket& br : ans.links) {
+        ojson l;
+        l["link"] = br.link;
+        BracketFields(br, u0, u1, t_from, t_to, &l);
+        if (br.has_witness) l["contact"] = ContactJson(br.witness, dur);
+        links.push_back(l);
+      }
+      e["links"] = links;
+    }
+    e["stats"] = {{"intervals", ans.intervals}, {"culled_by_box", ans.culled_by_box}};
+    others.push_back(e);
+  };
+  for (int b = 0; b < static_cast<int>(w_.world.avatars.size()); ++b) {
+    if (b != a) add(b, -1);
+  }
+  for (int o = 0; o < static_cast<int>(w_.world.objects.size()); ++o) add(-1, o);
+  const double elapsed_us =
+      std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
+  j = ojson::parse(ResultToJson(rec.pair, u0, u1, env_result, options_.per_link, elapsed_us));
+  j["avatar"] = A.id;
+  j["others"] = others;
+  return j.dump();
+}
+
+}  // namespace sweptccd::world

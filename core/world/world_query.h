@@ -1,0 +1,55 @@
+#pragma once
+// Answers every record of every avatar of a loaded world (SPEC section 8,
+// "What is answered"): the static-environment part through CcdEngine (on the
+// chosen backend), the part per other entity through AnswerOther (CPU).
+
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/query/ccd_query.h"
+#include "core/world/entity_ccd.h"
+#include "core/world/world_file.h"
+
+namespace sweptccd::world {
+
+/// Holds references to `world` (it outlives this). Not thread-safe.
+class WorldAnswerer {
+ public:
+  WorldAnswerer(const LoadedWorld& world, const QueryOptions& options);
+
+  /// Calls f on each avatar's environment engine (to attach a backend).
+  void ForEachEngine(const std::function<void(CcdEngine*)>& f);
+
+  /// The JSON record (one line, no newline) of record `r` of avatar `a`.
+  std::string RecordJson(int a, size_t r) const;
+
+  /// The `others` answer of avatar a's valid record r against avatar b or
+  /// object o (exactly one of b, o is >= 0); false when E does not overlap.
+  /// The broad phase first: A's swept box over the pair against E's boxes
+  /// of the sample intervals the window meets (computed once per entity);
+  /// apart, the answer is `free` without any link work.
+  bool AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer, int64_t* t_from,
+                    int64_t* t_to) const;
+
+  /// A box holding every link of avatar a over its valid record r.
+  Aabb PairBox(int a, size_t r) const;
+
+ private:
+  const LoadedWorld& w_;
+  QueryOptions options_;
+  EntityQueryOptions entity_options_;
+  std::vector<std::unique_ptr<CcdEngine>> engines_;
+  std::vector<double> avatar_scale_, object_scale_;                // EntityScale, once.
+  std::vector<std::vector<int64_t>> avatar_times_, object_times_;  // Used samples' utimes.
+  // Per entity, a box holding it over each interval between used samples
+  // (one box for an entity with one sample).
+  std::vector<std::vector<Aabb>> avatar_boxes_, object_boxes_;
+  // PairBox of the last record asked for (records are answered one by one).
+  mutable int box_a_ = -1;
+  mutable size_t box_r_ = 0;
+  mutable Aabb box_;
+};
+
+}  // namespace sweptccd::world

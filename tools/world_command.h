@@ -1,0 +1,28 @@
+#pragma once
+// `sweptccd world`: answers every avatar pair of a shared world file
+// (SPEC section 8, "Offline").
+
+#include <string>
+
+#include "core/gpu/backend.h"
+#include "core/query/ccd_query.h"
+#include "core/world/world_file.h"
+
+namespace sweptccd {
+
+struct WorldCommandOptions {
+  std::string world_path;
+  std::string output_path;  // Empty: standard output.
+  gpu::BackendKind backend = gpu::BackendKind::kAuto;
+  QueryOptions query;  // eps, delta, per-link, work limit (motion: per avatar).
+  world::WorldLoadOptions load;
+  /// --bench: answer every record as usual but print a table (counts and
+  /// time per record) instead of the records.
+  bool bench = false;
+};
+
+/// Runs the command. Returns 0 when the inputs could be read, 2 with a
+/// one-line message on stderr when not.
+int RunWorldCommand(const WorldCommandOptions& options);
+
+}  // namespace sweptccd
