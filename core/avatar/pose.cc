@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/avatar/skeleton.h"
+#include "core/json_text.h"
 
 namespace sweptccd {
 
@@ -105,6 +106,10 @@ bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
 
 std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
                                            std::string* error) {
+  if (const std::string nul = NulByteProblem(line); !nul.empty()) {
+    *error = "not valid JSON (" + nul + ")";
+    return std::nullopt;
+  }
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(line);

@@ -9,6 +9,7 @@
 
 #include "core/bounded_file.h"
 #include "core/errors.h"
+#include "core/json_text.h"
 #include "core/avatar/pose.h"
 
 namespace sweptccd {
@@ -157,6 +158,9 @@ Eigen::Vector3d ParseVec3(const nlohmann::json& j, const std::string& who, const
 }  // namespace
 
 Skeleton ParseSkeletonJson(const std::string& text, const std::string& source, int max_links) {
+  if (const std::string nul = NulByteProblem(text); !nul.empty()) {
+    throw InputError(source + ": not valid JSON (" + nul + ")");
+  }
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);

@@ -8,6 +8,7 @@
 #include "core/scene/environment.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
+#include "core/json_text.h"
 #include "core/avatar/skeleton.h"
 
 namespace sweptccd {
@@ -81,6 +82,9 @@ std::string JsonToKey(const nlohmann::json& j, const std::string& where, const c
 
 CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::string& source,
                                           const Skeleton& skeleton, const Environment& env) {
+  if (const std::string nul = NulByteProblem(text); !nul.empty()) {
+    throw InputError(source + ": not valid JSON (" + nul + ")");
+  }
   nlohmann::json doc;
   try {
     doc = nlohmann::json::parse(text);

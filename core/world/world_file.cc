@@ -9,6 +9,7 @@
 
 #include "core/bounded_file.h"
 #include "core/errors.h"
+#include "core/json_text.h"
 
 namespace sweptccd::world {
 namespace {
@@ -116,10 +117,8 @@ void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
 }  // namespace
 
 bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::string* error) {
-  // nlohmann::json ends its input at a NUL byte: a line with one is
-  // malformed, whatever JSON precedes it.
-  if (line.find('\0') != std::string::npos) {
-    *error = "NUL byte in the line";
+  if (const std::string nul = NulByteProblem(line); !nul.empty()) {
+    *error = "not valid JSON (" + nul + ")";
     return false;
   }
   json j = json::parse(line, nullptr, /*allow_exceptions=*/false);
@@ -168,6 +167,9 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
 LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
   const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "world file",
                                            "a world file is at most a few MiB of JSON");
+  if (const std::string nul = NulByteProblem(text); !nul.empty()) {
+    throw InputError(path + ": not valid JSON (" + nul + ")");
+  }
   json doc;
   try {
     doc = json::parse(text);

@@ -147,6 +147,20 @@ TEST(PoseTest, RefusesGarbage) {
   }
 }
 
+// nlohmann::json stops at a NUL byte and accepts the JSON before it: a valid
+// line, a NUL and garbage must still be refused (SPEC section 2: the line is
+// not one JSON object).
+TEST(PoseTest, RefusesAValidLineFollowedByANulByte) {
+  const std::string valid = Line("1", {kIdentity});
+  std::string error;
+  ASSERT_TRUE(Parse(valid, 1, &error).has_value());
+  for (const std::string& tail : {std::string(1, '\0'), std::string("\0garbage", 8)}) {
+    EXPECT_FALSE(Parse(valid + tail, 1, &error).has_value());
+    EXPECT_NE(error.find("NUL byte at offset " + std::to_string(valid.size())), std::string::npos)
+        << error;
+  }
+}
+
 TEST(PoseTest, RefusesWrongLinkCount) {
   std::string error;
   EXPECT_FALSE(Parse(Line("1", {kIdentity}), 2, &error).has_value());

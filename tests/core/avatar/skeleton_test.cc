@@ -109,6 +109,13 @@ void ExpectMentionsOneOf(const std::string& message, std::initializer_list<std::
   EXPECT_TRUE(any) << "none of" << all << " in: " << message;
 }
 
+TEST(SkeletonTest, ValidJsonFollowedByANulByteIsRefused) {
+  // nlohmann::json would stop at the NUL and accept the skeleton before it.
+  ASSERT_EQ(RefusalOf(kSpecExample), "");
+  ExpectMentions(RefusalOf(std::string(kSpecExample) + std::string("\0{}", 3)),
+                 {"not valid JSON", "NUL byte"});
+}
+
 TEST(SkeletonTest, SpecExampleParses) {
   const Skeleton s = ParseSkeletonJson(kSpecExample, kSource);
   EXPECT_EQ(s.name(), "example");
