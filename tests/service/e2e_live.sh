@@ -48,7 +48,7 @@ silent=$!
 pids+=("$silent")
 wait_for "$work/daemon1.log" "live client 'silent0' joined"
 sleep 0.5
-kill -KILL $silent
+{ kill -KILL $silent; wait $silent; } 2>/dev/null || true
 wait_for "$work/daemon1.log" "live client 'silent0' dropped: no pose for 1000 ms"
 echo "silence: dropped"
 

@@ -129,7 +129,7 @@ TEST_F(LiveSessionTest, JoinAnswersExactlyLikeAConfiguredClientThenLeaves) {
   Configure("answers");
   Build();
   const join_reply_t reply = Join(JoinOf("live1", 7));
-  ASSERT_EQ(reply.reason, join_reply_t::REASON_ACCEPTED) << reply.message;
+  ASSERT_EQ(reply.reason, +join_reply_t::REASON_ACCEPTED) << reply.message;
   EXPECT_EQ(reply.client_id, "live1");
   EXPECT_EQ(reply.nonce, 7);
   EXPECT_GT(reply.session, 0);
@@ -184,9 +184,9 @@ TEST_F(LiveSessionTest, AWrongSessionIsStaleAndTheSameNonceGetsTheSameSession) {
   Configure("session");
   Build();
   const join_reply_t first = Join(JoinOf("live1", 7));
-  ASSERT_EQ(first.reason, join_reply_t::REASON_ACCEPTED);
+  ASSERT_EQ(first.reason, +join_reply_t::REASON_ACCEPTED);
   const join_reply_t again = Join(JoinOf("live1", 7));  // A lost reply, asked again.
-  ASSERT_EQ(again.reason, join_reply_t::REASON_ACCEPTED);
+  ASSERT_EQ(again.reason, +join_reply_t::REASON_ACCEPTED);
   EXPECT_EQ(again.session, first.session);
   tracker_pose_t p = Sample("live1", 0);
   p.session = first.session + 1;
@@ -210,7 +210,7 @@ TEST_F(LiveSessionTest, SilenceDropsTheClientAndStatusSaysSo) {
   Build();
   daemon_->Start();
   const join_reply_t reply = Join(JoinOf("quiet", 1));
-  ASSERT_EQ(reply.reason, join_reply_t::REASON_ACCEPTED);
+  ASSERT_EQ(reply.reason, +join_reply_t::REASON_ACCEPTED);
   // Waits for the drop (at most 10 s: a hung daemon fails, a slow one passes).
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while (daemon_->service()->live_clients() > 0 && std::chrono::steady_clock::now() < deadline) {
@@ -221,7 +221,7 @@ TEST_F(LiveSessionTest, SilenceDropsTheClientAndStatusSaysSo) {
   EXPECT_EQ(s.live_expired, 1);
   EXPECT_EQ(s.client_id, (std::vector<std::string>{"a"}));
   // The id is free again.
-  EXPECT_EQ(Join(JoinOf("quiet", 2)).reason, join_reply_t::REASON_ACCEPTED);
+  EXPECT_EQ(Join(JoinOf("quiet", 2)).reason, +join_reply_t::REASON_ACCEPTED);
 }
 
 TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
@@ -229,7 +229,7 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
   config_.max_links = 2;
   config_.max_live_clients = 2;
   Build();
-  ASSERT_EQ(Join(JoinOf("first", 1)).reason, join_reply_t::REASON_ACCEPTED);
+  ASSERT_EQ(Join(JoinOf("first", 1)).reason, +join_reply_t::REASON_ACCEPTED);
 
   struct Case {
     const char* what;
@@ -240,17 +240,17 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
   std::vector<Case> cases;
   join_request_t two_roots = JoinOf("x1", 2);
   two_roots.parent[1] = -1;
-  cases.push_back({"two roots", two_roots, join_reply_t::REASON_BAD_SKELETON, "root"});
+  cases.push_back({"two roots", two_roots, +join_reply_t::REASON_BAD_SKELETON, "root"});
   join_request_t bad_parent = JoinOf("x2", 2);
   bad_parent.parent[1] = 5;
-  cases.push_back({"parent out of range", bad_parent, join_reply_t::REASON_BAD_SKELETON,
+  cases.push_back({"parent out of range", bad_parent, +join_reply_t::REASON_BAD_SKELETON,
                    "parent index 5"});
   join_request_t zero_radius = JoinOf("x3", 2);
   zero_radius.radius[0] = 0;
-  cases.push_back({"radius 0", zero_radius, join_reply_t::REASON_BAD_SKELETON, "radius"});
-  cases.push_back({"id in use", JoinOf("first", 99), join_reply_t::REASON_ID_IN_USE,
+  cases.push_back({"radius 0", zero_radius, +join_reply_t::REASON_BAD_SKELETON, "radius"});
+  cases.push_back({"id in use", JoinOf("first", 99), +join_reply_t::REASON_ID_IN_USE,
                    "in use by another live session"});
-  cases.push_back({"configured id", JoinOf("a", 3), join_reply_t::REASON_ID_IN_USE,
+  cases.push_back({"configured id", JoinOf("a", 3), +join_reply_t::REASON_ID_IN_USE,
                    "configured client"});
   join_request_t three = JoinOf("x4", 2);
   three.num_links = 3;
@@ -259,20 +259,20 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
   three.a.push_back({0, 0, 0});
   three.b.push_back({0.1, 0, 0});
   three.radius.push_back(0.03);
-  cases.push_back({"too many links", three, join_reply_t::REASON_TOO_MANY_LINKS, "max_links 2"});
+  cases.push_back({"too many links", three, +join_reply_t::REASON_TOO_MANY_LINKS, "max_links 2"});
   join_request_t filter = JoinOf("x5", 2);
   filter.num_ignore = 1;
   filter.ignore = {"nolink:0"};
-  cases.push_back({"bad filter", filter, join_reply_t::REASON_BAD_FILTER, "nolink"});
+  cases.push_back({"bad filter", filter, +join_reply_t::REASON_BAD_FILTER, "nolink"});
   join_request_t motion = JoinOf("x6", 2);
   motion.motion = 5;
-  cases.push_back({"bad motion", motion, join_reply_t::REASON_BAD_OPTIONS, "motion 5"});
+  cases.push_back({"bad motion", motion, +join_reply_t::REASON_BAD_OPTIONS, "motion 5"});
   join_request_t eps = JoinOf("x7", 2);
   eps.eps_s = -1;
-  cases.push_back({"bad tolerance", eps, join_reply_t::REASON_BAD_OPTIONS, "tolerances"});
+  cases.push_back({"bad tolerance", eps, +join_reply_t::REASON_BAD_OPTIONS, "tolerances"});
   join_request_t stale = JoinOf("x8", 2);
   stale.utime = 1;
-  cases.push_back({"stale request", stale, join_reply_t::REASON_STALE_REQUEST, "clock"});
+  cases.push_back({"stale request", stale, +join_reply_t::REASON_STALE_REQUEST, "clock"});
   for (const Case& c : cases) {
     const join_reply_t r = Join(c.join);
     EXPECT_EQ(r.reason, c.reason) << c.what << ": " << r.message;
@@ -280,9 +280,9 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
     EXPECT_EQ(r.message.find('\n'), std::string::npos) << c.what;
     EXPECT_EQ(r.session, 0) << c.what;
   }
-  ASSERT_EQ(Join(JoinOf("second", 1)).reason, join_reply_t::REASON_ACCEPTED);
+  ASSERT_EQ(Join(JoinOf("second", 1)).reason, +join_reply_t::REASON_ACCEPTED);
   const join_reply_t full = Join(JoinOf("third", 1));
-  EXPECT_EQ(full.reason, join_reply_t::REASON_TOO_MANY_CLIENTS) << full.message;
+  EXPECT_EQ(full.reason, +join_reply_t::REASON_TOO_MANY_CLIENTS) << full.message;
   EXPECT_EQ(daemon_->service()->live_clients(), 2);
 
   // An id breaking the rule gets no reply: a bad_client_id rejection.
@@ -303,8 +303,8 @@ TEST_F(LiveSessionTest, TwoJoinsRacingForOneIdGetOneSession) {
   ASSERT_EQ(got.size(), before + 2);
   int accepted = 0, in_use = 0;
   for (size_t i = before; i < got.size(); ++i) {
-    accepted += got[i].reason == join_reply_t::REASON_ACCEPTED;
-    in_use += got[i].reason == join_reply_t::REASON_ID_IN_USE;
+    accepted += got[i].reason == +join_reply_t::REASON_ACCEPTED;
+    in_use += got[i].reason == +join_reply_t::REASON_ID_IN_USE;
   }
   EXPECT_EQ(accepted, 1);
   EXPECT_EQ(in_use, 1);
@@ -327,7 +327,7 @@ TEST_F(LiveSessionTest, SignedModeOnlyTheSessionKeySpeaksForALiveId) {
   EXPECT_EQ(listener_.rejections()[0].reason, "bad_signature");
 
   const join_reply_t reply = Join(j, &room);
-  ASSERT_EQ(reply.reason, join_reply_t::REASON_ACCEPTED) << reply.message;
+  ASSERT_EQ(reply.reason, +join_reply_t::REASON_ACCEPTED) << reply.message;
   ASSERT_EQ(reply.sealed_key_size, static_cast<int32_t>(kSealedKeyBytes));
   EXPECT_TRUE(VerifyEncoded(replies_.raw.back().data(), replies_.raw.back().size(), room));
   const std::optional<MacKey> session_key =
@@ -341,7 +341,7 @@ TEST_F(LiveSessionTest, SignedModeOnlyTheSessionKeySpeaksForALiveId) {
   const BoxKeyPair thief = NewBoxKeyPair();
   join_request_t hijack = JoinOf("vr1", 12);
   std::copy(thief.public_key.begin(), thief.public_key.end(), hijack.public_key);
-  EXPECT_EQ(Join(hijack, &room).reason, join_reply_t::REASON_ID_IN_USE);
+  EXPECT_EQ(Join(hijack, &room).reason, +join_reply_t::REASON_ID_IN_USE);
   tracker_pose_t forged = Sample("vr1", 0);
   forged.session = reply.session;
   Send(kPoseChannel, forged, &room);

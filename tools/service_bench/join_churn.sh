@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Joins under load, inside a private network namespace (never the host
+# network): 8 configured clients stream the bundled walk at 90 Hz for 10 s
+# (sweptccd_latency_bench: publication -> contact event), once alone and once
+# while live clients join and leave at 10 per second (each one the client
+# library's example program: join, 40 poses at 90 Hz, leave; about 8 live at
+# any time). Prints the latency table of the 8 streaming clients for both
+# runs and the joins and leaves the daemon logged. Figures are printed, never
+# asserted.
+#   bash tools/service_bench/join_churn.sh [BUILD_DIR]   (default build)
+set -euo pipefail
+source "$(dirname "$0")/../netns.sh"
+enter_private_netns "$@"
+cd "$(dirname "$0")/../.."
+build=${1:-build}
+work=$build/service_bench_churn
+mkdir -p "$work"
+setup_loopback_multicast
+url=$SWEPTCCD_URL
+import_walk "$build/bin/sweptccd" . 90 "$work"
+rm -f "$work/room.key"
+"$build/bin/sweptccd" keygen --out "$work/room.key"
+args=()
+for c in $(seq 0 7); do args+=(--client "client$c=$work/skeleton.json"); done
+echo "| run | clients | Hz | poses sent | events | median us | p99 us | max us |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+for run in alone churn; do
+  "$build/bin/sweptccd-service" --lcm-url "$url" --env data/env/morse_apartment.ply.gz \
+    --workers 2 --room-key "$work/room.key" --log-level info --max-live-clients 32 \
+    --silence-timeout-ms 2000 "${args[@]}" 2> "$work/daemon_$run.log" &
+  daemon=$!
+  sleep 1
+  churn=
+  if [ "$run" = churn ]; then
+    (
+      k=0
+      while :; do
+        "$build/bin/sweptccd_client_example" "$url" "churn$k" "$work/skeleton.json" \
+          "$work/room.key" > /dev/null 2>&1 &
+        k=$((k + 1))
+        sleep 0.1
+      done
+    ) &
+    churn=$!
+  fi
+  line=$("$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" 8 90 10 "$work/room.key")
+  echo "| $run ${line#| }"
+  if [ -n "$churn" ]; then kill $churn; sleep 1.5; fi
+  kill -TERM $daemon
+  wait $daemon
+done
+echo
+echo "churn run: $(grep -c "joined: session" "$work/daemon_churn.log") joins," \
+  "$(grep -c "' left (session" "$work/daemon_churn.log") leaves," \
+  "$(grep -c "join of client .* refused" "$work/daemon_churn.log" || true) refused joins in the daemon's log"
