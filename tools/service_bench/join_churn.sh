@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # Joins under load, inside a private network namespace (never the host
 # network): 8 configured clients stream the bundled walk at 90 Hz for 10 s
-# (sweptccd_latency_bench: publication -> contact event), once alone and once
-# while live clients join and leave at 10 per second (each one the client
-# library's example program: join, 40 poses at 90 Hz, leave; about 8 live at
-# any time). Prints the latency table of the 8 streaming clients for both
-# runs and the joins and leaves the daemon logged. Figures are printed, never
-# asserted.
+# (sweptccd_latency_bench: publication -> contact event), three times:
+#   alone     nothing else;
+#   churn     live clients join and leave at 10 per second, each the client
+#             library's example program (join, 40 poses at 90 Hz, leave: about
+#             8 more clients streaming at any time, so more pairs to answer);
+#   joinonly  live clients join and leave at 10 per second sending one pose
+#             each (`simulate-tracker --join --frames 1`): the join and leave
+#             work alone.
+# Prints the latency table of the 8 streaming clients for each run and the
+# joins and leaves the daemon logged. Figures are printed, never asserted.
 #   bash tools/service_bench/join_churn.sh [BUILD_DIR]   (default build)
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
@@ -24,19 +28,25 @@ args=()
 for c in $(seq 0 7); do args+=(--client "client$c=$work/skeleton.json"); done
 echo "| run | clients | Hz | poses sent | events | median us | p99 us | max us |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
-for run in alone churn; do
+for run in alone churn joinonly; do
   "$build/bin/sweptccd-service" --lcm-url "$url" --env data/env/morse_apartment.ply.gz \
     --workers 2 --room-key "$work/room.key" --log-level info --max-live-clients 32 \
     --silence-timeout-ms 2000 "${args[@]}" 2> "$work/daemon_$run.log" &
   daemon=$!
   sleep 1
   churn=
-  if [ "$run" = churn ]; then
+  if [ "$run" != alone ]; then
     (
       k=0
       while :; do
-        "$build/bin/sweptccd_client_example" "$url" "churn$k" "$work/skeleton.json" \
-          "$work/room.key" > /dev/null 2>&1 &
+        if [ "$run" = churn ]; then
+          "$build/bin/sweptccd_client_example" "$url" "churn$k" "$work/skeleton.json" \
+            "$work/room.key" > /dev/null 2>&1 &
+        else
+          "$build/bin/sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/poses.jsonl" \
+            --skeleton "$work/skeleton.json" --client "once$k" --join --key "$work/room.key" \
+            --frames 1 --rebase-utime > /dev/null 2>&1 &
+        fi
         k=$((k + 1))
         sleep 0.1
       done
@@ -50,6 +60,8 @@ for run in alone churn; do
   wait $daemon
 done
 echo
-echo "churn run: $(grep -c "joined: session" "$work/daemon_churn.log") joins," \
-  "$(grep -c "' left (session" "$work/daemon_churn.log") leaves," \
-  "$(grep -c "join of client .* refused" "$work/daemon_churn.log" || true) refused joins in the daemon's log"
+for run in churn joinonly; do
+  echo "$run run: $(grep -c "joined: session" "$work/daemon_$run.log") joins," \
+    "$(grep -c "' left (session" "$work/daemon_$run.log") leaves," \
+    "$(grep -c "join of client .* refused" "$work/daemon_$run.log" || true) refused joins in the daemon's log"
+done
