@@ -3,12 +3,13 @@
 # network): 8 configured clients stream the bundled walk at 90 Hz for 10 s
 # (sweptccd_latency_bench: publication -> contact event), three times:
 #   alone     nothing else;
-#   churn     live clients join and leave at 10 per second, each the client
-#             library's example program (join, 40 poses at 90 Hz, leave: about
-#             8 more clients streaming at any time, so more pairs to answer);
-#   joinonly  live clients join and leave at 10 per second sending one pose
-#             each (`simulate-tracker --join --frames 1`): the join and leave
-#             work alone.
+#   churn     live clients join and leave at 10 per second, each live 0.8 s
+#             and streaming a pose at 90 Hz meanwhile (about 8 more clients
+#             streaming at any time, so more pairs to answer);
+#   joinonly  live clients join and leave at 10 per second without a pose:
+#             the join and leave work alone.
+# The live clients are LiveClients of the client library in one process
+# (sweptccd_join_churn), which also prints the join round trip.
 # Prints the latency table of the 8 streaming clients for each run and the
 # joins and leaves the daemon logged. Figures are printed, never asserted.
 #   bash tools/service_bench/join_churn.sh [BUILD_DIR]   (default build)
@@ -36,32 +37,22 @@ for run in alone churn joinonly; do
   sleep 1
   churn=
   if [ "$run" != alone ]; then
-    (
-      k=0
-      while :; do
-        if [ "$run" = churn ]; then
-          "$build/bin/sweptccd_client_example" "$url" "churn$k" "$work/skeleton.json" \
-            "$work/room.key" > /dev/null 2>&1 &
-        else
-          "$build/bin/sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/poses.jsonl" \
-            --skeleton "$work/skeleton.json" --client "once$k" --join --key "$work/room.key" \
-            --frames 1 --rebase-utime > /dev/null 2>&1 &
-        fi
-        k=$((k + 1))
-        sleep 0.1
-      done
-    ) &
+    stream=0
+    if [ "$run" = churn ]; then stream=1; fi
+    "$build/bin/sweptccd_join_churn" "$url" "$work/skeleton.json" "$work/poses.jsonl" \
+      "$work/room.key" 10 0.8 11 $stream > "$work/churn_$run.out" 2>&1 &
     churn=$!
   fi
   line=$("$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" 8 90 10 "$work/room.key")
   echo "| $run ${line#| }"
-  if [ -n "$churn" ]; then kill $churn; sleep 1.5; fi
+  if [ -n "$churn" ]; then wait $churn || true; fi
   kill -TERM $daemon
   wait $daemon
 done
 echo
 for run in churn joinonly; do
-  echo "$run run: $(grep -c "joined: session" "$work/daemon_$run.log") joins," \
+  echo "$run run: $(cat "$work/churn_$run.out")"
+  echo "  daemon log: $(grep -c "joined: session" "$work/daemon_$run.log") joins," \
     "$(grep -c "' left (session" "$work/daemon_$run.log") leaves," \
-    "$(grep -c "join of client .* refused" "$work/daemon_$run.log" || true) refused joins in the daemon's log"
+    "$(grep -c "join of client .* refused" "$work/daemon_$run.log" || true) refused"
 done
