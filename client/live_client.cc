@@ -165,15 +165,26 @@ LiveClient::LiveClient(Options options) : options_(std::move(options)) {
   if (options_.join && !options_.skeleton) {
     throw InputError("client '" + options_.client_id + "': a join needs the skeleton");
   }
+  if (options_.join && options_.shared_connection) {
+    throw InputError("client '" + options_.client_id + "': a live client needs its own connection");
+  }
   if (options_.join && options_.room_key) box_ = NewBoxKeyPair();
   std::random_device rd;
   nonce_ = static_cast<int64_t>((uint64_t{rd()} << 32 | rd()) >> 1);
+  if (!options_.join) {
+    session_ = options_.session >= 0 ? options_.session : WallUtime();
+    joined_ = true;
+  }
+  if (options_.shared_connection) {
+    connection_ = options_.shared_connection;
+    return;
+  }
   DaemonConnection::Options c;
   c.lcm_url = options_.lcm_url;
   c.channels = options_.channels;
   c.service_key = options_.service_key ? options_.service_key : options_.room_key;
   c.only_client_id = options_.client_id;
-  connection_ = std::make_unique<DaemonConnection>(std::move(c));
+  connection_ = std::make_shared<DaemonConnection>(std::move(c));
   connection_->OnJoinReply([this](const join_reply_t& r, bool) {
     if (r.client_id == options_.client_id && r.nonce == nonce_) OnReply(r);
   });
@@ -192,16 +203,12 @@ LiveClient::LiveClient(Options options) : options_(std::move(options)) {
     }
     if (restarted) MaybeRejoin("the daemon restarted");
   });
-  if (!options_.join) {
-    session_ = options_.session > 0 ? options_.session : WallUtime();
-    joined_ = true;
-  }
   connection_->Start();
 }
 
 LiveClient::~LiveClient() {
   Leave();
-  connection_->Stop();
+  if (!options_.shared_connection) connection_->Stop();
 }
 
 void LiveClient::SendJoin() {

@@ -353,7 +353,13 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
   const int64_t session = o.session >= 0 ? o.session : WallClockUtime();
   // One client of the client library per id.
   std::map<std::string, std::unique_ptr<LiveClient>> live;
+  std::shared_ptr<DaemonConnection> shared;  // Configured clients: one LCM instance.
   try {
+    if (!o.join) {
+      DaemonConnection::Options co;
+      co.lcm_url = o.lcm_url;
+      shared = std::make_shared<DaemonConnection>(std::move(co));
+    }
     for (const ClientState& c : clients) {
       LiveClient::Options lo;
       lo.lcm_url = o.lcm_url;
@@ -365,6 +371,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       lo.session = session;
       lo.skeleton = skeleton;
       lo.ignore = o.ignore_rules;
+      lo.shared_connection = shared;
       live[c.id] = std::make_unique<LiveClient>(std::move(lo));
     }
   } catch (const InputError& e) {

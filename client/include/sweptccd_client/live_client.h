@@ -149,7 +149,10 @@ class LiveClient {
     /// `session` and are signed with client_key (else the room key).
     bool join = true;
     std::optional<MacKey> client_key;
-    int64_t session = 0;  // Configured: 0 takes the wall clock at start (us).
+    int64_t session = -1;  // Configured: < 0 takes the wall clock at start (us).
+    /// Configured clients only: publish through this connection (several
+    /// clients, one LCM instance) and receive nothing (no callbacks).
+    std::shared_ptr<DaemonConnection> shared_connection;
 
     /// The join (live): skeleton, motion, optional filter rules and
     /// tolerances (0: the daemon's).
@@ -201,7 +204,7 @@ class LiveClient {
   Options options_;
   BoxKeyPair box_;
   int64_t nonce_ = 0;
-  std::unique_ptr<DaemonConnection> connection_;
+  std::shared_ptr<DaemonConnection> connection_;
   std::function<void(const contact_event_t&)> on_contact_;
   std::function<void(const rejection_t&)> on_rejection_;
   std::function<void(const join_reply_t&)> on_join_reply_;
