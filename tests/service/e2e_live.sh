@@ -5,12 +5,13 @@
 # leaves; a client killed mid-stream is dropped after silence_timeout_ms; a
 # streaming `simulate-tracker --join` re-joins by itself after the daemon
 # restarts and is answered by the new daemon; two clients racing for one id
-# get one session and one "id in use"; a refused join prints its code.
-#   e2e_live.sh SWEPTCCD SERVICE E2E_TOOL SOURCE_DIR WORK_DIR CLIENT_EXAMPLE
+# get one session and one "id in use"; a join refused for each reason gets
+# its code (join_tool).
+#   e2e_live.sh SWEPTCCD SERVICE E2E_TOOL SOURCE_DIR WORK_DIR CLIENT_EXAMPLE JOIN_TOOL
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
 enter_private_netns "$@"
-sweptccd=$1 service=$2 src=$4 work=$5 example=$6
+sweptccd=$1 service=$2 src=$4 work=$5 example=$6 join_tool=$7
 rm -rf "$work"; mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
@@ -75,6 +76,15 @@ status=$?
 set -e
 [ $status = 1 ] && grep -q "join refused (2): client id 'conf0' is a configured client" "$work/conf.out" \
   || { cat "$work/conf.out" >&2; exit 1; }
+
+# Every other kind of refusal (join_tool checks the code; the last one
+# fills the daemon's 8 live slots first).
+for kind in bad_skeleton too_many_links bad_filter bad_options stale_request too_many_clients; do
+  timeout 20 "$join_tool" "$url" "$work/room.key" "$work/skeleton.json" $kind
+done
+echo "refusals: every kind"
+# The fill clients are dropped by silence before the next step.
+wait_for "$work/daemon1.log" "live client 'fill7' dropped"
 
 # 5. Re-join after a daemon restart, without an operator.
 "$sweptccd" simulate-tracker --lcm-url "$url" --poses "$work/poses.jsonl" --skeleton \
