@@ -8,5 +8,8 @@ inline constexpr char kPoseChannel[] = "SWEPTCCD_POSE";        // tracker_pose_t
 inline constexpr char kContactChannel[] = "SWEPTCCD_CONTACT";  // contact_event_t, out.
 inline constexpr char kRejectChannel[] = "SWEPTCCD_REJECT";    // rejection_t, out.
 inline constexpr char kStatusChannel[] = "SWEPTCCD_STATUS";    // status_t, out.
+inline constexpr char kJoinChannel[] = "SWEPTCCD_JOIN";              // join_request_t, in.
+inline constexpr char kJoinReplyChannel[] = "SWEPTCCD_JOIN_REPLY";  // join_reply_t, out.
+inline constexpr char kLeaveChannel[] = "SWEPTCCD_LEAVE";            // leave_t, in.
 
 }  // namespace sweptccd

@@ -173,6 +173,55 @@ std::string CheckWire(const status_t*, const void* data, size_t size, const Wire
   r.Fixed("poses_received..latency_p99_us", static_cast<size_t>(n) * 8 * 8);
   r.Fixed("queue_depth", 4);
   r.Fixed("dropped_total, rejected_unattributed, rejections_suppressed", 3 * 8);
+  r.Fixed("instance, live_joined, live_left, live_expired", 4 * 8);
+  r.Fixed("mac", kMac);
+  return r.Finish();
+}
+
+std::string CheckWire(const join_request_t*, const void* data, size_t size,
+                      const WireLimits& limits) {
+  if (std::string p = TooLong(size, limits); !p.empty()) return p;
+  WireReader r(data, size);
+  r.Fingerprint(join_request_t::getHash());
+  r.Fixed("utime", 8);
+  r.String("client_id", limits.max_id_bytes);
+  r.Fixed("nonce", 8);
+  r.Fixed("public_key", 32);
+  r.Fixed("motion, eps_s, delta_m", 1 + 2 * 8);
+  // Per link: a name and 4 + 7 * 8 bytes.
+  const int32_t n = r.Count("num_links", limits.max_join_links, kMinString + 4 + 7 * 8);
+  for (int32_t i = 0; i < n && !r.failed(); ++i) r.String("link_name[]", limits.max_id_bytes);
+  r.Fixed("parent", static_cast<size_t>(n) * 4);
+  r.Fixed("a, b, radius", static_cast<size_t>(n) * 7 * 8);
+  const int32_t k = r.Count("num_ignore", limits.max_ignore_rules, kMinString);
+  for (int32_t i = 0; i < k && !r.failed(); ++i) r.String("ignore[]", limits.max_text_bytes);
+  r.Fixed("mac", kMac);
+  return r.Finish();
+}
+
+std::string CheckWire(const join_reply_t*, const void* data, size_t size,
+                      const WireLimits& limits) {
+  if (std::string p = TooLong(size, limits); !p.empty()) return p;
+  WireReader r(data, size);
+  r.Fingerprint(join_reply_t::getHash());
+  r.Fixed("utime", 8);
+  r.String("client_id", limits.max_id_bytes);
+  r.Fixed("nonce, reason", 8 + 1);
+  r.String("message", limits.max_text_bytes);
+  r.Fixed("session, instance, silence_timeout_ms", 3 * 8);
+  const int32_t n = r.Count("sealed_key_size", limits.max_sealed_key_bytes, 1);
+  r.Fixed("sealed_key", static_cast<size_t>(n));
+  r.Fixed("mac", kMac);
+  return r.Finish();
+}
+
+std::string CheckWire(const leave_t*, const void* data, size_t size, const WireLimits& limits) {
+  if (std::string p = TooLong(size, limits); !p.empty()) return p;
+  WireReader r(data, size);
+  r.Fingerprint(leave_t::getHash());
+  r.Fixed("utime", 8);
+  r.String("client_id", limits.max_id_bytes);
+  r.Fixed("session", 8);
   r.Fixed("mac", kMac);
   return r.Finish();
 }

@@ -13,6 +13,9 @@
 #include <string>
 
 #include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/join_reply_t.hpp"
+#include "sweptccd/join_request_t.hpp"
+#include "sweptccd/leave_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -28,6 +31,10 @@ struct WireLimits {
   int32_t max_links = 1024;            // Links per skeleton (poses, per-link brackets).
   int32_t max_contacts = 4096;         // Witnesses in one contact event.
   int32_t max_clients = 4096;          // Clients in one status message.
+  int32_t max_join_links = 1024;       // Links in one join_request_t (the daemon's max_links
+                                       // then refuses more with a reply).
+  int32_t max_ignore_rules = 256;      // Filter rules in one join_request_t.
+  int32_t max_sealed_key_bytes = 128;  // join_reply_t.sealed_key.
 };
 
 /// The message, or a one-line problem naming the field, the value and the
@@ -50,9 +57,15 @@ std::string CheckWire(const contact_event_t*, const void* data, size_t size,
                       const WireLimits& limits);
 std::string CheckWire(const rejection_t*, const void* data, size_t size, const WireLimits& limits);
 std::string CheckWire(const status_t*, const void* data, size_t size, const WireLimits& limits);
+std::string CheckWire(const join_request_t*, const void* data, size_t size,
+                      const WireLimits& limits);
+std::string CheckWire(const join_reply_t*, const void* data, size_t size,
+                      const WireLimits& limits);
+std::string CheckWire(const leave_t*, const void* data, size_t size, const WireLimits& limits);
 
-/// The client_id of an encoded tracker_pose_t that CheckWire accepted (to pick
-/// the key before verifying). Precondition: CheckWire returned "".
+/// The client_id of an encoded tracker_pose_t, join_request_t or leave_t (all
+/// three start with fingerprint, utime, client_id) that CheckWire accepted (to
+/// pick the key before verifying). Precondition: CheckWire returned "".
 std::string PeekPoseClientId(const void* data, size_t size);
 
 /// The one entry point for incoming messages (daemon and tools): CheckWire,

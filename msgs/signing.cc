@@ -155,4 +155,49 @@ const MacKey* KeyRing::ServiceKey() const {
   return room_ ? &*room_ : nullptr;
 }
 
+MacKey NewRandomKey() {
+  InitSodium();
+  std::array<uint8_t, kKeyBytes> bytes{};
+  randombytes_buf(bytes.data(), bytes.size());
+  MacKey key(bytes);
+  sodium_memzero(bytes.data(), bytes.size());
+  return key;
+}
+
+BoxKeyPair::~BoxKeyPair() { sodium_memzero(secret_key.data(), secret_key.size()); }
+
+BoxKeyPair NewBoxKeyPair() {
+  static_assert(crypto_box_PUBLICKEYBYTES == kBoxPublicKeyBytes);
+  static_assert(crypto_box_SECRETKEYBYTES == 32);
+  static_assert(crypto_box_SEALBYTES + kKeyBytes == kSealedKeyBytes);
+  InitSodium();
+  BoxKeyPair pair;
+  if (crypto_box_keypair(pair.public_key.data(), pair.secret_key.data()) != 0) {
+    throw std::runtime_error("crypto_box_keypair failed");
+  }
+  return pair;
+}
+
+std::vector<uint8_t> SealKey(const MacKey& key, const uint8_t* public_key) {
+  InitSodium();
+  std::vector<uint8_t> sealed(kSealedKeyBytes);
+  if (crypto_box_seal(sealed.data(), key.data(), kKeyBytes, public_key) != 0) {
+    throw std::runtime_error("crypto_box_seal failed (not a valid X25519 public key)");
+  }
+  return sealed;
+}
+
+std::optional<MacKey> OpenSealedKey(const uint8_t* sealed, size_t size, const BoxKeyPair& pair) {
+  InitSodium();
+  if (size != kSealedKeyBytes) return std::nullopt;
+  std::array<uint8_t, kKeyBytes> bytes{};
+  if (crypto_box_seal_open(bytes.data(), sealed, size, pair.public_key.data(),
+                           pair.secret_key.data()) != 0) {
+    return std::nullopt;
+  }
+  MacKey key(bytes);
+  sodium_memzero(bytes.data(), bytes.size());
+  return key;
+}
+
 }  // namespace sweptccd

@@ -70,6 +70,28 @@ std::vector<uint8_t> EncodeSigned(const T& msg, const MacKey* key) {
   return bytes;
 }
 
+/// A fresh random key (libsodium randombytes): a live session's key.
+MacKey NewRandomKey();
+
+/// An X25519 key pair (libsodium crypto_box) that a joining client makes for
+/// one daemon instance: the daemon seals the session key to `public_key`.
+/// The secret half is wiped when destroyed.
+inline constexpr size_t kBoxPublicKeyBytes = 32;
+inline constexpr size_t kSealedKeyBytes = 80;  // crypto_box_SEALBYTES + kKeyBytes.
+struct BoxKeyPair {
+  std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
+  std::array<uint8_t, 32> secret_key{};
+  ~BoxKeyPair();
+};
+BoxKeyPair NewBoxKeyPair();
+
+/// `key` sealed (crypto_box_seal: anonymous sender, only the holder of the
+/// secret key opens it) to `public_key`: kSealedKeyBytes bytes.
+std::vector<uint8_t> SealKey(const MacKey& key, const uint8_t* public_key);
+/// The key sealed in `sealed` to `pair`, or nullopt when it does not open
+/// (wrong size, another recipient, tampered).
+std::optional<MacKey> OpenSealedKey(const uint8_t* sealed, size_t size, const BoxKeyPair& pair);
+
 /// The keys of a room: per-client keys, a room key for clients without
 /// their own, and the service key that signs what the service publishes
 /// (default: the room key). Immutable once built; thread-safe to read.
@@ -85,6 +107,8 @@ class KeyRing {
   const MacKey* KeyFor(std::string_view client_id) const;
   /// The service key, else the room key, else null.
   const MacKey* ServiceKey() const;
+  /// The room key (signs join requests), or null.
+  const MacKey* RoomKey() const { return room_ ? &*room_ : nullptr; }
 
  private:
   std::optional<MacKey> room_;

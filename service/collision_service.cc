@@ -64,8 +64,14 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
                           options_.rejection_max_keys) {
   if (!environment_) throw InputError("collision service: no environment");
   if (!publisher_) throw InputError("collision service: no publisher");
-  if (clients.empty())
-    throw InputError("collision service: no clients registered; add at least one");
+  if (clients.empty() && options_.max_live_clients < 1) {
+    throw InputError("collision service: no clients registered and live joins are off; add at "
+                     "least one, or allow max_live_clients");
+  }
+  if (options_.max_live_clients < 0 || options_.silence_timeout_ms < 1) {
+    throw InputError("collision service: max_live_clients must be >= 0 and silence_timeout_ms "
+                     ">= 1");
+  }
   if (options_.num_workers < 1) {
     throw InputError("collision service: num_workers is " + std::to_string(options_.num_workers) +
                      "; use 1 or more");
@@ -90,14 +96,16 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     if (!c.skeleton || c.skeleton->num_links() < 1) {
       throw InputError("collision service: client '" + c.client_id + "' has no skeleton");
     }
-    if (client_index_.count(c.client_id)) {
+    if (configured_ids_.count(c.client_id)) {
       throw InputError("collision service: client '" + c.client_id +
                        "' is registered twice; give every client its own id");
     }
-    client_index_[c.client_id] = static_cast<int>(clients_.size());
-    clients_.push_back(std::make_unique<Client>(std::move(c), *environment_, options_));
+    configured_ids_.insert(c.client_id);
+    clients_.push_back(std::make_shared<Client>(std::move(c), *environment_, options_));
+    client_index_[clients_.back()->config.client_id] = clients_.back();
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
+  instance_ = NowUtime();
   workers_.reserve(options_.num_workers);
   for (int i = 0; i < options_.num_workers; ++i) {
     workers_.emplace_back([this] { WorkerLoop(); });
@@ -129,10 +137,12 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       ++rejected_unattributed_;
       rejection = Rejection{rejection_code::kUnknownClient,
                             "client_id '" + pose.client_id +
-                                "' is not registered; register it in the service configuration"};
+                                "' is not registered; register it in the service configuration "
+                                "or join it (SWEPTCCD_JOIN)"};
     } else {
       attributed = true;
       rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
+      if (it->second->live) it->second->last_heard = receive_time;
     }
   }
   if (rejection) {
@@ -142,16 +152,24 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   }
 }
 
-std::optional<Rejection> CollisionService::AdmitLocked(int index, const tracker_pose_t& pose,
+std::optional<Rejection> CollisionService::AdmitLocked(const std::shared_ptr<Client>& index,
+                                                      const tracker_pose_t& pose,
                                                       int64_t receive_utime,
                                                       SteadyClock::time_point receive_time) {
-  Client& client = *clients_[index];
+  Client& client = *index;
   if (!client.pose_bucket.TryTake(receive_utime)) {
     ++client.rate_limited;
     return Rejection{rejection_code::kRateLimited,
                      "client '" + pose.client_id + "' sends faster than max_pose_rate_hz " +
                          std::to_string(options_.max_pose_rate_hz) +
                          "; pose shed unread; lower the tracker's rate"};
+  }
+  if (client.live && pose.session != client.assigned_session) {
+    return Rejection{rejection_code::kStaleSession,
+                     "session " + std::to_string(pose.session) + " of live client '" +
+                         pose.client_id + "' is not the session " +
+                         std::to_string(client.assigned_session) +
+                         " its join was given; send that one, or join again"};
   }
   const bool was_ready = client.session.ready();
   std::optional<Rejection> rejection = client.session.OnPose(pose, receive_utime, receive_time);
@@ -175,7 +193,8 @@ void CollisionService::OnRefused(const std::string& client_id, const Rejection& 
   Reject(client_id, -1, rejection, /*attributed=*/false);
 }
 
-void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem) {
+void CollisionService::OnUndecodable(const std::string& channel, const std::string& problem,
+                                     const char* type) {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_) {
@@ -187,8 +206,8 @@ void CollisionService::OnUndecodable(const std::string& channel, const std::stri
   Reject("", -1,
          Rejection{rejection_code::kDecodeError,
                    "message on channel " + channel + " could not be decoded as " +
-                       "sweptccd.tracker_pose_t (" + problem +
-                       "); publish tracker_pose_t built from this service's msgs/"},
+                       std::string(type) + " (" + problem + "); publish " + type +
+                       " built from this service's msgs/"},
          /*attributed=*/false);
 }
 
@@ -271,6 +290,8 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
 
   QueryOptions options = options_.query;
   options.motion = client.config.motion;
+  if (client.config.eps_s > 0) options.eps_s = client.config.eps_s;
+  if (client.config.delta_m > 0) options.delta_m = client.config.delta_m;
   const SteadyClock::time_point start = SteadyClock::now();
   try {
     const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options);
@@ -293,9 +314,16 @@ void CollisionService::WorkerLoop() {
   for (;;) {
     work_cv_.wait(lock, [this] { return !ready_.empty() || (stopping_ && in_flight_ == 0); });
     if (ready_.empty()) break;  // Stopping, nothing left anywhere.
-    const int index = ready_.front();
+    const std::shared_ptr<Client> index = ready_.front();
     ready_.pop_front();
-    Client& client = *clients_[index];
+    Client& client = *index;
+    if (client.removed) {  // Left or expired: its pending pair goes with it.
+      if (ready_.empty() && in_flight_ == 0) {
+        idle_cv_.notify_all();
+        if (stopping_) work_cv_.notify_all();
+      }
+      continue;
+    }
     PosePair pair = client.session.TakePair();
     ++in_flight_;
     lock.unlock();
@@ -313,7 +341,7 @@ void CollisionService::WorkerLoop() {
     }
     client.session.FinishPair();
     --in_flight_;
-    if (client.session.ready()) {
+    if (client.session.ready() && !client.removed) {
       ready_.push_back(index);
       work_cv_.notify_one();
     }
@@ -351,6 +379,10 @@ status_t CollisionService::Status() const {
   s.security = options_.security;
   std::lock_guard<std::mutex> lock(mutex_);
   s.num_clients = static_cast<int32_t>(clients_.size());
+  s.instance = instance_;
+  s.live_joined = live_joined_;
+  s.live_left = live_left_;
+  s.live_expired = live_expired_;
   int32_t pending = 0;
   int64_t dropped = 0;
   for (const auto& c : clients_) {
@@ -378,6 +410,125 @@ status_t CollisionService::Status() const {
 void CollisionService::PublishStatus() {
   const status_t s = Status();
   SafePublish([&] { publisher_->PublishStatus(s); }, "status");
+}
+
+bool CollisionService::IsConfigured(const std::string& client_id) const {
+  return configured_ids_.count(client_id) > 0;  // Immutable: no lock.
+}
+
+int CollisionService::live_clients() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return static_cast<int>(clients_.size() - configured_ids_.size());
+}
+
+bool CollisionService::LiveKey(const std::string& client_id, std::optional<MacKey>* key) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = client_index_.find(client_id);
+  if (it == client_index_.end() || !it->second->live) return false;
+  *key = it->second->key;
+  return true;
+}
+
+void CollisionService::RemoveLocked(const std::shared_ptr<Client>& client) {
+  client->removed = true;
+  client_index_.erase(client->config.client_id);
+  clients_.erase(std::remove(clients_.begin(), clients_.end(), client), clients_.end());
+}
+
+LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
+                                           std::optional<MacKey> fresh_key) {
+  const std::string id = request.config.client_id;
+  LiveJoinOutcome out;
+  // Cheap checks first, so a refused join never builds an engine.
+  auto check = [&]() -> bool {
+    if (stopping_) {
+      out = {join_reply_t::REASON_BUSY, "the daemon is stopping; join again when it is back", 0, {}};
+      return false;
+    }
+    if (configured_ids_.count(id)) {
+      out = {join_reply_t::REASON_ID_IN_USE,
+             "client id '" + id + "' is a configured client of this daemon; pick another id", 0, {}};
+      return false;
+    }
+    const auto it = client_index_.find(id);
+    if (it != client_index_.end()) {
+      const Client& c = *it->second;
+      if (c.nonce == request.nonce && c.public_key == request.public_key) {
+        out = {join_reply_t::REASON_ACCEPTED, "", c.assigned_session, c.key};  // A lost reply.
+      } else {
+        out = {join_reply_t::REASON_ID_IN_USE,
+               "client id '" + id + "' is in use by another live session (session " +
+                   std::to_string(c.assigned_session) + "); pick another id, or wait " +
+                   std::to_string(options_.silence_timeout_ms) + " ms after its last pose",
+               0, {}};
+      }
+      return false;
+    }
+    const int live = static_cast<int>(clients_.size() - configured_ids_.size());
+    if (live >= options_.max_live_clients) {
+      out = {options_.max_live_clients == 0 ? join_reply_t::REASON_JOINS_DISABLED
+                                            : join_reply_t::REASON_TOO_MANY_CLIENTS,
+             options_.max_live_clients == 0
+                 ? std::string("this daemon takes no live clients (max_live_clients: 0); "
+                               "configure the client instead")
+                 : std::to_string(live) + " live clients already, the limit max_live_clients; "
+                       "try later or raise it",
+             0, {}};
+      return false;
+    }
+    return true;
+  };
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!check()) return out;
+  }
+  if (!request.config.skeleton || request.config.skeleton->num_links() < 1) {
+    return {join_reply_t::REASON_BAD_SKELETON, "the skeleton has no links", 0, {}};
+  }
+  // The engine is built without the lock: workers keep answering meanwhile.
+  auto client = std::make_shared<Client>(std::move(request.config), *environment_, options_);
+  if (options_.prepare_engine) options_.prepare_engine(client->engine.get());
+  client->live = true;
+  client->nonce = request.nonce;
+  client->public_key = request.public_key;
+  client->key = std::move(fresh_key);
+  client->last_heard = SteadyClock::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (!check()) return out;  // Only the join thread adds, but stay exact.
+  client->assigned_session = std::max(last_session_ + 1, NowUtime());
+  last_session_ = client->assigned_session;
+  clients_.push_back(client);
+  client_index_[id] = client;
+  ++live_joined_;
+  return {join_reply_t::REASON_ACCEPTED, "", client->assigned_session, client->key};
+}
+
+bool CollisionService::LeaveLive(const std::string& client_id, int64_t session) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const auto it = client_index_.find(client_id);
+  if (it == client_index_.end() || !it->second->live ||
+      it->second->assigned_session != session) {
+    return false;
+  }
+  RemoveLocked(std::shared_ptr<Client>(it->second));
+  ++live_left_;
+  return true;
+}
+
+std::vector<std::string> CollisionService::ExpireSilent(SteadyClock::time_point now) {
+  const auto timeout = std::chrono::milliseconds(options_.silence_timeout_ms);
+  std::vector<std::string> expired;
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::shared_ptr<Client>> silent;
+  for (const auto& c : clients_) {
+    if (c->live && now - c->last_heard >= timeout) silent.push_back(c);
+  }
+  for (const auto& c : silent) {
+    expired.push_back(c->config.client_id);
+    RemoveLocked(c);
+    ++live_expired_;
+  }
+  return expired;
 }
 
 int64_t CollisionService::publish_errors() const {

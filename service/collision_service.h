@@ -8,7 +8,10 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <array>
 #include <map>
+#include <optional>
+#include <set>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -22,7 +25,9 @@
 #include "service/client_session.h"
 #include "service/publisher.h"
 #include "service/token_bucket.h"
+#include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
@@ -34,6 +39,25 @@ struct ClientConfig {
   std::shared_ptr<const Skeleton> skeleton;  // Non-null.
   MotionModel motion = MotionModel::kArticulated;
   CollisionFilter filter;  // Default: nothing ignored.
+  /// Per-client tolerances (a live client's join): 0 takes ServiceOptions::query's.
+  double eps_s = 0;
+  double delta_m = 0;
+};
+
+/// A live client's join (docs/SERVICE.md, "Live clients"), built off the
+/// answering path by the daemon's join thread.
+struct LiveJoinRequest {
+  ClientConfig config;
+  int64_t nonce = 0;
+  std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
+};
+
+/// The answer to a join: reason is a join_reply_t::REASON_* code.
+struct LiveJoinOutcome {
+  int8_t reason = join_reply_t::REASON_ACCEPTED;
+  std::string message;  // One line; empty when accepted.
+  int64_t session = 0;  // Accepted: the session the client must send.
+  std::optional<MacKey> key;  // Accepted in signed mode: the session key.
 };
 
 struct ServiceOptions {
@@ -67,6 +91,10 @@ struct ServiceOptions {
   double rejection_rate_hz = 10;
   int rejection_burst = 10;
   int rejection_max_keys = 1024;
+  /// Live clients (joined over LCM) at most at once; 0: joins are refused.
+  int max_live_clients = 0;
+  /// A live client with no pose (nor join) for this long is dropped, ms, > 0.
+  int64_t silence_timeout_ms = 5000;
 };
 
 /// Owns the client sessions and the worker pool.
@@ -79,7 +107,8 @@ struct ServiceOptions {
 /// thread.
 class CollisionService {
  public:
-  /// Starts the workers. Throws InputError for bad configuration (no clients,
+  /// Starts the workers. Throws InputError for bad configuration (no clients
+  /// while max_live_clients is 0,
   /// a client_id breaking the id rule (1-64 of [A-Za-z0-9_.-]), a duplicate, null skeleton, num_workers < 1, invalid
   /// query options, latency_window < 1). `environment` and `publisher` must
   /// outlive the service.
@@ -97,7 +126,8 @@ class CollisionService {
 
   /// A message on the pose channel that could not be decoded: publishes a
   /// "decode_error" rejection and counts it.
-  void OnUndecodable(const std::string& channel, const std::string& problem);
+  void OnUndecodable(const std::string& channel, const std::string& problem,
+                     const char* type = "sweptccd.tracker_pose_t");
 
   /// A pose refused by the transport before decoding (bad_client_id,
   /// bad_signature): publishes the rejection and counts it as unattributed
@@ -111,6 +141,28 @@ class CollisionService {
   /// Stops accepting poses, answers and publishes every pending and in-flight
   /// pair, then joins the workers. Idempotent.
   void Stop();
+
+  /// Adds a live client (docs/SERVICE.md, "Live clients"): refused when the id
+  /// is configured, live under another nonce or public key (id in use), or
+  /// max_live_clients are live. The same id, nonce and public key while live
+  /// answer the same session and key (a lost reply). Builds the client's
+  /// engine without holding the lock workers need: never stalls answers.
+  /// `fresh_key` (signed mode) becomes the session key of a new session.
+  /// Thread-safe; the daemon calls it from its join thread only.
+  LiveJoinOutcome JoinLive(LiveJoinRequest request, std::optional<MacKey> fresh_key);
+  /// Ends a live client's session: true when `client_id` was live with that
+  /// session (its pending pair is dropped; an in-flight one is published).
+  bool LeaveLive(const std::string& client_id, int64_t session);
+  /// Drops every live client silent (no pose, nor its join) for
+  /// silence_timeout_ms before `now`; returns their ids.
+  std::vector<std::string> ExpireSilent(SteadyClock::time_point now);
+  /// Whether `client_id` is live now, and then its session key (if signed).
+  bool LiveKey(const std::string& client_id, std::optional<MacKey>* key) const;
+  /// Whether `client_id` is a configured client.
+  bool IsConfigured(const std::string& client_id) const;
+  int live_clients() const;
+  /// This service's instance (status_t.instance): its start time, us.
+  int64_t instance() const { return instance_; }
 
   /// A snapshot of the per-client counters and latencies.
   status_t Status() const;
@@ -128,6 +180,13 @@ class CollisionService {
  private:
   struct Client {
     ClientConfig config;
+    bool live = false;                // Joined over LCM (else configured).
+    bool removed = false;             // Left or expired (workers skip it).
+    int64_t assigned_session = 0;     // Live: the only session accepted.
+    int64_t nonce = 0;                // Live: the join's nonce and key.
+    std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
+    std::optional<MacKey> key;        // Live, signed mode: the session key.
+    SteadyClock::time_point last_heard;  // Live: the join or the latest pose.
     std::unique_ptr<CcdEngine> engine;
     ClientSession session;
     std::deque<double> latencies_us;  // Newest at the back.
@@ -137,6 +196,8 @@ class CollisionService {
   };
 
   void WorkerLoop();
+  // Under mutex_: removes a client from the maps and the order.
+  void RemoveLocked(const std::shared_ptr<Client>& client);
   contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
   // Publishes through the throttle, keyed by client_id when `attributed` (the
   // pose came from that registered client), else by "".
@@ -144,7 +205,8 @@ class CollisionService {
               bool attributed);
   // Under mutex_: the rejection (if any) of a pose of the registered client
   // `index`, rate limit first; queues the client when a pair became ready.
-  std::optional<Rejection> AdmitLocked(int index, const tracker_pose_t& pose,
+  std::optional<Rejection> AdmitLocked(const std::shared_ptr<Client>& client,
+                                       const tracker_pose_t& pose,
                                        int64_t receive_utime, SteadyClock::time_point receive_time);
   void LogRejection(const std::string& client_id, int64_t seq, const Rejection& rejection,
                     int64_t now_us);
@@ -154,13 +216,17 @@ class CollisionService {
   std::shared_ptr<const Environment> environment_;
   ServiceOptions options_;
   Publisher* publisher_;
-  std::vector<std::unique_ptr<Client>> clients_;
-  std::map<std::string, int> client_index_;  // Immutable after construction.
+  std::vector<std::shared_ptr<Client>> clients_;  // Configured in order, then live ones.
+  std::map<std::string, std::shared_ptr<Client>> client_index_;
+  std::set<std::string> configured_ids_;  // Immutable after construction.
 
   mutable std::mutex mutex_;
   std::condition_variable work_cv_;  // Workers wait for ready clients.
   std::condition_variable idle_cv_;  // WaitUntilIdle waits for quiescence.
-  std::deque<int> ready_;            // Clients with a pending pair and none in flight.
+  std::deque<std::shared_ptr<Client>> ready_;  // Clients with a pending pair, none in flight.
+  int64_t last_session_ = 0;     // Sessions handed out are strictly increasing.
+  int64_t live_joined_ = 0, live_left_ = 0, live_expired_ = 0;
+  int64_t instance_ = 0;         // status_t.instance.
   int in_flight_ = 0;
   bool stopping_ = false;
   int64_t publish_errors_ = 0;

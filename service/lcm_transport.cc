@@ -19,6 +19,9 @@ struct LcmTransport::Impl {
   LcmChannels channels;
   CollisionService* service = nullptr;
   lcm::Subscription* subscription = nullptr;
+  LiveSessionHandler* live = nullptr;
+  lcm::Subscription* join_subscription = nullptr;
+  lcm::Subscription* leave_subscription = nullptr;
   std::mutex publish_mutex;
   std::atomic<int64_t> received{0};
   std::atomic<int64_t> callback_errors{0};
@@ -54,7 +57,12 @@ struct LcmTransport::Impl {
                             "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"});
     }
     if (security.signed_mode) {
-      const MacKey* key = security.keys.KeyFor(id);
+      // A live id's poses verify under its session key only: the room key
+      // cannot speak for a live client.
+      std::optional<MacKey> live_key;
+      const MacKey* key = service->LiveKey(id, &live_key)
+                              ? (live_key ? &*live_key : nullptr)
+                              : security.keys.KeyFor(id);
       if (key == nullptr || !VerifyEncoded(data, size, *key)) {
         return service->OnRefused(
             id, Rejection{rejection_code::kBadSignature,
@@ -68,6 +76,92 @@ struct LcmTransport::Impl {
     DecodeResult<tracker_pose_t> decoded = DecodeChecked<tracker_pose_t>(data, size, security.limits);
     if (!decoded.ok()) return service->OnUndecodable(channel, decoded.problem + bytes);
     service->OnPose(*decoded.message);
+  }
+
+  template <class F>
+  void Guard(const char* what, const std::string& channel, F&& f) noexcept {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      ++callback_errors;
+      spdlog::error("LCM {} callback on {}: {}", what, EscapeForDisplay(channel), e.what());
+    } catch (...) {
+      ++callback_errors;
+      spdlog::error("LCM {} callback on {}: unknown exception", what, EscapeForDisplay(channel));
+    }
+  }
+
+  void HandleJoin(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    Guard("join", channel, [&] { AdmitJoin(rbuf->data, rbuf->data_size, channel); });
+  }
+  void HandleLeave(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    Guard("leave", channel, [&] { AdmitLeave(rbuf->data, rbuf->data_size, channel); });
+  }
+
+  // The id of a join or leave that CheckWire accepted, or "" after refusing it.
+  std::string CheckedId(const void* data, size_t size) {
+    const std::string id = PeekPoseClientId(data, size);
+    if (IsValidClientId(id)) return id;
+    service->OnRefused("", Rejection{rejection_code::kBadClientId,
+                                     "client_id '" + EscapeForDisplay(id) +
+                                         "' breaks the id rule; send 1-64 characters from "
+                                         "A-Z a-z 0-9 _ . -"});
+    return "";
+  }
+
+  // Bytes, id rule, room-key signature, then decode; the registry queues it.
+  void AdmitJoin(const void* data, size_t size, const std::string& channel) {
+    const std::string bytes = ", " + std::to_string(size) + " bytes";
+    const std::string problem =
+        CheckWire(static_cast<const join_request_t*>(nullptr), data, size, security.limits);
+    if (!problem.empty()) {
+      return service->OnUndecodable(channel, problem + bytes, "sweptccd.join_request_t");
+    }
+    const std::string id = CheckedId(data, size);
+    if (id.empty()) return;
+    if (security.signed_mode) {
+      const MacKey* key = security.keys.RoomKey();
+      if (key == nullptr || !VerifyEncoded(data, size, *key)) {
+        return service->OnRefused(
+            id, Rejection{rejection_code::kBadSignature,
+                          key == nullptr ? "a join of client '" + id +
+                                               "' but this daemon has no room key; set "
+                                               "security.room_key to take live clients"
+                                         : "the mac of a join of client '" + id +
+                                               "' does not verify; sign joins with the room key"});
+      }
+    }
+    DecodeResult<join_request_t> decoded =
+        DecodeChecked<join_request_t>(data, size, security.limits);
+    if (!decoded.ok()) {
+      return service->OnUndecodable(channel, decoded.problem + bytes, "sweptccd.join_request_t");
+    }
+    live->OnJoinRequest(std::move(*decoded.message));
+  }
+
+  // Bytes, id rule, the live client's session key, then decode.
+  void AdmitLeave(const void* data, size_t size, const std::string& channel) {
+    const std::string bytes = ", " + std::to_string(size) + " bytes";
+    const std::string problem =
+        CheckWire(static_cast<const leave_t*>(nullptr), data, size, security.limits);
+    if (!problem.empty()) return service->OnUndecodable(channel, problem + bytes, "sweptccd.leave_t");
+    const std::string id = CheckedId(data, size);
+    if (id.empty()) return;
+    std::optional<MacKey> key;
+    if (!service->LiveKey(id, &key)) {
+      return service->OnRefused(id, Rejection{rejection_code::kUnknownClient,
+                                              "leave of client '" + id +
+                                                  "', which is not live; nothing to leave"});
+    }
+    if (security.signed_mode && (!key || !VerifyEncoded(data, size, *key))) {
+      return service->OnRefused(
+          id, Rejection{rejection_code::kBadSignature,
+                        "the mac of a leave of client '" + id +
+                            "' does not verify; sign it with the session key of the join reply"});
+    }
+    DecodeResult<leave_t> decoded = DecodeChecked<leave_t>(data, size, security.limits);
+    if (!decoded.ok()) return service->OnUndecodable(channel, decoded.problem + bytes, "sweptccd.leave_t");
+    live->OnLeave(*decoded.message);
   }
 
   template <typename Msg>
@@ -107,11 +201,32 @@ void LcmTransport::Subscribe(CollisionService* service) {
   }
 }
 
-void LcmTransport::Unsubscribe() {
-  if (impl_->subscription != nullptr) {
-    impl_->lcm->unsubscribe(impl_->subscription);
-    impl_->subscription = nullptr;
+void LcmTransport::SubscribeLive(LiveSessionHandler* handler) {
+  SWEPTCCD_CHECK(handler != nullptr && impl_->service != nullptr);
+  SWEPTCCD_CHECK(impl_->join_subscription == nullptr);
+  impl_->live = handler;
+  impl_->join_subscription =
+      impl_->lcm->subscribe(impl_->channels.join, &Impl::HandleJoin, impl_.get());
+  impl_->leave_subscription =
+      impl_->lcm->subscribe(impl_->channels.leave, &Impl::HandleLeave, impl_.get());
+  if (impl_->join_subscription == nullptr || impl_->leave_subscription == nullptr) {
+    throw InputError("LCM transport: cannot subscribe to channels " + impl_->channels.join +
+                     " and " + impl_->channels.leave);
   }
+}
+
+void LcmTransport::Unsubscribe() {
+  for (lcm::Subscription** s :
+       {&impl_->subscription, &impl_->join_subscription, &impl_->leave_subscription}) {
+    if (*s != nullptr) {
+      impl_->lcm->unsubscribe(*s);
+      *s = nullptr;
+    }
+  }
+}
+
+void LcmTransport::PublishJoinReply(const join_reply_t& reply) {
+  impl_->Publish(impl_->channels.join_reply, reply);
 }
 
 void LcmTransport::PublishContact(const contact_event_t& event) {

@@ -21,12 +21,25 @@ namespace sweptccd {
 
 class CollisionService;
 
+/// Where the transport hands joins and leaves that passed the byte, id and
+/// signature checks (the daemon's live-session registry). Called on the
+/// thread that handles LCM; must not block (queue the work).
+class LiveSessionHandler {
+ public:
+  virtual ~LiveSessionHandler() = default;
+  virtual void OnJoinRequest(join_request_t request) = 0;
+  virtual void OnLeave(const leave_t& leave) = 0;
+};
+
 /// Channel names (docs/SERVICE.md).
 struct LcmChannels {
   std::string pose = kPoseChannel;        // tracker_pose_t, in.
   std::string contact = kContactChannel;  // contact_event_t, out.
   std::string reject = kRejectChannel;    // rejection_t, out.
   std::string status = kStatusChannel;    // status_t, out.
+  std::string join = kJoinChannel;             // join_request_t, in.
+  std::string join_reply = kJoinReplyChannel;  // join_reply_t, out.
+  std::string leave = kLeaveChannel;           // leave_t, in.
 };
 
 /// How the transport authenticates what it receives and signs what it sends.
@@ -67,8 +80,15 @@ class LcmTransport : public Publisher {
   /// Subscribes to the pose channel and forwards to `service` (which must
   /// outlive this object, or Unsubscribe() first). Call once.
   void Subscribe(CollisionService* service);
-  /// Stops forwarding poses. Idempotent.
+  /// Subscribes to the join and leave channels and forwards them to
+  /// `handler` (which must outlive this object, or Unsubscribe() first). A
+  /// join must verify under the room key; a leave under the live client's
+  /// session key (CollisionService::LiveKey). Call once, after Subscribe().
+  void SubscribeLive(LiveSessionHandler* handler);
+  /// Stops forwarding poses, joins and leaves. Idempotent.
   void Unsubscribe();
+  /// Publishes a join reply (signed with the service key).
+  void PublishJoinReply(const join_reply_t& reply);
 
   void PublishContact(const contact_event_t& event) override;
   void PublishRejection(const rejection_t& rejection) override;

@@ -135,13 +135,19 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
              "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
-             "max_links", "max_pose_rate_hz"},
+             "max_links", "max_pose_rate_hz", "max_live_clients", "silence_timeout_ms"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
   if (const YAML::Node ch = root["channels"]) {
     if (!ch.IsMap()) throw InputError(at + "channels: expected a mapping");
-    CheckKeys(ch, {"pose", "contact", "reject", "status"}, at + "channels");
+    CheckKeys(ch, {"pose", "contact", "reject", "status", "join", "join_reply", "leave"},
+              at + "channels");
+    if (ch["join"]) c.channels.join = Get<std::string>(ch["join"], at + "channels.join");
+    if (ch["join_reply"]) {
+      c.channels.join_reply = Get<std::string>(ch["join_reply"], at + "channels.join_reply");
+    }
+    if (ch["leave"]) c.channels.leave = Get<std::string>(ch["leave"], at + "channels.leave");
     if (ch["pose"]) c.channels.pose = Get<std::string>(ch["pose"], at + "channels.pose");
     if (ch["contact"]) c.channels.contact = Get<std::string>(ch["contact"], at + "channels.contact");
     if (ch["reject"]) c.channels.reject = Get<std::string>(ch["reject"], at + "channels.reject");
@@ -183,6 +189,12 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     c.max_mesh_bytes = Get<uint64_t>(root["max_mesh_bytes"], at + "max_mesh_bytes");
   }
   if (root["max_links"]) c.max_links = Get<int>(root["max_links"], at + "max_links");
+  if (root["max_live_clients"]) {
+    c.max_live_clients = Get<int>(root["max_live_clients"], at + "max_live_clients");
+  }
+  if (root["silence_timeout_ms"]) {
+    c.silence_timeout_ms = Get<int64_t>(root["silence_timeout_ms"], at + "silence_timeout_ms");
+  }
   if (const YAML::Node clients = root["clients"]) {
     if (!clients.IsSequence()) throw InputError(at + "clients: expected a list");
     for (size_t i = 0; i < clients.size(); ++i) {
@@ -222,7 +234,18 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   if (c.environment.empty()) {
     throw InputError("configuration: no environment (give 'environment' or --env)");
   }
-  if (c.clients.empty()) throw InputError("configuration: no clients (give 'clients' or --client)");
+  if (c.clients.empty() && c.max_live_clients < 1) {
+    throw InputError("configuration: no clients and max_live_clients is 0 (give 'clients' or "
+                     "--client, or allow live clients)");
+  }
+  if (c.max_live_clients < 0 || c.max_live_clients > 4096) {
+    throw InputError("configuration: max_live_clients must be in [0, 4096], got " +
+                     std::to_string(c.max_live_clients));
+  }
+  if (c.silence_timeout_ms < 10 || c.silence_timeout_ms > 3'600'000) {
+    throw InputError("configuration: silence_timeout_ms must be in [10, 3600000] ms, got " +
+                     std::to_string(c.silence_timeout_ms));
+  }
   std::set<std::string> ids;
   for (const ClientSpec& s : c.clients) {
     if (!IsValidClientId(s.id)) {

@@ -45,6 +45,13 @@ struct ServiceConfig {
   std::string log_level = "info";
   uint64_t max_mesh_bytes = kDefaultMaxMeshBytes;  // Cap on each mesh file, before and after gunzip.
   int max_links = kDefaultMaxLinks;                // Cap on each client's skeleton.
+  /// Live clients (joined over LCM, docs/SERVICE.md "Live clients") at most at
+  /// once; 0 refuses every join.
+  int max_live_clients = 32;
+  /// How long a party may stay silent before the daemon forgets it, ms: a live
+  /// client without a pose for this long is dropped (leave by silence). One
+  /// setting for every silence rule of the daemon.
+  int64_t silence_timeout_ms = 5000;
   std::vector<ClientSpec> clients;
   SecurityConfig security;
 };

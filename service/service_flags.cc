@@ -68,6 +68,12 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--max-pose-rate", f->max_pose_rate_hz,
                   "Input rate limit per client, Hz (poses beyond it are shed and counted)")
       ->check(CLI::Range(0.001, 1e6));
+  app->add_option("--max-live-clients", f->max_live_clients,
+                  "Live clients (joined over LCM) at most at once; 0 refuses joins")
+      ->check(CLI::Range(0, 4096));
+  app->add_option("--silence-timeout-ms", f->silence_timeout_ms,
+                  "A live client silent this long (ms) is dropped")
+      ->check(CLI::Range(int64_t{10}, int64_t{3'600'000}));
   app->add_option("--log-level", f->log_level, "trace, debug, info, warn, error or off");
   app->add_option("--pose-channel", f->pose_channel, "Channel of tracker_pose_t (in)");
   app->add_option("--contact-channel", f->contact_channel, "Channel of contact_event_t (out)");
@@ -97,6 +103,8 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
   if (flags.eps_s >= 0) config->query.eps_s = flags.eps_s;
   if (flags.delta_m >= 0) config->query.delta_m = flags.delta_m;
   if (flags.workers != 0) config->workers = flags.workers;
+  if (flags.max_live_clients >= 0) config->max_live_clients = flags.max_live_clients;
+  if (flags.silence_timeout_ms >= 0) config->silence_timeout_ms = flags.silence_timeout_ms;
   if (!flags.backend.empty()) config->backend = gpu::ParseBackendKind(flags.backend, "--backend");
   if (flags.gpu_device != -2) config->gpu_device = flags.gpu_device;
   if (flags.require_hardware) config->require_hardware = true;

@@ -26,6 +26,8 @@ struct ServiceFlags {
   std::string pose_channel, contact_channel, reject_channel, status_channel;
   double eps_s = -1, delta_m = -1, status_period_s = -1, max_pose_rate_hz = -1;
   int workers = 0;
+  int max_live_clients = -1;           // -1: not given.
+  int64_t silence_timeout_ms = -1;     // -1: not given.
   std::string backend;  // cpu, gpu or auto.
   int gpu_device = -2;  // -2: not given (-1 is a valid value).
   bool require_hardware = false;

@@ -26,6 +26,7 @@
 #include "msgs/text.h"
 #include "service/daemon/stop_signal.h"
 #include "service/percentile.h"
+#include "sweptccd_client/live_client.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
@@ -55,21 +56,22 @@ class Monitor {
           std::optional<MacKey> key)
       : o_(options), skeleton_(std::move(skeleton)), key_(std::move(key)) {}
 
-  // LCM callbacks (called from handle() on the main thread). Nothing may
-  // escape into LCM's C code: every exception is caught and counted.
-  void OnContact(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
-    Guard(channel, [&] {
-      if (const auto e = Decode<contact_event_t>(rbuf, channel)) Contact(*e);
+  // Callbacks of the client library's DaemonConnection (called from
+  // HandleReady() on the main thread), which checked the bytes, decoded and
+  // verified each message against --key. Every exception is caught and counted.
+  void Listen(DaemonConnection* connection) {
+    connection->OnContact([this](const contact_event_t& e, bool verified) {
+      Guard(o_.contact_channel, [&] { Verified(verified), Contact(e); });
     });
-  }
-  void OnStatus(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
-    Guard(channel, [&] {
-      if (const auto s = Decode<status_t>(rbuf, channel)) Status(*s);
+    connection->OnStatus([this](const status_t& s, bool verified) {
+      Guard(o_.status_channel, [&] { Verified(verified), Status(s); });
     });
-  }
-  void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
-    Guard(channel, [&] {
-      if (const auto r = Decode<rejection_t>(rbuf, channel)) Reject(*r);
+    connection->OnRejection([this](const rejection_t& r, bool verified) {
+      Guard(o_.reject_channel, [&] { Verified(verified), Reject(r); });
+    });
+    connection->OnUndecodable([this](const std::string& channel, const std::string& problem) {
+      ++undecodable_;
+      spdlog::warn("monitor: undecodable message on {}: {}", EscapeForDisplay(channel), problem);
     });
   }
 
@@ -155,20 +157,10 @@ class Monitor {
     }
   }
 
-  // Checked decoding (msgs/checked_decode.h), then the mac against --key:
-  // sets verified_ for the lines this message prints.
-  template <typename Msg>
-  std::optional<Msg> Decode(const lcm::ReceiveBuffer* rbuf, const std::string& channel) {
-    DecodeResult<Msg> r = DecodeChecked<Msg>(rbuf->data, rbuf->data_size, WireLimits{});
-    if (!r.ok()) {
-      ++undecodable_;
-      spdlog::warn("monitor: undecodable message on {}: {}, {} bytes", EscapeForDisplay(channel),
-                   r.problem, rbuf->data_size);
-      return std::nullopt;
-    }
-    verified_ = key_ && VerifyEncoded(rbuf->data, rbuf->data_size, *key_);
+  // Sets verified_ for the lines this message prints.
+  void Verified(bool verified) {
+    verified_ = verified;
     if (!verified_) ++unverified_;
-    return std::move(r.message);
   }
 
   // A line or JSON object of a message: marked when its mac did not verify.
@@ -395,16 +387,23 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;
   }
-  lcm::LCM lcm(o.lcm_url);
-  if (!lcm.good()) {
+  DaemonConnection::Options co;
+  co.lcm_url = o.lcm_url;
+  co.channels.contact = o.contact_channel;
+  co.channels.status = o.status_channel;
+  co.channels.reject = o.reject_channel;
+  co.service_key = key;
+  co.deliver_unverified = true;  // Shown, marked UNVERIFIED.
+  std::unique_ptr<DaemonConnection> connection;
+  try {
+    connection = std::make_unique<DaemonConnection>(std::move(co));
+  } catch (const InputError& e) {
     std::fprintf(stderr, "error: monitor: --lcm-url '%s': LCM cannot open it\n", o.lcm_url.c_str());
     return 2;
   }
   StopSignal stop;
   Monitor monitor(o, std::move(skeleton), std::move(key));
-  lcm.subscribe(o.contact_channel, &Monitor::OnContact, &monitor);
-  lcm.subscribe(o.status_channel, &Monitor::OnStatus, &monitor);
-  lcm.subscribe(o.reject_channel, &Monitor::OnReject, &monitor);
+  monitor.Listen(connection.get());
   monitor.Listening(o.lcm_url);
 
   const Clock::time_point t0 = Clock::now();
@@ -420,7 +419,7 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
       timeout_ms =
           static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(left).count() + 1);
     }
-    pollfd fds[2] = {{lcm.getFileno(), POLLIN, 0}, {stop.fd(), POLLIN, 0}};
+    pollfd fds[2] = {{connection->fileno(), POLLIN, 0}, {stop.fd(), POLLIN, 0}};
     const int ready = poll(fds, 2, timeout_ms);
     if (ready < 0) {
       if (errno == EINTR) continue;
@@ -428,7 +427,7 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
       break;
     }
     if (fds[1].revents & POLLIN) break;
-    if (fds[0].revents & POLLIN) lcm.handleTimeout(0);
+    if (fds[0].revents & POLLIN) connection->HandleReady(0);
   }
   monitor.Summary(std::chrono::duration<double>(Clock::now() - t0).count());
   return 0;

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <memory>
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
@@ -22,6 +23,7 @@
 #include "msgs/signing.h"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "service/daemon/stop_signal.h"
+#include "sweptccd_client/live_client.h"
 
 namespace sweptccd {
 namespace {
@@ -230,6 +232,13 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
                 "utimes start at the wall clock now (spacing kept) instead of the file's");
   app->add_option("--key", o->key_path,
                   "Key file (mode 600) that signs every pose; without it poses go unsigned");
+  app->add_flag("--join", o->join,
+                "Join as live clients (with --skeleton or the BVH clip's), leave at the end; "
+                "--key is then the room key");
+  app->add_option("--service-key", o->service_key_path,
+                  "--join: key file that verifies the daemon's replies (default: --key)");
+  app->add_option("--join-ignore", o->ignore_rules,
+                  "--join: LINK:OBJECT filter rule sent with the join; repeat");
   app->add_option("--session", o->session,
                   "Stream session, >= 0 (default: the wall clock in microseconds at start, so a "
                   "restarted tracker starts a new stream)");
@@ -239,9 +248,13 @@ namespace {
 
 // The source of the samples: a BVH clip imported whole, or a pose file
 // streamed pass by pass. Throws InputError.
-std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o) {
+std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o,
+                                         std::optional<Skeleton>* skeleton) {
   int num_links = -1;
-  if (!o.skeleton_path.empty()) num_links = LoadSkeletonFile(o.skeleton_path).num_links();
+  if (!o.skeleton_path.empty()) {
+    *skeleton = LoadSkeletonFile(o.skeleton_path);
+    num_links = (*skeleton)->num_links();
+  }
   if (o.bvh.bvh_path.empty()) {
     // --start / --frames select poses (import-bvh's frames).
     auto source = std::make_unique<PoseFileSource>(o.poses_path, num_links,
@@ -258,6 +271,7 @@ std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o)
                      o.bvh.bvh_path + " imports as " +
                      std::to_string(clip.skeleton.num_links()));
   }
+  if (!*skeleton) *skeleton = clip.skeleton;
   return std::make_unique<ClipSource>(std::move(clip.poses));
 }
 
@@ -332,25 +346,58 @@ void FinishFirstPass(const SimulateTrackerCommandOptions& o, StreamShape* shape)
 // Plays the passes, reading each sample just before it is due (so a pose file
 // is streamed: memory does not grow with its length). Returns the exit status.
 int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const MacKey* key,
+         const MacKey* service_key, const std::optional<Skeleton>& skeleton,
          std::vector<ClientState>* clients_ptr) {
   std::vector<ClientState>& clients = *clients_ptr;
-  lcm::LCM lcm(o.lcm_url);
-  if (!lcm.good()) {
-    std::fprintf(stderr, "error: simulate-tracker: --lcm-url '%s': LCM cannot open it\n",
-                 o.lcm_url.c_str());
+  StopSignal stop;
+  const int64_t session = o.session >= 0 ? o.session : WallClockUtime();
+  // One client of the client library per id.
+  std::map<std::string, std::unique_ptr<LiveClient>> live;
+  std::shared_ptr<DaemonConnection> shared;  // Configured clients: one LCM instance.
+  try {
+    if (!o.join) {
+      DaemonConnection::Options co;
+      co.lcm_url = o.lcm_url;
+      shared = std::make_shared<DaemonConnection>(std::move(co));
+    }
+    for (const ClientState& c : clients) {
+      LiveClient::Options lo;
+      lo.lcm_url = o.lcm_url;
+      lo.channels.pose = o.channel;
+      lo.client_id = c.id;
+      if (key) lo.room_key = *key;
+      if (service_key) lo.service_key = *service_key;
+      lo.join = o.join;
+      lo.session = session;
+      lo.skeleton = skeleton;
+      lo.ignore = o.ignore_rules;
+      lo.shared_connection = shared;
+      live[c.id] = std::make_unique<LiveClient>(std::move(lo));
+    }
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: simulate-tracker: %s\n", e.what());
     return 2;
   }
-  StopSignal stop;
+  for (auto& [id, client] : live) {
+    const JoinResult joined = client->Join();
+    if (!joined.ok()) {
+      std::fprintf(stderr, "error: simulate-tracker: join of '%s' refused (%d): %s\n", id.c_str(),
+                   joined.reason, joined.message.c_str());
+      return 1;
+    }
+    if (o.join) {
+      std::printf("simulate-tracker: '%s' joined, session %lld\n", id.c_str(),
+                  static_cast<long long>(joined.session));
+    }
+  }
+  std::fflush(stdout);
   // A pose file with --rate: a fixed publication period; otherwise the utimes'.
   const bool fixed_rate = o.poses_path.empty() ? false : o.bvh.rate_hz > 0;
   RoundCounters counters(o.seed);
   int64_t sent = 0;
   bool publish_failed = false;
   auto publish = [&](const tracker_pose_t& m) {
-    const std::vector<uint8_t> bytes = EncodeSigned(m, key);
-    if (lcm.publish(o.channel, bytes.data(), static_cast<unsigned int>(bytes.size())) != 0) {
-      publish_failed = true;
-    }
+    if (!live.at(m.client_id)->PublishPose(m)) publish_failed = true;
     ++sent;
   };
 
@@ -359,7 +406,6 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
                                     ? t0 + std::chrono::duration_cast<Clock::duration>(
                                                std::chrono::duration<double>(o.duration_s))
                                     : Clock::time_point::max();
-  const int64_t session = o.session >= 0 ? o.session : WallClockUtime();
   StreamShape shape;
   int64_t rebase_us = 0;
   int64_t loops_done = 0, rounds = 0;
@@ -415,6 +461,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       c.held.reset();
     }
   }
+  for (auto& [id, client] : live) client->Leave();
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
   std::printf(
       "simulate-tracker: sent %lld, dropped %lld, late %lld (%zu clients x %lld samples, "
@@ -435,12 +482,17 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
 int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
   std::unique_ptr<SampleSource> source;
   std::vector<ClientState> clients;
-  std::optional<MacKey> key;
+  std::optional<MacKey> key, service_key;
+  std::optional<Skeleton> skeleton;
   try {
     CheckOptions(o);
     if (o.session < -1) throw InputError("simulate-tracker: --session must be >= 0");
     if (!o.key_path.empty()) key = LoadKeyFile(o.key_path);
-    source = MakeSource(o);
+    if (!o.service_key_path.empty()) service_key = LoadKeyFile(o.service_key_path);
+    source = MakeSource(o, &skeleton);
+    if (o.join && !skeleton) {
+      throw InputError("simulate-tracker: --join needs --skeleton (or --bvh) to join with");
+    }
     clients = MakeClients(o);
     source->Rewind();  // A pose file that cannot be opened is refused before LCM starts.
   } catch (const InputError& e) {
@@ -452,7 +504,8 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
                          "mode refuses them)\n");
   }
   try {
-    return Play(o, source.get(), key ? &*key : nullptr, &clients);
+    return Play(o, source.get(), key ? &*key : nullptr, service_key ? &*service_key : nullptr,
+                skeleton, &clients);
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return 2;

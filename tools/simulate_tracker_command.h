@@ -26,6 +26,10 @@
 // pass fixes `samples` and loop_span, later passes re-open the file. A line
 // that is no pose is skipped with a warning and counted (SPEC 2: an invalid
 // pose is not fatal); poses are sent as written, for the daemon to validate.
+//
+// Every client is a LiveClient of the client library (client/): a configured
+// client signs with --key and sends --session; with --join each joins first
+// (docs/SERVICE.md, "Live clients") and leaves at the end.
 
 #include <cstdint>
 #include <string>
@@ -61,6 +65,12 @@ struct SimulateTrackerCommandOptions {
   double duration_s = 0;  // Wall-clock limit, seconds; 0: none.
   int64_t seq_start = 0;
   bool rebase_utime = false;
+  /// Live clients: each client joins (SWEPTCCD_JOIN) with the skeleton
+  /// (--skeleton, or the BVH clip's), sends with the session and key its
+  /// reply gives, and leaves at the end; key_path is then the room key.
+  bool join = false;
+  std::string service_key_path;  // Verifies join replies; default: key_path.
+  std::vector<std::string> ignore_rules;  // --join: LINK:OBJECT filter rules.
 };
 
 void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* options);

@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
+#include <deque>
 #include <cstdint>
 #include <cstring>
 #include <lcm/lcm-cpp.hpp>
@@ -24,6 +26,7 @@
 #include "core/scene/environment.h"
 #include "service/collision_service.h"
 #include "service/lcm_transport.h"
+#include "msgs/text.h"
 
 namespace sweptccd {
 
@@ -98,8 +101,237 @@ ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
   options.security = config.security.mode;
   options.max_utime_jump_us = static_cast<int64_t>(config.security.max_utime_jump_s * 1e6);
   options.max_pose_rate_hz = config.max_pose_rate_hz;
+  options.max_live_clients = config.max_live_clients;
+  options.silence_timeout_ms = config.silence_timeout_ms;
   return options;
 }
+
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Joins waiting for the join thread at most; more are answered "busy".
+constexpr size_t kMaxQueuedJoins = 16;
+
+// Live clients (docs/SERVICE.md, "Live clients"): joins are checked and
+// queued on the LCM thread, then built (skeleton, filter, engine) and
+// answered on the join thread, never on a worker nor under the lock workers
+// take; leaves are handled at once (cheap).
+class LiveRegistry : public LiveSessionHandler {
+ public:
+  LiveRegistry(const ServiceConfig& config, std::shared_ptr<const Environment> env,
+               CollisionService* service, LcmTransport* transport, bool signed_mode)
+      : config_(config),
+        env_(std::move(env)),
+        service_(service),
+        transport_(transport),
+        signed_mode_(signed_mode),
+        max_utime_jump_us_(static_cast<int64_t>(config.security.max_utime_jump_s * 1e6)) {
+    thread_ = std::thread([this] { Run(); });
+  }
+  ~LiveRegistry() override { Stop(); }
+
+  void Stop() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+    }
+    cv_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+
+  void OnJoinRequest(join_request_t request) override {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!stopping_ && queue_.size() < kMaxQueuedJoins) {
+        queue_.push_back(std::move(request));
+        ++queued_;
+        cv_.notify_one();
+        return;
+      }
+    }
+    Reply(request, {join_reply_t::REASON_BUSY,
+                    std::to_string(kMaxQueuedJoins) + " joins are waiting already; join again "
+                    "in a moment", 0, {}});
+  }
+
+  void OnLeave(const leave_t& leave) override {
+    if (service_->LeaveLive(leave.client_id, leave.session)) {
+      spdlog::info("live client '{}' left (session {})", leave.client_id, leave.session);
+    } else {
+      spdlog::info("leave of client '{}' session {} ignored: not that live session",
+                   leave.client_id, leave.session);
+    }
+  }
+
+  // Blocks until every join queued before the call has been answered.
+  void WaitUntilIdle() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const int64_t target = queued_;
+    idle_cv_.wait(lock, [&] { return answered_ >= target || stopping_; });
+  }
+
+ private:
+  void Run() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
+      if (stopping_) break;
+      join_request_t request = std::move(queue_.front());
+      queue_.pop_front();
+      lock.unlock();
+      try {
+        Handle(request);
+      } catch (const std::exception& e) {
+        spdlog::error("join of client '{}': {}", EscapeForDisplay(request.client_id), e.what());
+      }
+      lock.lock();
+      ++answered_;
+      idle_cv_.notify_all();
+    }
+    idle_cv_.notify_all();
+  }
+
+  LiveJoinOutcome Refuse(int8_t reason, std::string message) {
+    return {reason, std::move(message), 0, {}};
+  }
+
+  // Everything SPEC section 1 and the limits ask of a join, then the service.
+  LiveJoinOutcome Decide(const join_request_t& r) {
+    const int64_t skew = r.utime - WallUtime();
+    if (skew > max_utime_jump_us_ || -skew > max_utime_jump_us_) {
+      return Refuse(join_reply_t::REASON_STALE_REQUEST,
+                    "join utime " + std::to_string(r.utime) + " is " +
+                        std::to_string(skew / 1000) + " ms off the daemon's clock (limit " +
+                        std::to_string(max_utime_jump_us_ / 1000) +
+                        " ms, security.max_utime_jump_s); sync the clocks and join again");
+    }
+    if (r.num_links > config_.max_links) {
+      return Refuse(join_reply_t::REASON_TOO_MANY_LINKS,
+                    "the skeleton has " + std::to_string(r.num_links) +
+                        " links, over this daemon's max_links " +
+                        std::to_string(config_.max_links) + "; send a smaller skeleton");
+    }
+    ClientConfig cc;
+    cc.client_id = r.client_id;
+    if (r.motion == join_request_t::MOTION_ARTICULATED) {
+      cc.motion = MotionModel::kArticulated;
+    } else if (r.motion == join_request_t::MOTION_INDEPENDENT) {
+      cc.motion = MotionModel::kIndependent;
+    } else {
+      return Refuse(join_reply_t::REASON_BAD_OPTIONS,
+                    "motion " + std::to_string(r.motion) +
+                        " is not MOTION_ARTICULATED (0) or MOTION_INDEPENDENT (1)");
+    }
+    QueryOptions q = config_.query;
+    if (r.eps_s != 0) q.eps_s = r.eps_s;
+    if (r.delta_m != 0) q.delta_m = r.delta_m;
+    if (const std::string problem = ValidateQueryOptions(q); !problem.empty()) {
+      return Refuse(join_reply_t::REASON_BAD_OPTIONS, "tolerances: " + problem);
+    }
+    cc.eps_s = r.eps_s;
+    cc.delta_m = r.delta_m;
+    std::vector<Link> links(static_cast<size_t>(r.num_links));
+    for (int i = 0; i < r.num_links; ++i) {
+      Link& l = links[static_cast<size_t>(i)];
+      l.name = r.link_name[i];
+      if (r.parent[i] < -1 || r.parent[i] >= r.num_links) {
+        return Refuse(join_reply_t::REASON_BAD_SKELETON,
+                      "link " + std::to_string(i) + " ('" + EscapeForDisplay(l.name) +
+                          "') has parent index " + std::to_string(r.parent[i]) +
+                          ", outside [-1, " + std::to_string(r.num_links) + ")");
+      }
+      l.parent = r.parent[i];
+      l.a_L = Eigen::Vector3d(r.a[i][0], r.a[i][1], r.a[i][2]);
+      l.b_L = Eigen::Vector3d(r.b[i][0], r.b[i][1], r.b[i][2]);
+      l.radius = r.radius[i];
+    }
+    try {
+      cc.skeleton = std::make_shared<const Skeleton>(
+          Skeleton::FromLinks(r.client_id, std::move(links), "join of '" + r.client_id + "'"));
+    } catch (const InputError& e) {
+      return Refuse(join_reply_t::REASON_BAD_SKELETON, EscapeForDisplay(e.what(), 400));
+    }
+    cc.filter = CollisionFilter(cc.skeleton->num_links(), env_->num_objects());
+    for (const std::string& rule : r.ignore) {
+      try {
+        cc.filter.AddRule(rule, *cc.skeleton, *env_);
+      } catch (const InputError& e) {
+        return Refuse(join_reply_t::REASON_BAD_FILTER, EscapeForDisplay(e.what(), 400));
+      }
+    }
+    std::optional<MacKey> key;
+    if (signed_mode_) {
+      bool zero = true;
+      for (uint8_t b : r.public_key) zero = zero && b == 0;
+      if (zero) {
+        return Refuse(join_reply_t::REASON_BAD_OPTIONS,
+                      "signed mode: the join carries no public_key to seal the session key to");
+      }
+      key = NewRandomKey();
+    }
+    LiveJoinRequest request;
+    request.config = std::move(cc);
+    request.nonce = r.nonce;
+    std::copy(std::begin(r.public_key), std::end(r.public_key), request.public_key.begin());
+    return service_->JoinLive(std::move(request), std::move(key));
+  }
+
+  void Handle(const join_request_t& r) {
+    const LiveJoinOutcome outcome = Decide(r);
+    if (outcome.reason == join_reply_t::REASON_ACCEPTED) {
+      spdlog::info("live client '{}' joined: session {}, {} links", r.client_id, outcome.session,
+                   r.num_links);
+    } else {
+      spdlog::info("join of client '{}' refused ({}): {}", EscapeForDisplay(r.client_id),
+                   static_cast<int>(outcome.reason), EscapeForDisplay(outcome.message, 400));
+    }
+    Reply(r, outcome);
+  }
+
+  void Reply(const join_request_t& r, const LiveJoinOutcome& outcome) {
+    join_reply_t reply;
+    reply.utime = WallUtime();
+    reply.client_id = r.client_id;
+    reply.nonce = r.nonce;
+    reply.reason = outcome.reason;
+    reply.message = outcome.message;
+    reply.session = outcome.session;
+    reply.instance = service_->instance();
+    reply.silence_timeout_ms = config_.silence_timeout_ms;
+    if (outcome.reason == join_reply_t::REASON_ACCEPTED && outcome.key) {
+      try {
+        reply.sealed_key = SealKey(*outcome.key, r.public_key);
+      } catch (const std::exception& e) {
+        // Not a valid X25519 key: the session stays until silence drops it.
+        reply.reason = join_reply_t::REASON_BAD_OPTIONS;
+        reply.message = "public_key: " + std::string(e.what());
+        reply.session = 0;
+      }
+    }
+    reply.sealed_key_size = static_cast<int32_t>(reply.sealed_key.size());
+    try {
+      transport_->PublishJoinReply(reply);
+    } catch (const std::exception& e) {
+      spdlog::error("publishing a join reply failed: {}", e.what());
+    }
+  }
+
+  const ServiceConfig& config_;
+  std::shared_ptr<const Environment> env_;
+  CollisionService* service_;
+  LcmTransport* transport_;
+  bool signed_mode_;
+  int64_t max_utime_jump_us_;
+  std::mutex mutex_;
+  std::condition_variable cv_, idle_cv_;
+  std::deque<join_request_t> queue_;
+  int64_t queued_ = 0, answered_ = 0;
+  bool stopping_ = false;
+  std::thread thread_;
+};
 
 }  // namespace
 
@@ -117,6 +349,7 @@ struct Daemon::Impl {
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<LcmTransport> transport;  // Outlives the service (its publisher).
   std::unique_ptr<CollisionService> service;
+  std::unique_ptr<LiveRegistry> live;  // Stopped before the service.
   int control[2] = {-1, -1};
   std::thread loop;
 
@@ -136,9 +369,15 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   std::shared_ptr<const Environment> env = LoadEnvironment(config);
   std::vector<ClientConfig> clients = LoadClients(config, *env);
   // No pose may claim more links than the largest configured skeleton.
-  security.limits.max_links = 1;
+  // With live clients: no more than max_links (what a join may ask for).
+  security.limits.max_links = config.max_live_clients > 0 ? config.max_links : 1;
   for (const ClientConfig& cc : clients) {
     security.limits.max_links = std::max(security.limits.max_links, cc.skeleton->num_links());
+  }
+  security.limits.max_join_links = std::max(security.limits.max_join_links, config.max_links);
+  const bool signed_mode = security.signed_mode;
+  if (signed_mode && config.max_live_clients > 0 && security.keys.RoomKey() == nullptr) {
+    spdlog::warn("no security.room_key: joins cannot be verified and are refused");
   }
   backend = MakeBackend(config);
   lcm = std::make_unique<lcm::LCM>(config.lcm_url);
@@ -155,6 +394,8 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
                      std::strerror(errno));
   }
   transport->Subscribe(service.get());
+  live = std::make_unique<LiveRegistry>(config, env, service.get(), transport.get(), signed_mode);
+  transport->SubscribeLive(live.get());
 }
 
 Daemon::Impl::~Impl() {
@@ -194,17 +435,31 @@ bool Daemon::Impl::HandleControl() {
 void Daemon::Impl::Loop() {
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(config.status_period_s));
-  auto next_status = Clock::now() + period;
+  // The first status at once: a restarted daemon announces its new instance.
+  auto next_status = Clock::now();
+  // Silence is checked 8 times per timeout (a client is dropped between
+  // silence_timeout_ms and 9/8 of it after its last pose).
+  const auto expiry_period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::milliseconds(std::max<int64_t>(1, config.silence_timeout_ms / 8)));
+  auto next_expiry = Clock::now() + expiry_period;
   for (;;) {
     const auto now = Clock::now();
+    if (now >= next_expiry) {
+      for (const std::string& id : service->ExpireSilent(now)) {
+        spdlog::info("live client '{}' dropped: no pose for {} ms (silence_timeout_ms)", id,
+                     config.silence_timeout_ms);
+      }
+      next_expiry = now + expiry_period;
+    }
     if (now >= next_status) {
       service->PublishStatus();
       next_status += period;
       if (next_status < now) next_status = now + period;
       continue;
     }
+    const auto next = std::min(next_status, next_expiry);
     const int timeout_ms = static_cast<int>(
-        std::chrono::duration_cast<std::chrono::milliseconds>(next_status - now).count() + 1);
+        std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1);
     pollfd fds[2] = {{lcm->getFileno(), POLLIN, 0}, {control[0], POLLIN, 0}};
     if (poll(fds, 2, timeout_ms) < 0) {
       if (errno == EINTR) continue;
@@ -242,11 +497,14 @@ void Daemon::Start() {
   impl_->running = true;
   impl_->loop = std::thread([impl = impl_.get()] { impl->Loop(); });
   const ServiceConfig& c = impl_->config;
-  spdlog::info("ready: {} clients, {} workers, listening on '{}' channel {}", c.clients.size(),
-               c.workers, c.lcm_url, c.channels.pose);
+  spdlog::info("ready: {} clients, {} workers, listening on '{}' channel {}; up to {} live "
+               "clients on {} (silence_timeout_ms {})", c.clients.size(), c.workers, c.lcm_url,
+               c.channels.pose, c.max_live_clients, c.channels.join, c.silence_timeout_ms);
 }
 
 void Daemon::WaitUntilIdle() {
+  impl_->Barrier();                 // Every join published before the call is queued...
+  impl_->live->WaitUntilIdle();     // ...and answered...
   impl_->Barrier();                 // Every pose published before the call is handled...
   impl_->service->WaitUntilIdle();  // ...every pair answered and published...
   impl_->Barrier();                 // ...and every answer delivered to lcm()'s subscribers.
@@ -262,6 +520,7 @@ void Daemon::Stop() {
   }
   spdlog::info("shutting down: finishing in-flight work");
   impl_->transport->Unsubscribe();
+  impl_->live->Stop();
   impl_->service->Stop();
   impl_->service->PublishStatus();
   spdlog::info("stopped");

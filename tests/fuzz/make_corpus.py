@@ -179,7 +179,8 @@ def sign(data, key=FUZZ_KEY):
 
 def messages(m):
     fp = {name: getattr(m, name)._get_packed_fingerprint()
-          for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t")}
+          for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t",
+                       "join_request_t", "join_reply_t", "leave_t")}
     p = m.tracker_pose_t()
     p.utime, p.client_id, p.session, p.seq, p.num_links = 1000000, "alice", 1700000000000000, 7, 2
     p.position = [[0, 0, 1], [0, 0.2, 1]]
@@ -206,6 +207,7 @@ def messages(m):
     s.rejected, s.seq_gaps, s.latency_median_us, s.latency_p99_us = [1], [0], [800.0], [2100.0]
     s.rate_limited = [0]
     s.queue_depth, s.dropped_total, s.rejected_unattributed, s.rejections_suppressed = 0, 0, 3, 0
+    s.instance, s.live_joined, s.live_left, s.live_expired = 1700000000000000, 2, 1, 0
     s.mac = bytes(32)
     write("fuzz_decode_status_t", "one_client.lcm", s.encode())
     write("fuzz_decode_status_t", "one_client_signed.lcm", sign(s.encode()))
@@ -250,6 +252,39 @@ def messages(m):
     write("fuzz_decode_rejection_t", "attack_reason_length_int32_min.lcm",
           fp["rejection_t"] + struct.pack(">q", 1) + struct.pack(">i", 1) + b"\x00" +
           struct.pack(">q", -1) + struct.pack(">i", -2**31) + bytes(8))
+    j = m.join_request_t()
+    j.utime, j.client_id, j.nonce, j.public_key = 1700000000000000, "vr1", 42, bytes(range(32))
+    j.motion, j.eps_s, j.delta_m = 0, 0.0, 0.0
+    j.num_links, j.link_name, j.parent = 2, ["pelvis", "arm"], [-1, 0]
+    j.a, j.b, j.radius = [[0, 0, 0], [0, 0, 0]], [[0, 0, 0.3], [0.3, 0, 0]], [0.1, 0.05]
+    j.num_ignore, j.ignore, j.mac = 1, ["arm:0"], bytes(32)
+    write("fuzz_decode_join_request_t", "two_links.lcm", j.encode())
+    write("fuzz_decode_join_request_t", "two_links_signed.lcm", sign(j.encode()))
+    # Attack: num_links 2^26 right after the fixed fields (five arrays sized from it).
+    head = fp["join_request_t"] + struct.pack(">q", 1) + struct.pack(">i", 4) + b"vr1\x00" + \
+        struct.pack(">q", 42) + bytes(32) + b"\x00" + struct.pack(">dd", 0, 0)
+    write("fuzz_decode_join_request_t", "attack_num_links_2pow26.lcm",
+          head + struct.pack(">i", 2**26) + bytes(64))
+    # Attack: a link name of length INT32_MIN.
+    write("fuzz_decode_join_request_t", "attack_link_name_length_int32_min.lcm",
+          head + struct.pack(">ii", 1, -2**31) + bytes(96))
+    rp = m.join_reply_t()
+    rp.utime, rp.client_id, rp.nonce, rp.reason, rp.message = 1, "vr1", 42, 0, ""
+    rp.session, rp.instance, rp.silence_timeout_ms = 1700000000000001, 1700000000000000, 5000
+    rp.sealed_key_size, rp.sealed_key, rp.mac = 80, bytes(range(80)), bytes(32)
+    write("fuzz_decode_join_reply_t", "accepted.lcm", rp.encode())
+    write("fuzz_decode_join_reply_t", "accepted_signed.lcm", sign(rp.encode()))
+    # Attack: sealed_key_size INT32_MIN.
+    write("fuzz_decode_join_reply_t", "attack_sealed_key_size_int32_min.lcm",
+          fp["join_reply_t"] + struct.pack(">q", 1) + struct.pack(">i", 4) + b"vr1\x00" +
+          struct.pack(">q", 42) + b"\x00" + struct.pack(">i", 1) + b"\x00" +
+          struct.pack(">qqq", 1, 1, 5000) + struct.pack(">i", -2**31) + bytes(32))
+    lv = m.leave_t()
+    lv.utime, lv.client_id, lv.session, lv.mac = 1, "vr1", 1700000000000001, bytes(32)
+    write("fuzz_decode_leave_t", "leave.lcm", lv.encode())
+    write("fuzz_decode_leave_t", "leave_signed.lcm", sign(lv.encode()))
+    write("fuzz_decode_leave_t", "attack_client_id_length_int32_min.lcm",
+          fp["leave_t"] + struct.pack(">qi", 1, -2**31) + bytes(40))
 
 
 def main():

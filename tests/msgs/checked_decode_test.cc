@@ -45,6 +45,9 @@ tracker_pose_t Make(RandomMessages& r, const tracker_pose_t*) { return r.Pose();
 contact_event_t Make(RandomMessages& r, const contact_event_t*) { return r.Contact(); }
 rejection_t Make(RandomMessages& r, const rejection_t*) { return r.Rejection(); }
 status_t Make(RandomMessages& r, const status_t*) { return r.Status(); }
+join_request_t Make(RandomMessages& r, const join_request_t*) { return r.Join(); }
+join_reply_t Make(RandomMessages& r, const join_reply_t*) { return r.JoinReply(); }
+leave_t Make(RandomMessages& r, const leave_t*) { return r.Leave(); }
 
 template <class T>
 class CheckedDecodeTest : public ::testing::Test {
@@ -66,7 +69,8 @@ class CheckedDecodeTest : public ::testing::Test {
   int accepted_ = 0;
 };
 
-using MessageTypes = ::testing::Types<tracker_pose_t, contact_event_t, rejection_t, status_t>;
+using MessageTypes = ::testing::Types<tracker_pose_t, contact_event_t, rejection_t, status_t,
+                                      join_request_t, join_reply_t, leave_t>;
 TYPED_TEST_SUITE(CheckedDecodeTest, MessageTypes);
 
 TYPED_TEST(CheckedDecodeTest, ValidMessagesDecodeLikeTheGeneratedDecoder) {
@@ -190,6 +194,25 @@ TEST(CheckedDecode, HugeLinkCountIsRefusedWithoutAllocating) {
   PutInt32(&bytes, 42, -1);
   EXPECT_LT(LargestAllocationDecoding<tracker_pose_t>(bytes, &problem), 1024u);
   EXPECT_FALSE(problem.empty());
+}
+
+TEST(CheckedDecode, HugeJoinLinkCountIsRefusedWithoutAllocating) {
+  join_request_t j = RandomMessages(19).Join();
+  j.client_id = "alice";
+  j.num_links = 0;
+  j.link_name.clear(), j.parent.clear(), j.a.clear(), j.b.clear(), j.radius.clear();
+  j.num_ignore = 0;
+  j.ignore.clear();
+  std::vector<uint8_t> bytes = Encode(j);
+  // fingerprint 8, utime 8, "alice" 10, nonce 8, public_key 32, motion 1, eps 8, delta 8.
+  PutInt32(&bytes, 83, 1 << 26);
+  std::string problem;
+  EXPECT_LT(LargestAllocationDecoding<join_request_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("num_links at byte 83 is 67108864, outside [0, 1024]"), std::string::npos)
+      << problem;
+  PutInt32(&bytes, 83, 1000);  // Within the limit but not within the bytes.
+  EXPECT_LT(LargestAllocationDecoding<join_request_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("bytes follow"), std::string::npos) << problem;
 }
 
 TEST(CheckedDecode, HugeClientCountIsRefusedWithoutAllocating) {

@@ -7,6 +7,9 @@
 #include <vector>
 
 #include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/join_reply_t.hpp"
+#include "sweptccd/join_request_t.hpp"
+#include "sweptccd/leave_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -117,8 +120,58 @@ class RandomMessages {
     s.dropped_total = Int();
     s.rejected_unattributed = Int();
     s.rejections_suppressed = Int();
+    s.instance = Int();
+    s.live_joined = Int();
+    s.live_left = Int();
+    s.live_expired = Int();
     Mac(s.mac);
     return s;
+  }
+  join_request_t Join() {
+    join_request_t j;
+    j.utime = Int();
+    j.client_id = Text(20);
+    j.nonce = Int();
+    Mac(j.public_key);
+    j.motion = static_cast<int8_t>(Below(3));
+    j.eps_s = Real();
+    j.delta_m = Real();
+    j.num_links = Below(6);
+    for (int i = 0; i < j.num_links; ++i) {
+      j.link_name.push_back(Text(12));
+      j.parent.push_back(static_cast<int32_t>(Below(8)) - 1);
+      j.a.push_back({Real(), Real(), Real()});
+      j.b.push_back({Real(), Real(), Real()});
+      j.radius.push_back(Real());
+    }
+    j.num_ignore = Below(4);
+    for (int i = 0; i < j.num_ignore; ++i) j.ignore.push_back(Text(16));
+    Mac(j.mac);
+    return j;
+  }
+  join_reply_t JoinReply() {
+    join_reply_t j;
+    j.utime = Int();
+    j.client_id = Text(20);
+    j.nonce = Int();
+    j.reason = static_cast<int8_t>(Below(11));
+    j.message = Text(40);
+    j.session = Int();
+    j.instance = Int();
+    j.silence_timeout_ms = Int();
+    j.sealed_key_size = Below(2) * 80;
+    j.sealed_key.resize(static_cast<size_t>(j.sealed_key_size));
+    for (uint8_t& b : j.sealed_key) b = static_cast<uint8_t>(Below(256));
+    Mac(j.mac);
+    return j;
+  }
+  leave_t Leave() {
+    leave_t l;
+    l.utime = Int();
+    l.client_id = Text(20);
+    l.session = Int();
+    Mac(l.mac);
+    return l;
   }
 
  private:

@@ -180,6 +180,69 @@ TEST_F(CollisionServiceTest, OneBusyClientDoesNotHoldBackAnother) {
   EXPECT_EQ(publisher_.contacts_of("b").size(), 1u);
 }
 
+// Live clients (docs/SERVICE.md, "Live clients"): a join and a leave never
+// wait on a worker. The only worker is held inside PublishContact; joining,
+// streaming into and leaving a live client all finish meanwhile (a join that
+// waited on the workers would hang here). The left client's pending pair is
+// dropped, never answered.
+TEST_F(CollisionServiceTest, JoinAndLeaveProceedWhileEveryWorkerIsBusy) {
+  ServiceOptions options;
+  options.num_workers = 1;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.max_live_clients = 2;
+  auto service = MakeWith({"a"}, options);
+  publisher_.CloseGate();
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  publisher_.WaitEntered(1);  // The worker is held.
+
+  LiveJoinRequest join;
+  join.config.client_id = "live";
+  join.config.skeleton = skeleton_;
+  join.nonce = 5;
+  const LiveJoinOutcome joined = service->JoinLive(join, std::nullopt);
+  ASSERT_EQ(joined.reason, +join_reply_t::REASON_ACCEPTED) << joined.message;
+  EXPECT_EQ(service->live_clients(), 1);
+  for (int64_t k = 0; k < 2; ++k) {
+    tracker_pose_t p = Sample("live", k);
+    p.session = joined.session;
+    service->OnPose(p);
+  }
+  EXPECT_TRUE(publisher_.rejections().empty());
+  EXPECT_FALSE(service->LeaveLive("live", joined.session + 1));  // Not its session.
+  EXPECT_TRUE(service->LeaveLive("live", joined.session));
+  EXPECT_EQ(service->live_clients(), 0);
+  publisher_.OpenGate();
+  service->WaitUntilIdle();
+  EXPECT_EQ(publisher_.contacts_of("a").size(), 1u);
+  EXPECT_TRUE(publisher_.contacts_of("live").empty());
+  const status_t s = service->Status();
+  EXPECT_EQ(s.live_joined, 1);
+  EXPECT_EQ(s.live_left, 1);
+}
+
+TEST_F(CollisionServiceTest, SilenceExpiresLiveClientsOnlyAndTheIdIsFreeAgain) {
+  ServiceOptions options;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_live_clients = 4;
+  options.silence_timeout_ms = 1000;
+  auto service = MakeWith({"a"}, options);
+  LiveJoinRequest join;
+  join.config.client_id = "quiet";
+  join.config.skeleton = skeleton_;
+  const SteadyClock::time_point t0 = SteadyClock::now();
+  ASSERT_EQ(service->JoinLive(join, std::nullopt).reason, +join_reply_t::REASON_ACCEPTED);
+  EXPECT_TRUE(service->ExpireSilent(t0).empty());  // Not silent yet.
+  const std::vector<std::string> expired = service->ExpireSilent(t0 + std::chrono::seconds(2));
+  EXPECT_EQ(expired, (std::vector<std::string>{"quiet"}));  // "a" is configured: never.
+  EXPECT_EQ(service->Status().live_expired, 1);
+  EXPECT_EQ(service->Status().client_id, (std::vector<std::string>{"a"}));
+  join.nonce = 9;
+  EXPECT_EQ(service->JoinLive(join, std::nullopt).reason, +join_reply_t::REASON_ACCEPTED);
+}
+
 TEST_F(CollisionServiceTest, BadClientNeverDisturbsAnother) {
   auto service = Make({"good", "bad"}, 2);
   constexpr int kPoses = 12;

@@ -79,10 +79,16 @@ TEST(DaemonTest, AnswersEveryPairThenStopsWithAFinalStatus) {
   daemon.Stop();
   daemon.WaitUntilIdle();  // After Stop: delivers what Stop published.
   const std::vector<status_t> statuses = listener.statuses();
-  ASSERT_EQ(statuses.size(), 1u) << "Stop publishes one last status";
-  EXPECT_EQ(statuses[0].backend, "cpu");
-  EXPECT_EQ(statuses[0].rejected_unattributed, 1);
-  for (int i = 0; i < 2; ++i) EXPECT_EQ(statuses[0].pairs_answered[i], kPoses - 1);
+  // Start announces the daemon (a status at once: live clients see a new
+  // instance and re-join); Stop publishes one last status.
+  ASSERT_EQ(statuses.size(), 2u);
+  EXPECT_EQ(statuses[0].instance, daemon.service()->instance());
+  EXPECT_EQ(statuses[1].instance, statuses[0].instance);
+  EXPECT_GT(statuses[0].instance, 0);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(statuses[0].pairs_answered[i], 0);
+  EXPECT_EQ(statuses[1].backend, "cpu");
+  EXPECT_EQ(statuses[1].rejected_unattributed, 1);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(statuses[1].pairs_answered[i], kPoses - 1);
 
   const auto skeleton = test::TwoLinkSkeleton();
   const auto env = test::FloorEnvironment();

@@ -1,0 +1,130 @@
+// Join churn for tools/service_bench/join_churn.sh: in one process (no
+// process start-up on the measured machine), live clients of the client
+// library join at JOINS_HZ, each stays LIFETIME_S and leaves; with STREAM 1
+// every live client publishes a pose (the first pose of POSES.jsonl,
+// stationary) at 90 Hz while it is live. Runs SECONDS, then prints the
+// joins, the refusals and the join round trip (median, p99, max).
+//
+//   sweptccd_join_churn URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S SECONDS STREAM
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/errors.h"
+#include "sweptccd_client/live_client.h"
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1) + 0.5)];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace sweptccd;
+  if (argc != 9) {
+    std::fprintf(stderr, "usage: %s URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S "
+                         "SECONDS STREAM\n", argv[0]);
+    return 2;
+  }
+  try {
+    const std::string url = argv[1];
+    const Skeleton skeleton = LoadSkeletonFile(argv[2]);
+    std::ifstream in(argv[3]);
+    std::string line;
+    if (!std::getline(in, line)) throw InputError(std::string(argv[3]) + ": no pose");
+    const nlohmann::json first = nlohmann::json::parse(line);
+    tracker_pose_t pose;
+    pose.num_links = static_cast<int32_t>(first["links"].size());
+    for (const auto& l : first["links"]) {
+      pose.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
+      pose.orientation.push_back(
+          {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
+    }
+    const MacKey room = LoadKeyFile(argv[4]);
+    const double joins_hz = std::stod(argv[5]), lifetime_s = std::stod(argv[6]);
+    const double seconds = std::stod(argv[7]);
+    const bool stream = std::string(argv[8]) == "1";
+
+    struct Live {
+      std::unique_ptr<LiveClient> client;
+      Clock::time_point leave_at;
+      int64_t seq = 0;
+    };
+    std::deque<Live> live;
+    std::vector<double> join_ms;
+    int64_t joins = 0, refused = 0, no_reply = 0, poses = 0;
+    const Clock::time_point t0 = Clock::now(), end = t0 + std::chrono::duration_cast<Clock::duration>(
+                                                          std::chrono::duration<double>(seconds));
+    const auto tick = std::chrono::microseconds(11'111);  // 90 Hz.
+    const auto join_period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / joins_hz));
+    Clock::time_point next_join = t0, next_tick = t0;
+    int64_t k = 0;
+    while (Clock::now() < end) {
+      const Clock::time_point now = Clock::now();
+      while (!live.empty() && live.front().leave_at <= now) {
+        live.front().client->Leave();
+        live.pop_front();
+      }
+      if (now >= next_join) {
+        next_join += join_period;
+        LiveClient::Options o;
+        o.lcm_url = url;
+        o.client_id = "churn" + std::to_string(k++);
+        o.room_key = room;
+        o.skeleton = skeleton;
+        o.rejoin = false;
+        auto client = std::make_unique<LiveClient>(std::move(o));
+        const Clock::time_point a = Clock::now();
+        const JoinResult r = client->Join();
+        join_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - a).count());
+        if (r.ok()) {
+          ++joins;
+          const auto life = std::chrono::duration_cast<Clock::duration>(
+              std::chrono::duration<double>(lifetime_s));
+          live.push_back({std::move(client), Clock::now() + life, 0});
+        } else if (r.reason < 0) {
+          ++no_reply;
+        } else {
+          ++refused;
+          std::fprintf(stderr, "join refused (%d): %s\n", r.reason, r.message.c_str());
+        }
+      }
+      if (stream && now >= next_tick) {
+        const int64_t utime = std::chrono::duration_cast<std::chrono::microseconds>(
+                                  std::chrono::system_clock::now().time_since_epoch())
+                                  .count();
+        for (Live& l : live) {
+          pose.utime = utime;
+          pose.seq = l.seq++;
+          poses += l.client->PublishPose(pose);
+        }
+        next_tick += tick;
+      }
+      std::this_thread::sleep_until(stream ? std::min(next_join, next_tick) : next_join);
+    }
+    for (Live& l : live) l.client->Leave();
+    std::printf("join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
+                "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
+                static_cast<long long>(joins), static_cast<long long>(refused),
+                static_cast<long long>(no_reply), seconds, static_cast<long long>(poses),
+                Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
+    return refused + no_reply == 0 ? 0 : 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}
