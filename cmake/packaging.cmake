@@ -106,13 +106,22 @@ sweptccd_export_library(sweptccd_errors HEADERS core/errors.h core/bounded_file.
 # The message library: checked decoding, signing and keys, the id rule and
 # escaping, channel names; its generated headers are installed below.
 sweptccd_export_library(sweptccd_msgs HEADERS msgs)
-# The client library of branch `live` (client/, target sweptccd_client): add
-# exactly this line here, after the msgs line, when it lands:
-#   sweptccd_export_library(sweptccd_client HEADERS client)
-# (if it links a package not in SWEPTCCD_EXPORT_DEPENDENCIES, the
-# configuration says which; add it there). Nothing else: its headers, the
-# config file's find_dependency lines and sweptccd.pc's Libs and Requires
-# follow from the line and the target's links.
+# What the client library's headers need: skeletons and poses (core/avatar),
+# with the geometry they are made of.
+sweptccd_export_library(sweptccd_geometry HEADERS core/geometry)
+sweptccd_export_library(sweptccd_avatar HEADERS core/avatar)
+# The client library (client/): LiveClient and DaemonConnection. Its headers
+# install under include/sweptccd/sweptccd_client/, so a consumer writes
+# #include "sweptccd_client/live_client.h" in the tree and installed alike.
+sweptccd_export_library(sweptccd_client)
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/client/include/sweptccd_client
+        DESTINATION ${SWEPTCCD_INSTALL_INCLUDEDIR} COMPONENT dev
+        FILES_MATCHING PATTERN "*.h")
+# A new library joins with one sweptccd_export_library line here, after the
+# libraries it links (if it links a package not in
+# SWEPTCCD_EXPORT_DEPENDENCIES, the configuration says which; add it there):
+# its headers, the config file's find_dependency lines and sweptccd.pc's
+# Libs and Requires follow from the line and the target's links.
 # ----------------------------------------------------------------------------
 
 # The lcm-gen C++ headers of every msgs/*.lcm type: include/sweptccd/sweptccd/.

@@ -1,7 +1,7 @@
 // lcm_log_writer LCM_URL MANIFEST: publishes one message of every msgs/*.lcm
 // type through the C++ LCM API (on a file:// URL: an LCM log, no network),
-// on a channel named after its type, plus the daemon's four types on their
-// daemon channels (msgs/channels.h); writes MANIFEST, one "CHANNEL TYPE"
+// on a channel named after its type, plus every type the daemon sends or
+// reads on its daemon channel (msgs/channels.h); writes MANIFEST, one "CHANNEL TYPE"
 // line per message, for DecodeLog.java (Packaging.JavaDecodesEveryType).
 //
 // Every field of every message holds a value other than its default (non-zero
@@ -131,6 +131,47 @@ void Fill(status_t& m) {
   m.dropped_total = 3;
   m.rejected_unattributed = 9;
   m.rejections_suppressed = 10;
+  m.instance = 1700000000000001LL;
+  m.live_joined = 12;
+  m.live_left = 13;
+  m.live_expired = 14;
+}
+
+void Fill(join_request_t& m) {
+  m.utime = 1700000000500000LL;
+  m.client_id = "carol";
+  m.nonce = 0x1234567890LL;
+  for (int i = 0; i < 32; ++i) m.public_key[i] = static_cast<uint8_t>(i + 1);
+  m.motion = join_request_t::MOTION_INDEPENDENT;
+  m.eps_s = 0.001;
+  m.delta_m = 0.002;
+  m.num_links = 2;
+  m.link_name = {"pelvis", "thigh"};
+  m.parent = {-1, 0};
+  m.a = {{0.0, 0.0, 0.1}, {0.0, 0.1, 0.0}};
+  m.b = {{0.0, 0.0, 0.3}, {0.0, 0.4, 0.0}};
+  m.radius = {0.12, 0.07};
+  m.num_ignore = 1;
+  m.ignore = {"{\"link\": \"thigh\", \"object\": 0}"};
+}
+
+void Fill(join_reply_t& m) {
+  m.utime = 1700000000600000LL;
+  m.client_id = "carol";
+  m.nonce = 0x1234567890LL;
+  m.reason = join_reply_t::REASON_ID_IN_USE;
+  m.message = "the id 'carol' is in use by another live session";
+  m.session = 77;
+  m.instance = 1700000000000001LL;
+  m.silence_timeout_ms = 5000;
+  m.sealed_key_size = 3;
+  m.sealed_key = {9, 8, 7};
+}
+
+void Fill(leave_t& m) {
+  m.utime = 1700000000700000LL;
+  m.client_id = "carol";
+  m.session = 77;
 }
 
 // Encodes `m`, signs it when its type ends in `byte mac[32]`, publishes it.
@@ -193,6 +234,15 @@ int main(int argc, char** argv) {
   status_t status{};
   Fill(status);
   Publish(lcm, manifest, kStatusChannel, "status_t", status);
+  join_request_t join{};
+  Fill(join);
+  Publish(lcm, manifest, kJoinChannel, "join_request_t", join);
+  join_reply_t reply{};
+  Fill(reply);
+  Publish(lcm, manifest, kJoinReplyChannel, "join_reply_t", reply);
+  leave_t leave{};
+  Fill(leave);
+  Publish(lcm, manifest, kLeaveChannel, "leave_t", leave);
   manifest.close();
   if (!manifest) {
     std::fprintf(stderr, "lcm_log_writer: cannot write %s\n", argv[2]);

@@ -13,6 +13,7 @@
 #include "msgs/signing.h"
 #include "msgs/text.h"
 #include "sweptccd/tracker_pose_t.hpp"
+#include "sweptccd_client/live_client.h"
 
 namespace {
 int Fail(const char* what) {
@@ -68,6 +69,18 @@ int main() {
   lcm.publish(sweptccd::kPoseChannel, bytes.data(), static_cast<unsigned>(bytes.size()));
   if (lcm.handleTimeout(1000) <= 0 || receiver.received != 1) return Fail("nothing received");
   if (!receiver.ok) return Fail("received pose does not decode, verify or match");
-  std::printf("consumer: ok (%zu signed bytes)\n", bytes.size());
+  // The client library: a configured client publishes a signed pose through
+  // its own connection on memq:// (its callbacks and LCM thread start and
+  // stop with it).
+  sweptccd::LiveClient::Options options;
+  options.lcm_url = "memq://";
+  options.client_id = "alice";
+  options.join = false;
+  options.client_key = key;
+  options.session = 7;
+  sweptccd::LiveClient client(options);
+  sweptccd::tracker_pose_t from_client = pose;
+  if (!client.PublishPose(from_client)) return Fail("the client library did not publish");
+  std::printf("consumer: ok (%zu signed bytes; client library linked)\n", bytes.size());
   return 0;
 }
