@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <vector>
 
-#include "core/query/root_candidates.h"
 
 namespace sweptccd::internal {
 
@@ -21,9 +20,13 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       cleared_by_culler_(num_links_, false) {}
 
 QueryResult QueryRun::Run() {
+  // The whole-pair bounds first: a link they clear cannot touch at s = 0
+  // either (its capsule at 0 lies inside them), so the check at the start
+  // only looks at the links they leave open, and only at their candidates.
+  CullWholePair();
+  CollectRoots();
   CloseTouchingAtStart();
   if (Searching()) {
-    CullWholePair();
     SeedRoots();
     Descend();
   }
@@ -36,10 +39,22 @@ QueryResult QueryRun::Run() {
 // A link touching at s = 0 answers at once: [0, w] with w the first dyadic
 // width that meets G2 (the interval the chronological descent would reach),
 // the witness at s = 0 (separation <= 0 <= delta); G1 is empty.
+//
+// Only links the whole-pair bounds leave open can touch at 0: the swept
+// capsule over [0, 1] contains the link at 0 (with the tolerance covering
+// the rounding of both distances), and its candidates are every unfiltered
+// triangle within it, so testing them answers as TouchesAt over the BVHs.
 void QueryRun::CloseTouchingAtStart() {
   const double w = slicer_.FirstNarrowWidth();
+  const std::vector<Candidate>& entries = pool_.entries();
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (target_.IgnoresAll(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) continue;
+    if (target_.IgnoresAll(l) || cleared_by_culler_[l] || roots_->Empty(l)) continue;
+    const CandidateList list = roots_->ListOf(l);
+    const bool touches =
+        list.requery ? target_.TouchesAt(motion_, l, 0.0, 0.0)
+                     : target_.TouchesAtAmong(motion_, l, 0.0, entries.data() + list.begin,
+                                              list.count);
+    if (!touches) continue;
     ContactRecord at_zero;
     if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
     ++stats_.links_tested;
@@ -64,10 +79,15 @@ void QueryRun::CullWholePair() {
   }
 }
 
+// The whole-pair candidates of every link the culler did not clear.
+void QueryRun::CollectRoots() {
+  roots_.emplace(target_, bounds_, num_links_, cleared_by_culler_, &pool_);
+}
+
 // Seeding: the links the whole-pair bounds leave open start the descent with
 // their whole-pair candidates.
 void QueryRun::SeedRoots() {
-  const RootCandidates roots(target_, bounds_, num_links_, cleared_by_culler_, &pool_);
+  const RootCandidates& roots = *roots_;
   for (LinkIndex l(0); l < num_links_; ++l) {
     if (!TestsLink(l)) continue;
     if (cleared_by_culler_[l] || roots.Empty(l)) {

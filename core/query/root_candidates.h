@@ -29,11 +29,14 @@ class RootCandidates {
   bool Empty(LinkIndex link) const { return count_[link] == 0 && !overflow_[link]; }
 
  private:
-  void CollectDual(const std::vector<LinkIndex>& links, ObjectIndex object, uint32_t env_node);
+  // The links scratch_[first, last) below env_node. The traversal keeps its
+  // link sets on one scratch stack (no allocation per node): a call appends
+  // its live links after `last` and pops them before returning.
+  void CollectDual(size_t first, size_t last, ObjectIndex object, uint32_t env_node);
   // One link below env_node: appends its candidates next to its earlier run.
   void CollectOne(LinkIndex link, ObjectIndex object, uint32_t env_node);
-  // Splits the links at the median of their box centres along `axis`.
-  void SplitLinks(std::vector<LinkIndex> live, int axis, ObjectIndex object, uint32_t env_node);
+  // Splits scratch_[first, last) at the median of the box centres along `axis`.
+  void SplitLinks(size_t first, size_t last, int axis, ObjectIndex object, uint32_t env_node);
 
   const EnvironmentTarget& target_;
   CandidatePool& pool_;
@@ -41,6 +44,7 @@ class RootCandidates {
   std::vector<Aabb> box_;
   std::vector<uint32_t> begin_, count_;
   std::vector<bool> overflow_;
+  std::vector<LinkIndex> scratch_;
 };
 
 }  // namespace sweptccd::internal
