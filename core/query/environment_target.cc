@@ -51,18 +51,6 @@ bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, doub
   return touches;
 }
 
-bool EnvironmentTarget::TouchesAtAmong(const PairMotion& motion, LinkIndex link, double s,
-                                       const Candidate* first, uint32_t count) const {
-  Eigen::Vector3d a, b, ta, tb, tc;
-  motion.SegmentAt(link, s, &a, &b);
-  const double reach = skeleton_.link(link).radius;
-  for (uint32_t k = 0; k < count; ++k) {
-    env_.object(static_cast<int>(first[k].object)).bvh.Triangle(first[k].slot, &ta, &tb, &tc);
-    if (SegmentTriangleDistance(a, b, ta, tb, tc).distance <= reach) return true;
-  }
-  return false;
-}
-
 bool EnvironmentTarget::Separation(const PairMotion& motion, LinkIndex link, double s,
                                    double search_radius, ContactRecord* record) const {
   Eigen::Vector3d a, b, ta, tb, tc;

@@ -50,13 +50,6 @@ class EnvironmentTarget {
   bool Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
                   ContactRecord* record) const;
 
-  /// As TouchesAt with slack 0, over `count` candidates from `first` only:
-  /// the same answer as TouchesAt when they hold every unfiltered primitive
-  /// within the link's capsule at s (a swept capsule's list over an interval
-  /// containing s does).
-  bool TouchesAtAmong(const PairMotion& motion, LinkIndex link, double s, const Candidate* first,
-                      uint32_t count) const;
-
   /// The exact separation of `link` at s over `count` candidates from
   /// `first` only: false when count is 0. Adds count to *triangle_tests.
   bool NearestOf(const PairMotion& motion, LinkIndex link, double s, const Candidate* first,

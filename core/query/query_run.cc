@@ -22,11 +22,14 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
 QueryResult QueryRun::Run() {
   // The whole-pair bounds first: a link they clear cannot touch at s = 0
   // either (its capsule at 0 lies inside them), so the check at the start
-  // only looks at the links they leave open, and only at their candidates.
+  // only looks at the links they leave open. Finding those stops at a link's
+  // first primitive; the full lists are collected only when the search goes
+  // on, and only for links still open.
   CullWholePair();
   CollectRoots();
   CloseTouchingAtStart();
   if (Searching()) {
+    roots_->Collect(witnesses_.done());
     SeedRoots();
     Descend();
   }
@@ -41,20 +44,14 @@ QueryResult QueryRun::Run() {
 // the witness at s = 0 (separation <= 0 <= delta); G1 is empty.
 //
 // Only links the whole-pair bounds leave open can touch at 0: the swept
-// capsule over [0, 1] contains the link at 0 (with the tolerance covering
-// the rounding of both distances), and its candidates are every unfiltered
-// triangle within it, so testing them answers as TouchesAt over the BVHs.
+// capsule over [0, 1] contains the link at 0 (its tolerance covers the
+// rounding of both distances), and a link it clears meets no triangle in it.
 void QueryRun::CloseTouchingAtStart() {
   const double w = slicer_.FirstNarrowWidth();
-  const std::vector<Candidate>& entries = pool_.entries();
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (target_.IgnoresAll(l) || cleared_by_culler_[l] || roots_->Empty(l)) continue;
-    const CandidateList list = roots_->ListOf(l);
-    const bool touches =
-        list.requery ? target_.TouchesAt(motion_, l, 0.0, 0.0)
-                     : target_.TouchesAtAmong(motion_, l, 0.0, entries.data() + list.begin,
-                                              list.count);
-    if (!touches) continue;
+    if (target_.IgnoresAll(l) || !roots_->Open(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) {
+      continue;
+    }
     ContactRecord at_zero;
     if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
     ++stats_.links_tested;
@@ -79,9 +76,11 @@ void QueryRun::CullWholePair() {
   }
 }
 
-// The whole-pair candidates of every link the culler did not clear.
+// Which links the whole-pair capsules leave open (of those the culler did
+// not clear).
 void QueryRun::CollectRoots() {
-  roots_.emplace(target_, bounds_, num_links_, cleared_by_culler_, &pool_);
+  roots_.emplace(target_, bounds_, num_links_, &pool_);
+  roots_->FindOpen(cleared_by_culler_);
 }
 
 // Seeding: the links the whole-pair bounds leave open start the descent with

@@ -6,8 +6,7 @@
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
-                               int num_links, const std::vector<bool>& skip,
-                               CandidatePool* pool)
+                               int num_links, CandidatePool* pool)
     : target_(target), pool_(*pool) {
   const int n = num_links;
   capsule_.resize(n);
@@ -15,6 +14,7 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
   begin_.assign(n, 0);
   count_.assign(n, 0);
   overflow_.assign(n, false);
+  open_.assign(n, false);
   for (LinkIndex l(0); l < n; ++l) {
     capsule_[l] = bounds.Over(l, 0, 1);
     const LinkCapsule& c = capsule_[l];
@@ -22,17 +22,34 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
     box_[l].hi = c.a.cwiseMax(c.b).array() + c.radius;
   }
   scratch_.reserve(static_cast<size_t>(4 * n + 16));
+}
+
+void RootCandidates::FindOpen(const std::vector<bool>& skip) {
+  finding_ = true;
+  Traverse(skip);
+  finding_ = false;
+}
+
+void RootCandidates::Collect(const std::vector<bool>& skip) {
+  std::vector<bool> closed(skip);
+  for (size_t l = 0; l < closed.size(); ++l) closed[l] = closed[l] || !open_[l];
+  Traverse(closed);
+  // An overflowing link's partial runs are useless; it queries the BVHs per
+  // interval instead.
+  for (size_t l = 0; l < overflow_.size(); ++l) {
+    if (overflow_[l]) count_[l] = 0;
+  }
+}
+
+void RootCandidates::Traverse(const std::vector<bool>& skip) {
+  const int n = static_cast<int>(capsule_.size());
   for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
     scratch_.clear();
     for (LinkIndex l(0); l < n; ++l) {
-      if (!target_.Ignores(l, o) && !skip[l]) scratch_.push_back(l);
+      // Finding: a link open already needs no more of the traversal.
+      if (!target_.Ignores(l, o) && !skip[l] && !(finding_ && open_[l])) scratch_.push_back(l);
     }
     if (!scratch_.empty()) CollectDual(0, scratch_.size(), o, 0);
-  }
-  // An overflowing link's partial runs are useless; it queries the BVHs per
-  // interval instead.
-  for (int l = 0; l < n; ++l) {
-    if (overflow_[l]) count_[l] = 0;
   }
 }
 
@@ -46,6 +63,7 @@ void RootCandidates::CollectDual(size_t first, size_t last, ObjectIndex object,
   const size_t live_first = scratch_.size();
   for (size_t i = first; i < last; ++i) {
     const LinkIndex l = scratch_[i];
+    if (finding_ && open_[l]) continue;  // Found open under an earlier node.
     if (box_[l].Overlaps(env_box)) {
       scratch_.push_back(l);
       box.lo = box.lo.cwiseMin(box_[l].lo);
@@ -89,6 +107,10 @@ void RootCandidates::SplitLinks(size_t first, size_t last, int axis, ObjectIndex
 }
 
 void RootCandidates::CollectOne(LinkIndex l, ObjectIndex object, uint32_t env_node) {
+  if (finding_) {
+    if (!open_[l]) open_[l] = pool_.AnyWithin(capsule_[l], object, env_node);
+    return;
+  }
   if (overflow_[l]) return;
   // Gather this link's candidates below env_node into its own run of the
   // pool. Runs of one link from different nodes are contiguous because the
