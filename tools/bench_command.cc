@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,7 @@
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
 #include "mocap/mocap_import.h"
+#include "tools/bullet_peer.h"
 
 namespace sweptccd {
 
@@ -26,13 +28,26 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
                   "Folder with env/ and mocap/ (default: the project's data/, " SWEPTCCD_DATA_DIR
                   ")");
   app->add_option("--clip", o->clips, "BVH clips in mocap/ to replay");
+  app->add_option("--scene", o->scenes,
+                  "Only these scenes (morse_apartment, grey_white_room, breakfast_room, "
+                  "breakfast+dragon_1.1M; default all)");
   app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip")
       ->check(CLI::Range(1, 100000000));
   app->add_option("--rate", o->rate_hz, "Tracker rate, Hz (the clip is resampled)")
       ->check(CLI::Range(1.0, 1000.0));
   app->add_option("--eps", o->eps_s, "Time tolerance, seconds");
   app->add_option("--delta", o->delta_m, "Distance tolerance, metres");
-  app->add_flag("!--no-peers", o->peers, "Skip the FCL peer");
+  app->add_flag("!--no-peers", o->peers, "Skip the FCL and Bullet peers");
+  app->add_option("--motion", o->motion, "Motion model: articulated or independent")
+      ->check(CLI::IsMember({"articulated", "independent"}));
+  app->add_flag("--per-link", o->per_link, "Per-link mode (a bracket for every link)");
+  app->add_option("--clock", o->clock,
+                  "What times a pair: wall (steady clock) or thread (the thread's CPU time, "
+                  "without time other processes held the core)")
+      ->check(CLI::IsMember({"wall", "thread"}));
+  app->add_option("--warmup", o->warmup_pairs,
+                  "Untimed warm-up pairs per scene and clip, run by every method alike")
+      ->check(CLI::Range(0, 100000));
   app->add_option("--gpu", o->gpu,
                   "GPU backend beside the CPU: gpu (any renderer), hardware, or off")
       ->check(CLI::IsMember({"gpu", "hardware", "off"}));
@@ -49,6 +64,19 @@ using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double>(b - a).count();
+}
+
+// The clock that times pairs (--clock): steady wall-clock time, or this
+// thread's CPU time. Every method is timed with the same one.
+bool g_thread_clock = false;
+
+double NowS() {
+  if (g_thread_clock) {
+    timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+  }
+  return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
 }
 
 struct Stats {
@@ -205,7 +233,43 @@ struct Row {
   int gpu_mismatches = -1;  // Pairs whose GPU answer differs from the CPU's; -1: no GPU.
   int fcl_misses = 0;  // Pairs where we found contact and FCL's end-pose test saw none.
   double fcl_build_s = 0;
+  Stats bullet_us;
+  int bullet_misses = 0;  // Pairs where we found contact and Bullet's sweep saw none.
+  double bullet_build_s = 0;
 };
+
+double Ratio(double num, double den) { return den > 0 ? num / den : 0.0; }
+
+// The targets of issue 11, per row: median no slower than Bullet's sweep,
+// at least 5x faster than FCL's end-pose check, p99 at least 10x faster than
+// Bullet's, p99 at most 5x our own median.
+std::string TargetLines(const std::vector<Row>& rows) {
+  std::ostringstream out;
+  char buf[512];
+  int met = 0, total = 0;
+  auto verdict = [&](bool ok) {
+    ++total;
+    met += ok;
+    return ok ? "met" : "MISSED";
+  };
+  for (const Row& r : rows) {
+    if (r.pairs == 0) continue;
+    const double bul_med = Ratio(r.bullet_us.median, r.ours_us.median);
+    const double fcl_med = Ratio(r.fcl_us.median, r.ours_us.median);
+    const double bul_p99 = Ratio(r.bullet_us.p99, r.ours_us.p99);
+    const double self = Ratio(r.ours_us.p99, r.ours_us.median);
+    std::snprintf(buf, sizeof(buf),
+                  "target %-22s %-18s  median<=Bullet (x%.2f) %s;  median 5x FCL (x%.2f) %s;  "
+                  "p99 10x Bullet (x%.2f) %s;  p99<=5x median (x%.2f) %s\n",
+                  r.scene.c_str(), r.clip.substr(0, 18).c_str(), bul_med, verdict(bul_med >= 1),
+                  fcl_med, verdict(fcl_med >= 5), bul_p99, verdict(bul_p99 >= 10), self,
+                  verdict(self <= 5));
+    out << buf;
+  }
+  std::snprintf(buf, sizeof(buf), "targets met: %d of %d\n", met, total);
+  out << buf;
+  return out.str();
+}
 
 std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
   std::ostringstream out;
@@ -215,41 +279,52 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
     out << "| scene | triangles | clip | pairs | contact | undecided | median us | p99 us | max us"
            " | BVH build s | bytes/tri | FCL median us | FCL p99 us | ratio FCL/ours (median)"
            " | FCL missed contacts | FCL build s | GPU median us | GPU p99 us | GPU max us"
-           " | ratio CPU/GPU (median) | GPU answers differing |\n";
+           " | ratio CPU/GPU (median) | GPU answers differing | Bullet median us | Bullet p99 us"
+           " | ratio Bullet/ours (median) | ratio Bullet/ours (p99) | ours p99/median"
+           " | Bullet missed contacts | Bullet build s |\n";
     out << "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-           "---:|---:|---:|---:|---:|\n";
+           "---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   } else {
     std::snprintf(buf, sizeof(buf),
                   "%-22s %9s %-18s %5s %7s %5s %9s %9s %9s %8s %9s %9s %9s %7s %6s %8s %9s %9s "
-                  "%9s %7s %6s\n",
+                  "%9s %7s %6s %9s %9s %8s %8s %8s %6s %8s\n",
                   "scene", "tris", "clip", "pairs", "contact", "undec", "median_us", "p99_us",
                   "max_us", "build_s", "B/tri", "fcl_med", "fcl_p99", "ratio", "missed",
-                  "fcl_bld", "gpu_med", "gpu_p99", "gpu_max", "cpu/gpu", "differ");
+                  "fcl_bld", "gpu_med", "gpu_p99", "gpu_max", "cpu/gpu", "differ", "bul_med",
+                  "bul_p99", "bul/ours", "b/o_p99", "p99/med", "bmiss", "bul_bld");
     out << buf;
   }
   for (const Row& r : rows) {
     if (markdown) {
       std::snprintf(buf, sizeof(buf),
                     "| %s | %zu | %s | %d | %d | %d | %.1f | %.1f | %.1f | %.3f | %.1f | %.1f | "
-                    "%.1f | %.2f | %d | %.3f | %.1f | %.1f | %.1f | %.2f | %d |\n",
+                    "%.1f | %.2f | %d | %.3f | %.1f | %.1f | %.1f | %.2f | %d | %.1f | %.1f | %.2f"
+                    " | %.2f | %.2f | %d | %.3f |\n",
                     r.scene.c_str(), r.triangles, r.clip.c_str(), r.pairs, r.contacts, r.undecided,
                     r.ours_us.median, r.ours_us.p99, r.ours_us.max, r.build_s, r.bytes_per_tri,
                     r.fcl_us.median, r.fcl_us.p99,
                     r.ours_us.median > 0 ? r.fcl_us.median / r.ours_us.median : 0.0, r.fcl_misses,
                     r.fcl_build_s, r.gpu_us.median, r.gpu_us.p99, r.gpu_us.max,
                     r.gpu_us.median > 0 ? r.ours_us.median / r.gpu_us.median : 0.0,
-                    r.gpu_mismatches);
+                    r.gpu_mismatches, r.bullet_us.median, r.bullet_us.p99,
+                    Ratio(r.bullet_us.median, r.ours_us.median),
+                    Ratio(r.bullet_us.p99, r.ours_us.p99), Ratio(r.ours_us.p99, r.ours_us.median),
+                    r.bullet_misses, r.bullet_build_s);
     } else {
       std::snprintf(buf, sizeof(buf),
                     "%-22s %9zu %-18s %5d %7d %5d %9.1f %9.1f %9.1f %8.3f %9.1f %9.1f %9.1f %7.2f "
-                    "%6d %8.3f %9.1f %9.1f %9.1f %7.2f %6d\n",
+                    "%6d %8.3f %9.1f %9.1f %9.1f %7.2f %6d %9.1f %9.1f %8.2f %8.2f %8.2f %6d "
+                    "%8.3f\n",
                     r.scene.c_str(), r.triangles, r.clip.substr(0, 18).c_str(), r.pairs,
                     r.contacts, r.undecided, r.ours_us.median, r.ours_us.p99, r.ours_us.max,
                     r.build_s, r.bytes_per_tri, r.fcl_us.median, r.fcl_us.p99,
                     r.ours_us.median > 0 ? r.fcl_us.median / r.ours_us.median : 0.0, r.fcl_misses,
                     r.fcl_build_s, r.gpu_us.median, r.gpu_us.p99, r.gpu_us.max,
                     r.gpu_us.median > 0 ? r.ours_us.median / r.gpu_us.median : 0.0,
-                    r.gpu_mismatches);
+                    r.gpu_mismatches, r.bullet_us.median, r.bullet_us.p99,
+                    Ratio(r.bullet_us.median, r.ours_us.median),
+                    Ratio(r.bullet_us.p99, r.ours_us.p99), Ratio(r.ours_us.p99, r.ours_us.median),
+                    r.bullet_misses, r.bullet_build_s);
     }
     out << buf;
   }
@@ -261,6 +336,7 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
 
 int RunBenchCommand(const BenchCommandOptions& options) {
   try {
+    g_thread_clock = options.clock == "thread";
     const std::string dir = options.data_dir.empty() ? SWEPTCCD_DATA_DIR : options.data_dir;
     // Placements chosen by looking at the scenes: the floor heights are the
     // large flat areas; the walk is centred on the furnished part.
@@ -288,6 +364,11 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     }
     std::vector<Row> rows;
     for (const SceneSpec& scene : scenes) {
+      if (!options.scenes.empty() &&
+          std::find(options.scenes.begin(), options.scenes.end(), scene.name) ==
+              options.scenes.end()) {
+        continue;
+      }
       std::vector<TriangleMesh> meshes;
       for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m, options.mesh));
       const long rss0 = ResidentKiB();
@@ -297,9 +378,13 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       const double build_s = Seconds(t0, Clock::now());
       const long rss1 = ResidentKiB();
       std::unique_ptr<FclPeer> fcl;
-      if (options.peers) fcl = std::make_unique<FclPeer>(meshes);
+      std::unique_ptr<BulletPeer> bullet;
+      if (options.peers) {
+        fcl = std::make_unique<FclPeer>(meshes);
+        bullet = std::make_unique<BulletPeer>(meshes);
+      }
       Row all_row;
-      std::vector<double> all_ours, all_theirs, all_gpu;
+      std::vector<double> all_ours, all_theirs, all_gpu, all_bullet;
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
@@ -318,6 +403,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         QueryOptions q;
         q.eps_s = options.eps_s;
         q.delta_m = options.delta_m;
+        q.motion = *ParseMotionModel(options.motion);
+        q.per_link = options.per_link;
         Row row;
         row.scene = scene.name;
         row.clip = clip_name;
@@ -325,35 +412,56 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         row.build_s = build_s;
         row.bytes_per_tri = static_cast<double>(env.memory_bytes()) / env.num_triangles();
         row.rss_per_tri = 1024.0 * (rss1 - rss0) / env.num_triangles();
-        std::vector<double> ours, theirs, gpu_times;
+        std::vector<double> ours, theirs, gpu_times, bullet_times;
         if (with_gpu) row.gpu_mismatches = 0;
         const int n = std::min<int>(options.max_pairs, static_cast<int>(clip.poses.size()) - 1);
+        // Warm-up, untimed and alike for every method: the same first pairs
+        // through ours, the GPU backend, FCL and Bullet (caches, lazy set-up).
+        // Every pair is then timed; none is dropped from a percentile.
+        for (int k = 0; k < std::min(n, options.warmup_pairs); ++k) {
+          const Pose& p0 = clip.poses[k];
+          const Pose& p1 = clip.poses[k + 1];
+          (void)engine.Query(p0, p1, q);
+          if (with_gpu) (void)gpu_engine.Query(p0, p1, q);
+          if (fcl) (void)fcl->Collide(clip.skeleton, p1);
+          if (bullet) (void)bullet->Sweep(clip.skeleton, p0, p1);
+        }
         for (int k = 0; k < n; ++k) {
           const Pose& p0 = clip.poses[k];
           const Pose& p1 = clip.poses[k + 1];
-          const auto a = Clock::now();
+          const double a = NowS();
           const QueryResult r = engine.Query(p0, p1, q);
-          const auto b = Clock::now();
-          ours.push_back(1e6 * Seconds(a, b));
+          const double b = NowS();
+          ours.push_back(1e6 * (b - a));
           ++row.pairs;
           row.contacts += r.contact;
           row.undecided += r.undecided;
           if (with_gpu) {
-            const auto c = Clock::now();
+            const double c = NowS();
             const QueryResult g = gpu_engine.Query(p0, p1, q);
-            gpu_times.push_back(1e6 * Seconds(c, Clock::now()));
+            gpu_times.push_back(1e6 * (NowS() - c));
             row.gpu_mismatches += g.contact != r.contact || g.s_lo != r.s_lo || g.s_hi != r.s_hi;
           }
           if (fcl) {
-            const auto c = Clock::now();
+            const double c = NowS();
             const bool hit = fcl->Collide(clip.skeleton, p1);
-            theirs.push_back(1e6 * Seconds(c, Clock::now()));
+            theirs.push_back(1e6 * (NowS() - c));
             if (r.contact && !hit) ++row.fcl_misses;
+          }
+          if (bullet) {
+            const double c = NowS();
+            const bool hit = bullet->Sweep(clip.skeleton, p0, p1);
+            bullet_times.push_back(1e6 * (NowS() - c));
+            if (r.contact && !hit) ++row.bullet_misses;
           }
         }
         all_ours.insert(all_ours.end(), ours.begin(), ours.end());
         all_theirs.insert(all_theirs.end(), theirs.begin(), theirs.end());
         all_gpu.insert(all_gpu.end(), gpu_times.begin(), gpu_times.end());
+        all_bullet.insert(all_bullet.end(), bullet_times.begin(), bullet_times.end());
+        row.bullet_us = Summarise(bullet_times);
+        row.bullet_build_s = bullet ? bullet->build_s() : 0;
+        all_row.bullet_misses += row.bullet_misses;
         if (with_gpu) all_row.gpu_mismatches = std::max(0, all_row.gpu_mismatches) + row.gpu_mismatches;
         row.gpu_us = Summarise(gpu_times);
         all_row.pairs += row.pairs;
@@ -371,25 +479,37 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         all_row.build_s = row.build_s;
         all_row.bytes_per_tri = row.bytes_per_tri;
         all_row.fcl_build_s = row.fcl_build_s;
+        all_row.bullet_build_s = row.bullet_build_s;
       }
       all_row.clip = "ALL CLIPS";
       all_row.ours_us = Summarise(all_ours);
       all_row.fcl_us = Summarise(all_theirs);
       all_row.gpu_us = Summarise(all_gpu);
+      all_row.bullet_us = Summarise(all_bullet);
       rows.push_back(all_row);
     }
-    std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, single thread\n", options.rate_hz,
-                options.eps_s, options.delta_m);
+    std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, motion %s%s, %d warm-up pairs, "
+                "single thread, %s\n",
+                options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
+                options.per_link ? ", per-link" : "", options.warmup_pairs,
+                g_thread_clock ? "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID)"
+                               : "times: wall clock (steady_clock)");
     std::printf("ours: CPU backend; gpu_*: GPU backend on the same pairs (%s), times include "
                 "upload and read-back; differ: pairs whose GPU answer or bracket differs (must be "
                 "0)\n",
                 gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
     std::printf("ours: certified CCD per pair; FCL: discrete capsule-vs-OBBRSS collide at the "
-                "second pose only (no sweep)\n\n");
+                "second pose only (no sweep)\n");
+    std::printf("Bullet: btCollisionWorld::convexSweepTest of one btCapsuleShape per link from "
+                "its pose at time 0 to time 1 against btBvhTriangleMeshShape (built once, untimed); "
+                "linear/rigid sweep, not certified; bmiss: pairs we certify as contact and Bullet "
+                "sees none\n\n");
     std::fputs(FormatTable(rows, false).c_str(), stdout);
+    std::fputs("\n", stdout);
+    std::fputs(TargetLines(rows).c_str(), stdout);
     if (!options.markdown_path.empty()) {
       std::ofstream md(options.markdown_path);
-      md << FormatTable(rows, true);
+      md << FormatTable(rows, true) << "\n```\n" << TargetLines(rows) << "```\n";
       if (!md) throw InputError(options.markdown_path + ": cannot write the Markdown table");
     }
     return 0;

@@ -20,11 +20,19 @@ struct BenchCommandOptions {
                                     "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
                                     "cmu_01_03_playground_climb_hang_swing.bvh",
                                     "boxing_toes.bvh"};
+  std::vector<std::string> scenes;  // --scene: only these scenes (default all).
   int max_pairs = 1000;  // Per scene and clip.
   double rate_hz = 30;
   double eps_s = 1e-4;
   double delta_m = 1e-3;
-  bool peers = true;  // Also time FCL in the same run.
+  bool peers = true;  // Also time FCL and Bullet in the same run.
+  std::string motion = "articulated";  // --motion: articulated or independent.
+  bool per_link = false;               // --per-link: a bracket for every link.
+  /// What times a pair: "wall" (steady clock) or "thread" (this thread's CPU
+  /// time, CLOCK_THREAD_CPUTIME_ID: leaves out time other processes held the
+  /// core, which on a shared machine is most of a wall-clock tail).
+  std::string clock = "wall";
+  int warmup_pairs = 10;  // Untimed pairs per scene and clip before timing, for every method.
   /// Also time the GPU backend on the same pairs ("gpu": any renderer, also
   /// llvmpipe; "hardware": only a hardware EGL device; "off").
   std::string gpu = "gpu";

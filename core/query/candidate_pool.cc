@@ -32,6 +32,20 @@ bool CandidatePool::CollectFromBvh(const LinkCapsule& cap, ObjectIndex object,
   return !overflow;
 }
 
+bool CandidatePool::AnyWithin(const LinkCapsule& cap, ObjectIndex object, uint32_t start_node) {
+  if (target_.Ignores(cap.link, object)) return false;
+  bool found = false;
+  double radius = cap.radius;
+  target_.bvh(object).QueryCapsuleShrinking(
+      cap.a, cap.b, &radius,
+      [&](uint32_t slot) {
+        found = Within(cap, Candidate{static_cast<uint32_t>(object.value()), slot});
+        return !found;
+      },
+      start_node);
+  return found;
+}
+
 CandidateList CandidatePool::Refine(const CandidateList& parent, const LinkCapsule& cap) {
   CandidateList list;
   list.begin = static_cast<uint32_t>(entries_.size());

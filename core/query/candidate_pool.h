@@ -35,6 +35,11 @@ class CandidatePool {
   bool CollectFromBvh(const LinkCapsule& capsule, ObjectIndex object = ObjectIndex(),
                       uint32_t start_node = 0);
 
+  /// Whether some unfiltered primitive of `object` below BVH node
+  /// `start_node` is within the capsule (the test CollectFromBvh applies),
+  /// stopping at the first.
+  bool AnyWithin(const LinkCapsule& capsule, ObjectIndex object, uint32_t start_node);
+
   /// The candidates of a child interval whose capsule is `capsule`, from its
   /// parent's list: the parent's entries within the capsule, or the target's
   /// when the parent had none listed (requery).

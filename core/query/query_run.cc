@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <vector>
 
-#include "core/query/root_candidates.h"
 
 namespace sweptccd::internal {
 
@@ -21,9 +20,16 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       cleared_by_culler_(num_links_, false) {}
 
 QueryResult QueryRun::Run() {
+  // The whole-pair bounds first: a link they clear cannot touch at s = 0
+  // either (its capsule at 0 lies inside them), so the check at the start
+  // only looks at the links they leave open. Finding those stops at a link's
+  // first primitive; the full lists are collected only when the search goes
+  // on, and only for links still open.
+  CullWholePair();
+  CollectRoots();
   CloseTouchingAtStart();
   if (Searching()) {
-    CullWholePair();
+    roots_->Collect(witnesses_.done());
     SeedRoots();
     Descend();
   }
@@ -36,10 +42,16 @@ QueryResult QueryRun::Run() {
 // A link touching at s = 0 answers at once: [0, w] with w the first dyadic
 // width that meets G2 (the interval the chronological descent would reach),
 // the witness at s = 0 (separation <= 0 <= delta); G1 is empty.
+//
+// Only links the whole-pair bounds leave open can touch at 0: the swept
+// capsule over [0, 1] contains the link at 0 (its tolerance covers the
+// rounding of both distances), and a link it clears meets no triangle in it.
 void QueryRun::CloseTouchingAtStart() {
   const double w = slicer_.FirstNarrowWidth();
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (target_.IgnoresAll(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) continue;
+    if (target_.IgnoresAll(l) || !roots_->Open(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) {
+      continue;
+    }
     ContactRecord at_zero;
     if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
     ++stats_.links_tested;
@@ -64,10 +76,17 @@ void QueryRun::CullWholePair() {
   }
 }
 
+// Which links the whole-pair capsules leave open (of those the culler did
+// not clear).
+void QueryRun::CollectRoots() {
+  roots_.emplace(target_, bounds_, num_links_, &pool_);
+  roots_->FindOpen(cleared_by_culler_);
+}
+
 // Seeding: the links the whole-pair bounds leave open start the descent with
 // their whole-pair candidates.
 void QueryRun::SeedRoots() {
-  const RootCandidates roots(target_, bounds_, num_links_, cleared_by_culler_, &pool_);
+  const RootCandidates& roots = *roots_;
   for (LinkIndex l(0); l < num_links_; ++l) {
     if (!TestsLink(l)) continue;
     if (cleared_by_culler_[l] || roots.Empty(l)) {

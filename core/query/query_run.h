@@ -6,9 +6,12 @@
 #include "core/query/ccd_query.h"
 #include "core/query/cull_batcher.h"
 #include "core/query/environment_target.h"
+#include "core/query/root_candidates.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
 #include "core/query/witnesses.h"
+
+#include <optional>
 
 namespace sweptccd::internal {
 
@@ -23,8 +26,9 @@ class QueryRun {
 
  private:
   // The phases, in order.
-  void CloseTouchingAtStart();
   void CullWholePair();
+  void CollectRoots();
+  void CloseTouchingAtStart();
   void SeedRoots();
   void Descend();
   void CloseOutOfWork();
@@ -55,6 +59,7 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
+  std::optional<RootCandidates> roots_;  // The whole-pair candidates (CollectRoots).
   bool out_of_work_ = false;
 };
 

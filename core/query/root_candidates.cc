@@ -6,8 +6,7 @@
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
-                               int num_links, const std::vector<bool>& skip,
-                               CandidatePool* pool)
+                               int num_links, CandidatePool* pool)
     : target_(target), pool_(*pool) {
   const int n = num_links;
   capsule_.resize(n);
@@ -15,43 +14,69 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
   begin_.assign(n, 0);
   count_.assign(n, 0);
   overflow_.assign(n, false);
+  open_.assign(n, false);
   for (LinkIndex l(0); l < n; ++l) {
     capsule_[l] = bounds.Over(l, 0, 1);
     const LinkCapsule& c = capsule_[l];
     box_[l].lo = c.a.cwiseMin(c.b).array() - c.radius;
     box_[l].hi = c.a.cwiseMax(c.b).array() + c.radius;
   }
-  for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
-    std::vector<LinkIndex> links;
-    for (LinkIndex l(0); l < n; ++l) {
-      if (!target_.Ignores(l, o) && !skip[l]) links.push_back(l);
-    }
-    if (!links.empty()) CollectDual(links, o, 0);
-  }
+  scratch_.reserve(static_cast<size_t>(4 * n + 16));
+}
+
+void RootCandidates::FindOpen(const std::vector<bool>& skip) {
+  finding_ = true;
+  Traverse(skip);
+  finding_ = false;
+}
+
+void RootCandidates::Collect(const std::vector<bool>& skip) {
+  std::vector<bool> closed(skip);
+  for (size_t l = 0; l < closed.size(); ++l) closed[l] = closed[l] || !open_[l];
+  Traverse(closed);
   // An overflowing link's partial runs are useless; it queries the BVHs per
   // interval instead.
-  for (int l = 0; l < n; ++l) {
+  for (size_t l = 0; l < overflow_.size(); ++l) {
     if (overflow_[l]) count_[l] = 0;
   }
 }
 
-void RootCandidates::CollectDual(const std::vector<LinkIndex>& links, ObjectIndex object,
+void RootCandidates::Traverse(const std::vector<bool>& skip) {
+  const int n = static_cast<int>(capsule_.size());
+  for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
+    scratch_.clear();
+    for (LinkIndex l(0); l < n; ++l) {
+      // Finding: a link open already needs no more of the traversal.
+      if (!target_.Ignores(l, o) && !skip[l] && !(finding_ && open_[l])) scratch_.push_back(l);
+    }
+    if (!scratch_.empty()) CollectDual(0, scratch_.size(), o, 0);
+  }
+}
+
+void RootCandidates::CollectDual(size_t first, size_t last, ObjectIndex object,
                                  uint32_t env_node) {
   const TriangleBvh& bvh = target_.bvh(object);
   const Aabb env_box = bvh.NodeBox(env_node);
   Aabb box{Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()),
            Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity())};
-  std::vector<LinkIndex> live;
-  for (LinkIndex l : links) {
+  // The live links go on top of the scratch stack (indices: it may grow).
+  const size_t live_first = scratch_.size();
+  for (size_t i = first; i < last; ++i) {
+    const LinkIndex l = scratch_[i];
+    if (finding_ && open_[l]) continue;  // Found open under an earlier node.
     if (box_[l].Overlaps(env_box)) {
-      live.push_back(l);
+      scratch_.push_back(l);
       box.lo = box.lo.cwiseMin(box_[l].lo);
       box.hi = box.hi.cwiseMax(box_[l].hi);
     }
   }
-  if (live.empty()) return;
-  if (live.size() == 1) {
-    CollectOne(live[0], object, env_node);
+  const size_t live_last = scratch_.size();
+  const size_t live = live_last - live_first;
+  if (live == 0) return;
+  if (live == 1) {
+    const LinkIndex l = scratch_[live_first];
+    scratch_.resize(live_first);
+    CollectOne(l, object, env_node);
     return;
   }
   const TriangleBvh::Node& node = bvh.nodes()[env_node];
@@ -59,28 +84,33 @@ void RootCandidates::CollectDual(const std::vector<LinkIndex>& links, ObjectInde
   const Eigen::Vector3d env_ext = env_box.hi - env_box.lo;
   const bool split_links = node.count > 0 || link_ext.maxCoeff() >= env_ext.maxCoeff();
   if (!split_links) {
-    CollectDual(live, object, node.first);
-    CollectDual(live, object, node.first + 1);
-    return;
+    CollectDual(live_first, live_last, object, node.first);
+    CollectDual(live_first, live_last, object, node.first + 1);
+  } else {
+    int axis = 0;
+    link_ext.maxCoeff(&axis);
+    SplitLinks(live_first, live_last, axis, object, env_node);
   }
-  int axis = 0;
-  link_ext.maxCoeff(&axis);
-  SplitLinks(std::move(live), axis, object, env_node);
+  scratch_.resize(live_first);
 }
 
-void RootCandidates::SplitLinks(std::vector<LinkIndex> live, int axis, ObjectIndex object,
+void RootCandidates::SplitLinks(size_t first, size_t last, int axis, ObjectIndex object,
                                 uint32_t env_node) {
-  std::sort(live.begin(), live.end(), [&](LinkIndex x, LinkIndex y) {
+  std::sort(scratch_.begin() + first, scratch_.begin() + last, [&](LinkIndex x, LinkIndex y) {
     const double cx = box_[x].lo[axis] + box_[x].hi[axis];
     const double cy = box_[y].lo[axis] + box_[y].hi[axis];
     return cx != cy ? cx < cy : x < y;
   });
-  const size_t half = live.size() / 2;
-  CollectDual(std::vector<LinkIndex>(live.begin(), live.begin() + half), object, env_node);
-  CollectDual(std::vector<LinkIndex>(live.begin() + half, live.end()), object, env_node);
+  const size_t half = (last - first) / 2;
+  CollectDual(first, first + half, object, env_node);
+  CollectDual(first + half, last, object, env_node);
 }
 
 void RootCandidates::CollectOne(LinkIndex l, ObjectIndex object, uint32_t env_node) {
+  if (finding_) {
+    if (!open_[l]) open_[l] = pool_.AnyWithin(capsule_[l], object, env_node);
+    return;
+  }
   if (overflow_[l]) return;
   // Gather this link's candidates below env_node into its own run of the
   // pool. Runs of one link from different nodes are contiguous because the
