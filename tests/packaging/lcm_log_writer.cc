@@ -147,9 +147,9 @@ void Fill(join_request_t& m) {
   m.delta_m = 0.002;
   m.num_links = 2;
   m.link_name = {"pelvis", "thigh"};
-  m.parent = {-1, 0};
-  m.a = {{0.0, 0.0, 0.1}, {0.0, 0.1, 0.0}};
-  m.b = {{0.0, 0.0, 0.3}, {0.0, 0.4, 0.0}};
+  m.parent = {1, -1};  // Link 1 is the root (no field may be 0 here).
+  m.a = {{0.01, 0.02, 0.1}, {0.03, 0.1, 0.04}};
+  m.b = {{0.05, 0.06, 0.3}, {0.07, 0.4, 0.08}};
   m.radius = {0.12, 0.07};
   m.num_ignore = 1;
   m.ignore = {"{\"link\": \"thigh\", \"object\": 0}"};
