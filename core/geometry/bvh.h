@@ -18,6 +18,19 @@ struct Aabb {
   bool Overlaps(const Aabb& o) const {
     return (lo.array() <= o.hi.array()).all() && (o.lo.array() <= hi.array()).all();
   }
+  /// The box that holds nothing: Grow()ing it by a box gives that box.
+  static Aabb Empty() {
+    return {Eigen::Vector3d::Constant(HUGE_VAL), Eigen::Vector3d::Constant(-HUGE_VAL)};
+  }
+  /// The box of the capsule of segment [a, b] and radius r.
+  static Aabb OfCapsule(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
+    return {a.cwiseMin(b).array() - r, a.cwiseMax(b).array() + r};
+  }
+  /// Grows this box to hold `o` too.
+  void Grow(const Aabb& o) {
+    lo = lo.cwiseMin(o.lo);
+    hi = hi.cwiseMax(o.hi);
+  }
 };
 
 /// Immutable after construction; queries are const and thread-safe.

@@ -18,8 +18,7 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
   for (LinkIndex l(0); l < n; ++l) {
     capsule_[l] = bounds.Over(l, 0, 1);
     const LinkCapsule& c = capsule_[l];
-    box_[l].lo = c.a.cwiseMin(c.b).array() - c.radius;
-    box_[l].hi = c.a.cwiseMax(c.b).array() + c.radius;
+    box_[l] = Aabb::OfCapsule(c.a, c.b, c.radius);
   }
   scratch_.reserve(static_cast<size_t>(4 * n + 16));
 }
@@ -66,8 +65,7 @@ void RootCandidates::CollectDual(size_t first, size_t last, ObjectIndex object,
     if (finding_ && open_[l]) continue;  // Found open under an earlier node.
     if (box_[l].Overlaps(env_box)) {
       scratch_.push_back(l);
-      box.lo = box.lo.cwiseMin(box_[l].lo);
-      box.hi = box.hi.cwiseMax(box_[l].hi);
+      box.Grow(box_[l]);
     }
   }
   const size_t live_last = scratch_.size();

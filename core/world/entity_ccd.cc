@@ -17,25 +17,6 @@ void WidenS(double* s0, double* s1) {
   *s1 = std::min(1.0, *s1 + 1e-12);
 }
 
-Aabb CapsuleBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
-  Aabb box;
-  box.lo = a.cwiseMin(b).array() - r;
-  box.hi = a.cwiseMax(b).array() + r;
-  return box;
-}
-
-void Grow(Aabb* box, const Aabb& o) {
-  box->lo = box->lo.cwiseMin(o.lo);
-  box->hi = box->hi.cwiseMax(o.hi);
-}
-
-Aabb EmptyBox() {
-  Aabb box;
-  box.lo = Eigen::Vector3d::Constant(HUGE_VAL);
-  box.hi = Eigen::Vector3d::Constant(-HUGE_VAL);
-  return box;
-}
-
 Eigen::Vector3d UnitOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback) {
   const double n = v.norm();
   return n > 0 ? Eigen::Vector3d(v / n) : fallback;
@@ -61,12 +42,12 @@ class AvatarTarget : public OtherTarget {
     const PairMotion& m = MotionOf(piece.k);
     double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
     WidenS(&s0, &s1);
-    Aabb box = EmptyBox();
+    Aabb box = Aabb::Empty();
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
       Eigen::Vector3d a, b;
       double g;
       m.SweptCapsule(j, s0, s1, &a, &b, &g);
-      Grow(&box, CapsuleBox(a, b, e_.skeleton.link(j).radius + g));
+      box.Grow(Aabb::OfCapsule(a, b, e_.skeleton.link(j).radius + g));
     }
     return box;
   }
@@ -162,7 +143,7 @@ class ObjectTarget : public OtherTarget {
     WidenS(&s0, &s1);
     // Every point of the mesh is within rho of the frame origin, which moves
     // on a straight line.
-    return CapsuleBox(m.PositionAt(s0), m.PositionAt(s1), rho_ * (1 + 1e-9) + tol_);
+    return Aabb::OfCapsule(m.PositionAt(s0), m.PositionAt(s1), rho_ * (1 + 1e-9) + tol_);
   }
 
   void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
@@ -363,7 +344,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
   // Entity-level broad phase: A's box over the window against E's.
   if (searching()) {
-    Aabb box_a = EmptyBox();
+    Aabb box_a = Aabb::Empty();
     double s0 = s_of(tau_from), s1 = s_of(tau_to);
     WidenS(&s0, &s1);
     for (int l = 0; l < num_links; ++l) {
@@ -371,7 +352,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       Eigen::Vector3d a, b;
       double g;
       motion_a.SweptCapsule(l, s0, s1, &a, &b, &g);
-      Grow(&box_a, CapsuleBox(a, b, skeleton_a.link(l).radius + g + tol));
+      box_a.Grow(Aabb::OfCapsule(a, b, skeleton_a.link(l).radius + g + tol));
     }
     bool overlaps = false;
     for (const Piece& p : pieces)

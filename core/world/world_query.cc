@@ -53,33 +53,14 @@ void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from
   (*j)["t_hi"] = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(t_to));
 }
 
-Aabb CapsuleBox(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r) {
-  Aabb box;
-  box.lo = a.cwiseMin(b).array() - r;
-  box.hi = a.cwiseMax(b).array() + r;
-  return box;
-}
-
-void Grow(Aabb* box, const Aabb& o) {
-  box->lo = box->lo.cwiseMin(o.lo);
-  box->hi = box->hi.cwiseMax(o.hi);
-}
-
-Aabb EmptyBox() {
-  Aabb box;
-  box.lo = Eigen::Vector3d::Constant(HUGE_VAL);
-  box.hi = Eigen::Vector3d::Constant(-HUGE_VAL);
-  return box;
-}
-
 // Every link of the skeleton over the pair, padded by `pad` metres.
 Aabb MotionBox(const Skeleton& skeleton, const PairMotion& motion, double pad) {
-  Aabb box = EmptyBox();
+  Aabb box = Aabb::Empty();
   for (int l = 0; l < skeleton.num_links(); ++l) {
     Eigen::Vector3d a, b;
     double g;
     motion.SweptCapsule(l, 0, 1, &a, &b, &g);
-    Grow(&box, CapsuleBox(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
+    box.Grow(Aabb::OfCapsule(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
   }
   return box;
 }
@@ -134,7 +115,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
       // Every mesh point is within rho of the frame origin, which moves on
       // the straight line between the two samples.
       object_boxes_.back().push_back(
-          CapsuleBox(e.used[k].p, e.used[k1].p, rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
+          Aabb::OfCapsule(e.used[k].p, e.used[k1].p, rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
     }
   }
 }
