@@ -223,18 +223,21 @@ for _ in 1 2; do
   total=$((total + $(sed -n 's/^simulate-tracker: sent \([0-9]*\),.*/\1/p' "$work/restart.out")))
   sleep 0.01  # Two runs in one microsecond would share a session.
 done
+# poses_received counts a pose when it arrives and pairs_answered when its
+# pair is done, so a status can show every pose received with the last pair
+# still queued: wait for one where both have caught up.
 restarted=
 for _ in $(seq 100); do
-  if grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
-      | grep -q "\"poses_received\":$total,\"pairs_answered\":[0-9]*,\"pairs_skipped\":[0-9]*,\"rejected\":0,"; then
-    restarted=1; break
+  line=$(grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1)
+  if grep -q "\"poses_received\":$total,\"pairs_answered\":[0-9]*,\"pairs_skipped\":[0-9]*,\"rejected\":0," <<< "$line"; then
+    read -r answered skipped < <(sed 's/.*"pairs_answered":\([0-9]*\),"pairs_skipped":\([0-9]*\),.*/\1 \2/' <<< "$line")
+    restarted=1
+    [ $((answered + skipped)) = $((total - 3)) ] && break
   fi
   sleep 0.1
 done
 kill -INT $monitor_restart; wait $monitor_restart || true
 [ -n "$restarted" ] || { grep client0 "$work/restart.jsonl" | tail -2 >&2; fail "a restarted tracker was refused"; }
-read -r answered skipped < <(grep '^{"type":"status","client":"client0",' "$work/restart.jsonl" | tail -1 \
-  | sed 's/.*"pairs_answered":\([0-9]*\),"pairs_skipped":\([0-9]*\),.*/\1 \2/')
 [ $((answered + skipped)) = $((total - 3)) ] \
   || fail "client0: $answered answered + $skipped skipped != $total poses - 3 streams"
 echo "restarts: client0 $total poses in 3 streams, $answered answered, $skipped skipped, 0 rejected"
