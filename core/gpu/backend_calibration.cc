@@ -44,6 +44,9 @@ Skeleton CalibrationSkeleton() {
   return Skeleton::FromLinks("calibration", {link}, "calibration skeleton");
 }
 
+// Well inside kMaxCoordinate, with room for the skeleton and the sweep.
+constexpr double kMaxPlaceCoordinate = 1e8;
+
 std::vector<std::pair<Pose, Pose>> CalibrationPairs(const Skeleton& skeleton,
                                                     const Environment& environment) {
   Aabb box{Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1)};
@@ -61,7 +64,13 @@ std::vector<std::pair<Pose, Pose>> CalibrationPairs(const Skeleton& skeleton,
   std::vector<std::pair<Pose, Pose>> pairs;
   for (int k = 0; k < kCalibrationPlaces; ++k) {
     const Eigen::Vector3d f((k & 1) ? 0.75 : 0.25, (k & 2) ? 0.75 : 0.25, (k & 4) ? 0.75 : 0.25);
-    const Eigen::Vector3d place = box.lo + f.cwiseProduct(box.hi - box.lo);
+    Eigen::Vector3d place = box.lo + f.cwiseProduct(box.hi - box.lo);
+    // A scene far beyond any tracked body (a corrupted or hostile file, up to
+    // float's 3e38) must not give an invalid pose (SPEC 2: |p| <= 1e9).
+    for (int axis = 0; axis < 3; ++axis) {
+      const double c = place[axis];
+      place[axis] = std::isfinite(c) ? std::clamp(c, -kMaxPlaceCoordinate, kMaxPlaceCoordinate) : 0;
+    }
     Pose p0, p1;
     p0.utime = 0;
     p1.utime = 33333;

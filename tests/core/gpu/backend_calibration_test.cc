@@ -101,6 +101,13 @@ TEST(BackendCalibrationTest, PairsAreFixedAndInsideTheScene) {
       EXPECT_NE(pairs[i].first.links[0].p, pairs[j].first.links[0].p);
     }
   }
+  // Regression (QueryCommandTest.CorruptedInputsNeverCrash): a scene at
+  // 1e30 m once gave places no pose may have, and the check aborted.
+  for (const auto& [p0, p1] :
+       CalibrationPairs(skeleton, Box(Vector3d(-3e38, 1e30, 0), Vector3d(3e38, 2e30, 1)))) {
+    EXPECT_LE(p0.links[0].p.cwiseAbs().maxCoeff(), kMaxCoordinate);
+    EXPECT_LE(p1.links[0].p.cwiseAbs().maxCoeff(), kMaxCoordinate);
+  }
   // An environment with no triangle: a box round the origin.
   const auto empty = CalibrationPairs(skeleton, Environment());
   ASSERT_EQ(empty.size(), static_cast<size_t>(kCalibrationPlaces));
