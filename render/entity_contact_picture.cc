@@ -29,8 +29,8 @@ void Bracket(const std::vector<int64_t>& utimes, double t, size_t* k0, size_t* k
     *k0 = *k1 = utimes.size() - 1;
     return;
   }
-  const size_t hi = std::upper_bound(utimes.begin(), utimes.end(), static_cast<int64_t>(t)) -
-                    utimes.begin();
+  const size_t hi =
+      std::upper_bound(utimes.begin(), utimes.end(), static_cast<int64_t>(t)) - utimes.begin();
   *k1 = std::min(hi, utimes.size() - 1);
   *k0 = *k1 - 1;
   const double span = static_cast<double>(utimes[*k1] - utimes[*k0]);
@@ -38,9 +38,8 @@ void Bracket(const std::vector<int64_t>& utimes, double t, size_t* k0, size_t* k
 }
 
 // Every link of an avatar at normalised time s of (pose0, pose1), as capsules.
-void AppendAvatar(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
-                  MotionModel model, double s, std::vector<float>* vertices,
-                  std::vector<Eigen::Vector3d>* points) {
+void AppendAvatar(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
+                  double s, std::vector<float>* vertices, std::vector<Eigen::Vector3d>* points) {
   const PairMotion motion(skeleton, pose0, pose1, model);
   for (int l = 0; l < skeleton.num_links(); ++l) {
     Eigen::Vector3d a, b;
@@ -144,12 +143,12 @@ EntityPicture DrawEntityPicture(const EntityPictureOptions& options, const world
   }
 
   const world::OtherContact& w = bracket.witness;
-  const Eigen::Vector3d target =
-      bracket.has_witness ? Eigen::Vector3d(0.5 * (w.point_link + w.point_other))
-                          : points.empty() ? Eigen::Vector3d::Zero() : points.front();
-  const CameraView camera =
-      ChooseCamera(options, target, bracket.has_witness ? w.normal : Eigen::Vector3d::UnitX(),
-                   points);
+  const Eigen::Vector3d target = bracket.has_witness
+                                     ? Eigen::Vector3d(0.5 * (w.point_link + w.point_other))
+                                 : points.empty() ? Eigen::Vector3d::Zero()
+                                                  : points.front();
+  const CameraView camera = ChooseCamera(
+      options, target, bracket.has_witness ? w.normal : Eigen::Vector3d::UnitX(), points);
 
   std::vector<DrawBatch> batches = {mine, other};
   json markers = json::array();
@@ -177,8 +176,8 @@ EntityPicture DrawEntityPicture(const EntityPictureOptions& options, const world
   }
 
   EntityPicture out;
-  out.image = renderer->Render(batches, camera, options.width, options.height,
-                               Rgba{255, 255, 255, 255});
+  out.image =
+      renderer->Render(batches, camera, options.width, options.height, Rgba{255, 255, 255, 255});
   out.info = {{"avatar", avatar.id},
               {"entity", other_id},
               {"pair", record.pair},

@@ -15,8 +15,8 @@ namespace sweptccd::gpu {
 
 /// Exact, unlit colours (so that scripts and tests can find each entity's
 /// pixels): the avatar, the other entity, and the witness markers.
-inline constexpr Rgba kEntityAvatarColour{255, 140, 0, 255};  // Orange.
-inline constexpr Rgba kEntityOtherColour{0, 110, 255, 255};   // Blue.
+inline constexpr Rgba kEntityAvatarColour{255, 140, 0, 255};   // Orange.
+inline constexpr Rgba kEntityOtherColour{0, 110, 255, 255};    // Blue.
 inline constexpr Rgba kEntityWitnessColour{255, 0, 255, 255};  // Magenta.
 
 struct EntityPictureOptions {

@@ -365,15 +365,14 @@ json WriteEntityPicture(const RenderCommandOptions& o) {
   po.height = o.height;
   po.fov_deg = o.fov_deg;
   po.up_axis = o.up.empty() ? gpu::GuessUpAxis(loaded.env) : o.up[0] - 'x';
-  gpu::EntityPicture picture =
-      gpu::DrawEntityPicture(po, w, a, chosen, b, obj, answer, &renderer);
+  gpu::EntityPicture picture = gpu::DrawEntityPicture(po, w, a, chosen, b, obj, answer, &renderer);
   gpu::WritePngFile(o.out_path, picture.image);
   picture.info["path"] = o.out_path;
   picture.info["width"] = o.width;
   picture.info["height"] = o.height;
   picture.info["renderer"] = context.info().Summary();
-  std::fprintf(stderr, "sweptccd render: %s and %s at pair %zu drawn to %s\n",
-               o.avatar_id.c_str(), o.entity_id.c_str(), chosen, o.out_path.c_str());
+  std::fprintf(stderr, "sweptccd render: %s and %s at pair %zu drawn to %s\n", o.avatar_id.c_str(),
+               o.entity_id.c_str(), chosen, o.out_path.c_str());
   return picture.info;
 }
 

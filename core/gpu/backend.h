@@ -79,9 +79,9 @@ class Backend {
 
   /// Gives `engine` the GPU swept-volume test. Its environment is uploaded
   /// once and stays resident while an engine uses it (later engines on the
-  /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and the
-  /// engine stays on the CPU. Thread-safe. auto: ResolveAuto must have been
-  /// called (checked: a bug otherwise).
+  /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and
+  /// the engine stays on the CPU. Thread-safe. auto: ResolveAuto must have been called (checked: a
+  /// bug otherwise).
   void Attach(CcdEngine* engine);
 
  private:

@@ -358,9 +358,9 @@ TEST_F(RenderCommandTest, WorldPairOfEntitiesAtFirstContact) {
     SCOPED_TRACE(c.entity);
     const std::string png = Path("entity_" + c.entity + ".png");
     const std::string sidecar = Path("entity_" + c.entity + ".json");
-    const RunResult r = Run({"render", "--world", world, "--avatar", "alice", "--entity", c.entity,
-                             "--out", png, "--width", "320", "--height", "240", "--info-out",
-                             sidecar});
+    const RunResult r =
+        Run({"render", "--world", world, "--avatar", "alice", "--entity", c.entity, "--out", png,
+             "--width", "320", "--height", "240", "--info-out", sidecar});
     ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
     const Png picture = ReadPng(png);
     ASSERT_TRUE(picture.ok) << picture.error;
@@ -389,9 +389,9 @@ TEST_F(RenderCommandTest, WorldPairOfEntitiesAtFirstContact) {
   const std::string png = Path("entity_refused.png");
   ExpectRefused({"render", "--world", world, "--avatar", "carol", "--entity", "bob", "--out", png},
                 "--avatar 'carol' is not one of its avatars (alice, bob)", png);
-  ExpectRefused({"render", "--world", world, "--avatar", "alice", "--entity", "alice", "--out",
-                 png},
-                "--entity 'alice' is not another avatar or an object of it (bob, plate)", png);
+  ExpectRefused(
+      {"render", "--world", world, "--avatar", "alice", "--entity", "alice", "--out", png},
+      "--entity 'alice' is not another avatar or an object of it (bob, plate)", png);
   ExpectRefused({"render", "--world", world, "--avatar", "alice", "--entity", "bob", "--pair", "0",
                  "--out", png},
                 "pair 0 of alice has no contact with bob", png);
