@@ -4,7 +4,9 @@
 // within one of the avatar's pairs, with both witness points marked. Drawn
 // through SceneRenderer (the headless GL context); the caller writes the PNG.
 
+#include <Eigen/Core>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "core/world/entity_ccd.h"
 #include "core/world/world.h"
@@ -23,6 +25,7 @@ struct EntityPictureOptions {
   int width = 1280, height = 720;  // Pixels, within [1, SceneRenderer::MaxSize()].
   double fov_deg = 50;             // Vertical field of view, in (1, 170).
   int up_axis = 2;                 // 0, 1 or 2 (x, y, z).
+  std::optional<Eigen::Vector3d> eye, target;  // Empty: chosen from the contact.
 };
 
 struct EntityPicture {

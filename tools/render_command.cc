@@ -365,6 +365,8 @@ json WriteEntityPicture(const RenderCommandOptions& o) {
   po.height = o.height;
   po.fov_deg = o.fov_deg;
   po.up_axis = o.up.empty() ? gpu::GuessUpAxis(loaded.env) : o.up[0] - 'x';
+  po.eye = PointFlag(o.eye);
+  po.target = PointFlag(o.target);
   gpu::EntityPicture picture = gpu::DrawEntityPicture(po, w, a, chosen, b, obj, answer, &renderer);
   gpu::WritePngFile(o.out_path, picture.image);
   picture.info["path"] = o.out_path;
