@@ -147,9 +147,9 @@ EntityPicture DrawEntityPicture(const EntityPictureOptions& options, const world
                                      ? Eigen::Vector3d(0.5 * (w.point_link + w.point_other))
                                  : points.empty() ? Eigen::Vector3d::Zero()
                                                   : points.front();
-  CameraView camera = ChooseCamera(
-      options, options.target.value_or(target),
-      bracket.has_witness ? w.normal : Eigen::Vector3d::UnitX(), points);
+  CameraView camera =
+      ChooseCamera(options, options.target.value_or(target),
+                   bracket.has_witness ? w.normal : Eigen::Vector3d::UnitX(), points);
   if (options.eye) camera.eye = *options.eye;
 
   std::vector<DrawBatch> batches = {mine, other};

@@ -22,9 +22,9 @@ inline constexpr Rgba kEntityOtherColour{0, 110, 255, 255};    // Blue.
 inline constexpr Rgba kEntityWitnessColour{255, 0, 255, 255};  // Magenta.
 
 struct EntityPictureOptions {
-  int width = 1280, height = 720;  // Pixels, within [1, SceneRenderer::MaxSize()].
-  double fov_deg = 50;             // Vertical field of view, in (1, 170).
-  int up_axis = 2;                 // 0, 1 or 2 (x, y, z).
+  int width = 1280, height = 720;              // Pixels, within [1, SceneRenderer::MaxSize()].
+  double fov_deg = 50;                         // Vertical field of view, in (1, 170).
+  int up_axis = 2;                             // 0, 1 or 2 (x, y, z).
   std::optional<Eigen::Vector3d> eye, target;  // Empty: chosen from the contact.
 };
 
