@@ -387,10 +387,11 @@ TEST_F(RenderCommandTest, WorldPairOfEntitiesAtFirstContact) {
 
   // --eye and --target place the camera as for the contact picture.
   const std::string placed = Path("entity_placed.png"), placed_info = Path("entity_placed.json");
-  std::vector<std::string> args = {"render", "--world", world, "--avatar", "alice",
-                                   "--entity", "bob", "--out", placed, "--info-out", placed_info};
-  for (const char* extra : {"--width", "64", "--height", "48", "--eye", "0", "-3", "1", "--target",
-                            "0", "0.1", "0"}) {
+  std::vector<std::string> args = {"render", "--world",    world,      "--avatar",
+                                   "alice",  "--entity",   "bob",      "--out",
+                                   placed,   "--info-out", placed_info};
+  for (const char* extra :
+       {"--width", "64", "--height", "48", "--eye", "0", "-3", "1", "--target", "0", "0.1", "0"}) {
     args.push_back(extra);
   }
   const RunResult r = Run(args);
