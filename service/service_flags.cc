@@ -59,7 +59,7 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--delta", f->delta_m, "Distance tolerance, metres");
   app->add_option("--workers", f->workers, "Worker threads")->check(CLI::Range(1, 1024));
   app->add_option("--backend", f->backend,
-                  "cpu, gpu or auto (auto: the GPU on a hardware EGL device, else the CPU)");
+                  "cpu, gpu or auto (auto: the faster on a calibration at start)");
   app->add_option("--gpu-device", f->gpu_device, "EGL device index for the GPU backend");
   app->add_flag("--require-hardware", f->require_hardware,
                 "GPU backend: refuse software renderers (llvmpipe)");

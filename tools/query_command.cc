@@ -62,6 +62,8 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     backend_options.device_index = options.gpu_device;
     backend_options.require_hardware = options.require_hardware;
     gpu::Backend backend(backend_options);
+    // auto: a short calibration on this scene and skeleton picks the faster.
+    backend.ResolveAuto(env, &skeleton, &engine.filter(), options.query);
     if (options.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
     }

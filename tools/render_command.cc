@@ -21,7 +21,10 @@
 #include "core/errors.h"
 #include "core/gpu/gl_context.h"
 #include "core/scene/environment.h"
+#include "core/world/world_file.h"
+#include "core/world/world_query.h"
 #include "render/contact_picture.h"
+#include "render/entity_contact_picture.h"
 #include "render/raster_image.h"
 #include "render/scene_renderer.h"
 #include "render/timeline_picture.h"
@@ -55,7 +58,30 @@ void CheckWritable(const std::string& path, const std::string& flag) {
 void Validate(const RenderCommandOptions& o) {
   const std::string problem = ValidateQueryOptions(o.query);
   if (!problem.empty()) throw InputError("sweptccd render: " + problem);
-  if (o.env_paths.empty()) throw InputError("sweptccd render: give at least one --env");
+  const bool world = !o.world_path.empty();
+  if (world) {
+    if (!o.skeleton_path.empty() || !o.poses_path.empty() || !o.env_paths.empty()) {
+      throw InputError(
+          "sweptccd render: --world takes its skeletons, poses and meshes from the world file; "
+          "drop --skeleton, --poses and --env");
+    }
+    if (o.avatar_id.empty() || o.entity_id.empty()) {
+      throw InputError("sweptccd render: --world needs --avatar ID and --entity ID");
+    }
+    if (o.out_path.empty()) throw InputError("sweptccd render: --world needs --out FILE.png");
+    if (!o.timeline_path.empty()) {
+      throw InputError("sweptccd render: --timeline draws a pose stream, not a --world");
+    }
+  } else {
+    if (!o.avatar_id.empty() || !o.entity_id.empty()) {
+      throw InputError("sweptccd render: --avatar and --entity need --world WORLD.json");
+    }
+    if (o.skeleton_path.empty() || o.poses_path.empty()) {
+      throw InputError(
+          "sweptccd render: give --skeleton and --poses (or --world with --avatar and --entity)");
+    }
+    if (o.env_paths.empty()) throw InputError("sweptccd render: give at least one --env");
+  }
   if (o.out_path.empty() && o.timeline_path.empty()) {
     throw InputError("sweptccd render: give --out FILE.png and/or --timeline FILE.png");
   }
@@ -85,7 +111,8 @@ void Validate(const RenderCommandOptions& o) {
   if (o.swept_steps < 0 || o.swept_steps > 200) {
     throw InputError("sweptccd render: --swept-steps must be in 0..200");
   }
-  std::vector<NamedPath> inputs = {{"--skeleton", o.skeleton_path}, {"--poses", o.poses_path}};
+  std::vector<NamedPath> inputs = {
+      {"--skeleton", o.skeleton_path}, {"--poses", o.poses_path}, {"--world", o.world_path}};
   for (const std::string& e : o.env_paths) inputs.push_back({"--env", e});
   RefuseClashingPaths(
       inputs, {{"--out", o.out_path}, {"--timeline", o.timeline_path}, {"--info-out", o.info_out}});
@@ -119,10 +146,14 @@ std::optional<Eigen::Vector3d> PointFlag(const std::vector<double>& v) {
 }  // namespace
 
 void AddRenderOptions(CLI::App* app, RenderCommandOptions* o) {
-  app->add_option("--skeleton", o->skeleton_path, "Skeleton JSON file")->required();
-  app->add_option("--poses", o->poses_path, "Pose stream, JSON Lines")->required();
-  app->add_option("--env", o->env_paths, "Mesh file (OBJ, PLY, STL, optionally .gz); repeat")
-      ->required();
+  app->add_option("--skeleton", o->skeleton_path, "Skeleton JSON file");
+  app->add_option("--poses", o->poses_path, "Pose stream, JSON Lines");
+  app->add_option("--env", o->env_paths, "Mesh file (OBJ, PLY, STL, optionally .gz); repeat");
+  app->add_option("--world", o->world_path,
+                  "World file (SPEC 8): draw --avatar and --entity at their first contact");
+  app->add_option("--avatar", o->avatar_id, "With --world: the avatar whose pairs are drawn");
+  app->add_option("--entity", o->entity_id,
+                  "With --world: the other avatar or tracked object it touches");
   app->add_option("--motion", o->motion, "articulated (default) or independent")
       ->check(CLI::IsMember({"articulated", "independent"}));
   app->add_option("--eps", o->query.eps_s, "Time tolerance, seconds (default 1e-4)");
@@ -258,11 +289,110 @@ json WriteTimeline(const RenderCommandOptions& o, RenderInputs* in) {
   return timeline;
 }
 
+// --world: an avatar and another entity at their first contact.
+json WriteEntityPicture(const RenderCommandOptions& o) {
+  world::WorldLoadOptions load;
+  load.mesh = o.mesh;
+  load.max_links = o.max_links;
+  const world::LoadedWorld loaded = world::LoadWorldFile(o.world_path, load);
+  const world::World& w = loaded.world;
+  int a = -1, b = -1, obj = -1;
+  std::string avatars, entities;
+  for (int i = 0; i < static_cast<int>(w.avatars.size()); ++i) {
+    if (w.avatars[i].id == o.avatar_id) a = i;
+    avatars += (avatars.empty() ? "" : ", ") + w.avatars[i].id;
+  }
+  if (a < 0) {
+    throw InputError(o.world_path + ": --avatar '" + o.avatar_id + "' is not one of its avatars (" +
+                     (avatars.empty() ? std::string("none") : avatars) + ")");
+  }
+  for (int i = 0; i < static_cast<int>(w.avatars.size()); ++i) {
+    if (i == a) continue;
+    if (w.avatars[i].id == o.entity_id) b = i;
+    entities += (entities.empty() ? "" : ", ") + w.avatars[i].id;
+  }
+  for (int i = 0; i < static_cast<int>(w.objects.size()); ++i) {
+    if (w.objects[i].id == o.entity_id) obj = i;
+    entities += (entities.empty() ? "" : ", ") + w.objects[i].id;
+  }
+  if (b < 0 && obj < 0) {
+    throw InputError(o.world_path + ": --entity '" + o.entity_id +
+                     "' is not another avatar or an object of it (" +
+                     (entities.empty() ? std::string("none") : entities) + ")");
+  }
+  const std::vector<PairOutcome>& records = w.avatars[a].records;
+  QueryOptions query = o.query;
+  world::WorldAnswerer answerer(loaded, query);
+  world::OtherAnswer answer;
+  int64_t from = 0, to = 0;
+  auto contact = [&](size_t r) {
+    answer = world::OtherAnswer();
+    return records[r].valid && answerer.AnswerEntity(a, r, b, obj, &answer, &from, &to) &&
+           answer.contact;
+  };
+  size_t chosen = records.size();
+  if (o.pair >= 0) {
+    if (static_cast<size_t>(o.pair) >= records.size()) {
+      throw InputError("sweptccd render: --pair " + std::to_string(o.pair) +
+                       " is out of range: avatar " + o.avatar_id + " has " +
+                       std::to_string(records.size()) + " pairs");
+    }
+    if (!contact(o.pair)) {
+      throw InputError("sweptccd render: pair " + std::to_string(o.pair) + " of " + o.avatar_id +
+                       " has no contact with " + o.entity_id);
+    }
+    chosen = o.pair;
+  } else {
+    for (size_t r = 0; r < records.size() && chosen == records.size(); ++r) {
+      if (contact(r)) chosen = r;
+    }
+    if (chosen == records.size()) {
+      throw InputError("sweptccd render: " + o.avatar_id + " never touches " + o.entity_id +
+                       " in " + o.world_path + " (" + std::to_string(records.size()) + " pairs)");
+    }
+  }
+  gpu::GlContext context(gpu::GlContextOptions{});
+  spdlog::info("render: {}", context.info().Summary());
+  gpu::SceneRenderer renderer(&context);
+  const int max_size = renderer.MaxSize();
+  if (o.width > max_size || o.height > max_size) {
+    throw InputError("sweptccd render: " + std::to_string(o.width) + "x" +
+                     std::to_string(o.height) + " is larger than the renderer allows (" +
+                     std::to_string(max_size) + ")");
+  }
+  gpu::EntityPictureOptions po;
+  po.width = o.width;
+  po.height = o.height;
+  po.fov_deg = o.fov_deg;
+  po.up_axis = o.up.empty() ? gpu::GuessUpAxis(loaded.env) : o.up[0] - 'x';
+  po.eye = PointFlag(o.eye);
+  po.target = PointFlag(o.target);
+  gpu::EntityPicture picture = gpu::DrawEntityPicture(po, w, a, chosen, b, obj, answer, &renderer);
+  gpu::WritePngFile(o.out_path, picture.image);
+  picture.info["path"] = o.out_path;
+  picture.info["width"] = o.width;
+  picture.info["height"] = o.height;
+  picture.info["renderer"] = context.info().Summary();
+  std::fprintf(stderr, "sweptccd render: %s and %s at pair %zu drawn to %s\n", o.avatar_id.c_str(),
+               o.entity_id.c_str(), chosen, o.out_path.c_str());
+  return picture.info;
+}
+
 }  // namespace
 
 int RunRenderCommand(const RenderCommandOptions& o) {
   try {
     Validate(o);
+    if (!o.world_path.empty()) {
+      const json info = WriteEntityPicture(o);
+      if (!o.info_out.empty()) {
+        std::ofstream out(o.info_out, std::ios::binary | std::ios::trunc);
+        out << info.dump(2) << '\n';
+        out.flush();
+        if (!out) throw InputError(o.info_out + ": error while writing the sidecar");
+      }
+      return 0;
+    }
     RenderInputs in(o);
     json info;
     info["links"] = json::array();

@@ -19,6 +19,10 @@ class App;
 namespace sweptccd {
 
 struct RenderCommandOptions {
+  // A pair of entities of a shared world (README, "Pictures of a contact"):
+  // --world with --avatar and --entity, instead of --skeleton/--poses/--env.
+  std::string world_path;
+  std::string avatar_id, entity_id;
   std::string skeleton_path;
   std::string poses_path;
   std::vector<std::string> env_paths;

@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
           throw CLI::ValidationError(e.what());
         }
       },
-      "cpu, gpu or auto (default auto: the GPU on a hardware EGL device, else the CPU)");
+      "cpu, gpu or auto (default auto: the faster on a calibration at start)");
   query->add_option("--gpu-device", q.gpu_device, "EGL device index for the GPU backend");
   query->add_flag("--require-hardware", q.require_hardware,
                   "GPU backend: refuse software renderers (llvmpipe)");

@@ -33,6 +33,14 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     gpu::BackendOptions backend_options;
     backend_options.backend = options.backend;
     gpu::Backend backend(backend_options);
+    // auto: calibrated with the first avatar's engine (the one-capsule
+    // calibration skeleton when the world has no avatar).
+    const CcdEngine* first = nullptr;
+    answerer.ForEachEngine([&](CcdEngine* engine) {
+      if (first == nullptr) first = engine;
+    });
+    backend.ResolveAuto(loaded.env, first ? &first->skeleton() : nullptr,
+                        first ? &first->filter() : nullptr, options.query);
     if (options.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd world: backend %s\n", backend.reason().c_str());
     }

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/errors.h"
+#include "core/gpu/backend_calibration.h"
 #include "core/gpu/gpu_culler.h"
 
 namespace sweptccd::gpu {
@@ -34,34 +35,76 @@ Backend::Backend(const BackendOptions& options) {
   }
   GlContextOptions context_options;
   context_options.device_index = options.device_index;
-  context_options.require_hardware = options.require_hardware || automatic;
+  context_options.require_hardware = options.require_hardware;
   try {
     context_ = std::make_shared<GlContext>(context_options);
   } catch (const GpuError& e) {
     if (automatic) {
-      reason_ = std::string("cpu (auto: no hardware EGL device; ") + e.what() + ")";
+      reason_ = std::string("cpu (auto: no GPU context, not calibrated; ") + e.what() + ")";
     } else {
       reason_ = std::string("cpu (gpu requested but unavailable: ") + e.what() + ")";
     }
     return;
   }
-  reason_ = "gpu (" + std::string(automatic ? "auto: hardware EGL device" : "requested") +
-            "; " + context_->info().Summary() + ")";
+  if (automatic) {
+    auto_pending_ = true;
+    reason_ = "auto (not calibrated yet; " + context_->info().Summary() + ")";
+    return;
+  }
+  reason_ = "gpu (requested; " + context_->info().Summary() + ")";
+}
+
+void Backend::ResolveAuto(const Environment& environment, const Skeleton* skeleton,
+                          const CollisionFilter* filter, const QueryOptions& options) {
+  if (!auto_pending_) return;
+  auto_pending_ = false;
+  const Skeleton fallback = skeleton == nullptr ? CalibrationSkeleton() : Skeleton();
+  const Skeleton& sk = skeleton == nullptr ? fallback : *skeleton;
+  CollisionFilter none(sk.num_links(), environment.num_objects());
+  const CollisionFilter& fl = filter == nullptr ? none : *filter;
+  const std::string renderer = context_->info().Summary();
+  CcdEngine cpu_engine(sk, environment, fl);
+  CcdEngine gpu_engine(sk, environment, fl);
+  Attach(&gpu_engine);
+  if (gpu_engine.culler() == nullptr) {
+    // The upload failed (logged by Attach): the GPU cannot answer here.
+    reason_ = "cpu (auto: the GPU could not take the scene, not calibrated; " + failure_ + ")";
+    context_.reset();
+    uploaded_.clear();
+    return;
+  }
+  const CalibrationTimes times =
+      TimeBackends(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options);
+  const AutoChoice choice = ChooseFaster(times.cpu_us, times.gpu_us);
+  auto_figures_ = "auto: " + DescribeFigures(choice);
+  const std::string how = auto_figures_ + ", medians of " + std::to_string(times.cpu_us.size()) +
+                          " timed pairs each; " + renderer;
+  if (choice.kind == BackendKind::kGpu) {
+    reason_ = "gpu (" + how + ")";
+    return;
+  }
+  reason_ = "cpu (" + how + ")";
+  // The GPU's culler dies with gpu_engine; the context and uploads go too.
+  gpu_engine.SetCuller(nullptr);
+  uploaded_.clear();
+  context_.reset();
 }
 
 Backend::~Backend() = default;
 
 std::string Backend::State() const {
-  if (!gpu()) return "cpu";
+  const std::string figures = auto_figures_.empty() ? "" : " (" + auto_figures_ + ")";
+  if (!gpu()) return "cpu" + figures;
   if (context_->lost()) return "cpu (gpu failed: the OpenGL context was lost)";
   std::lock_guard<std::mutex> lock(mutex_);
   if (attach_failed_) return "cpu (gpu failed: " + failure_ + ")";
-  return "gpu";
+  return "gpu" + figures;
 }
 
 std::string Backend::renderer() const { return gpu() ? context_->info().renderer : std::string(); }
 
 void Backend::Attach(CcdEngine* engine) {
+  SWEPTCCD_CHECK(!auto_pending_);  // ResolveAuto first (backend.h).
   if (!gpu()) return;
   std::lock_guard<std::mutex> lock(mutex_);
   if (attach_failed_) return;

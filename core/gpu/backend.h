@@ -20,7 +20,8 @@ class GpuEnvironment;
 enum class BackendKind {
   kCpu,   // The CPU engine only.
   kGpu,   // The GPU swept-volume test; the CPU when no context can be had.
-  kAuto,  // The GPU on a hardware EGL device, else the CPU.
+  kAuto,  // Whichever a short calibration on the loaded scene finds faster
+          // (Backend::ResolveAuto); the CPU when no context can be made.
 };
 
 /// Parses "cpu", "gpu" or "auto" (the only place the names are read).
@@ -34,25 +35,41 @@ const char* BackendKindName(BackendKind kind);
 struct BackendOptions {
   BackendKind backend = BackendKind::kAuto;
   int device_index = -1;         // EGL device to use; -1: the first that works.
-  bool require_hardware = false;  // gpu: refuse software renderers (auto always does).
+  bool require_hardware = false;  // gpu and auto: refuse software renderers.
 };
 
 class Backend {
  public:
   /// cpu: the CPU. gpu: the headless context on the configured device, else
   /// the first that works, software renderers included unless
-  /// require_hardware. auto: the GPU only on a hardware device, else the CPU.
-  /// A GPU that cannot be had is not an error: the CPU is chosen and
-  /// reason() says why (the caller shows it once: `query` on stderr, the
-  /// daemon in its log). Does not throw for a missing GPU.
+  /// require_hardware. auto: makes the context as gpu does, then waits for
+  /// ResolveAuto to measure which backend is faster on the scene (until then
+  /// gpu() is true when a context was made). A GPU that cannot be had is not
+  /// an error: the CPU is chosen and reason() says why (the caller shows it
+  /// once: `query` on stderr, the daemon in its log). Does not throw for a
+  /// missing GPU.
   explicit Backend(const BackendOptions& options);
   ~Backend();
+
+  /// auto only (a no-op otherwise, and after the first call): times both
+  /// backends on `environment` with `skeleton` (nullptr: a one-capsule
+  /// calibration skeleton) and `filter` (nullptr: none) over the fixed
+  /// calibration pairs (core/gpu/backend_calibration.h, under 0.5 s) and
+  /// keeps the faster, ties to the CPU; choosing the CPU releases the
+  /// context. reason() and State() then name both figures, e.g.
+  /// "cpu (auto: cpu 41 us, gpu 380 us per pair; ...)". Call before Attach
+  /// and before queries start; not thread-safe against Attach. Throws only
+  /// what a CPU query throws (std::bad_alloc).
+  void ResolveAuto(const Environment& environment, const Skeleton* skeleton,
+                   const CollisionFilter* filter, const QueryOptions& options);
 
   bool gpu() const { return context_ != nullptr; }
   /// "cpu" or "gpu": what was chosen at start.
   const char* name() const { return gpu() ? "gpu" : "cpu"; }
   /// What answers now: "gpu", or "cpu (gpu failed: CAUSE)" once the context
-  /// was lost or an upload failed (queries then run on the CPU), or "cpu".
+  /// was lost or an upload failed (queries then run on the CPU), or "cpu";
+  /// after ResolveAuto, "gpu" and "cpu" carry the figures: "cpu (auto: cpu
+  /// 41 us, gpu 380 us per pair)".
   std::string State() const;
   /// One line: what was asked, what was chosen, and why.
   const std::string& reason() const { return reason_; }
@@ -62,13 +79,16 @@ class Backend {
 
   /// Gives `engine` the GPU swept-volume test. Its environment is uploaded
   /// once and stays resident while an engine uses it (later engines on the
-  /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and the
-  /// engine stays on the CPU. Thread-safe.
+  /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and
+  /// the engine stays on the CPU. Thread-safe. auto: ResolveAuto must have been called (checked: a
+  /// bug otherwise).
   void Attach(CcdEngine* engine);
 
  private:
   std::shared_ptr<GlContext> context_;
   std::string reason_;
+  bool auto_pending_ = false;  // auto with a context, not yet resolved.
+  std::string auto_figures_;   // "auto: cpu 41 us, gpu 380 us per pair" once resolved.
   mutable std::mutex mutex_;
   // The latest uploads by Environment::content_id() (an address can be
   // reused by a later environment; the id cannot), oldest first. Engines keep

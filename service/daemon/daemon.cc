@@ -76,12 +76,18 @@ std::vector<ClientConfig> LoadClients(const ServiceConfig& config, const Environ
 
 // One headless context for the daemon's life; the environment is uploaded
 // once and every client's engine tests against it.
-std::unique_ptr<gpu::Backend> MakeBackend(const ServiceConfig& config) {
+// auto: calibrated on the environment with the first configured client's
+// skeleton and filter (a one-capsule skeleton when there is none).
+std::unique_ptr<gpu::Backend> MakeBackend(const ServiceConfig& config, const Environment& env,
+                                          const std::vector<ClientConfig>& clients) {
   gpu::BackendOptions options;
   options.backend = config.backend;
   options.device_index = config.gpu_device;
   options.require_hardware = config.require_hardware;
   auto backend = std::make_unique<gpu::Backend>(options);
+  const ClientConfig* first = clients.empty() ? nullptr : &clients.front();
+  backend->ResolveAuto(env, first ? first->skeleton.get() : nullptr,
+                       first ? &first->filter : nullptr, config.query);
   if (config.backend == gpu::BackendKind::kGpu && !backend->gpu()) {
     spdlog::error("backend {}", backend->reason());
   } else {
@@ -379,7 +385,7 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   if (signed_mode && config.max_live_clients > 0 && security.keys.RoomKey() == nullptr) {
     spdlog::warn("no security.room_key: joins cannot be verified and are refused");
   }
-  backend = MakeBackend(config);
+  backend = MakeBackend(config, *env, clients);
   lcm = std::make_unique<lcm::LCM>(config.lcm_url);
   if (!lcm->good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
   if (!security.signed_mode) {

@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -838,12 +839,17 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
   EXPECT_NE(gpu.err.find("backend gpu (requested; "), std::string::npos) << gpu.err;
   EXPECT_EQ(cpu.err.find("backend"), std::string::npos) << "cpu needs no explanation: " << cpu.err;
 
-  const RunResult automatic = Run(QueryArgs(poses, {"--backend", "auto"}));
+  // auto times both backends on the scene and keeps the faster (issue 11):
+  // on this machine llvmpipe gives a context, so both figures are named,
+  // whichever wins; the records are the CPU's.
+  const RunResult automatic = Run(QueryArgs(poses, {"--backend", "auto", "--per-link"}));
   ASSERT_TRUE(automatic.exited && automatic.code == 0) << automatic.Describe();
-  // auto takes only a hardware device: here either one, or the CPU with why.
-  EXPECT_TRUE(automatic.err.find("backend gpu (auto: hardware EGL device") != std::string::npos ||
-              automatic.err.find("backend cpu (auto: no hardware EGL device") != std::string::npos)
+  EXPECT_TRUE(std::regex_search(
+      automatic.err,
+      std::regex("sweptccd query: backend (cpu|gpu) \\(auto: cpu [0-9]+ us, gpu [0-9]+ us per "
+                 "pair, medians of [1-9][0-9]* timed pairs each; ")))
       << automatic.err;
+  EXPECT_EQ(without_timing(ParseRecords(automatic.out)), without_timing(c));
 
   const RunResult missing = Run(QueryArgs(poses, {"--backend", "gpu", "--gpu-device", "31"}));
   ASSERT_TRUE(missing.exited && missing.code == 0) << missing.Describe();

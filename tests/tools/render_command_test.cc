@@ -319,5 +319,110 @@ TEST_F(RenderCommandTest, BadInputIsRefusedWithOneLine) {
                 "no contact in the stream", png);
 }
 
+// `render --world`: an avatar and another entity (an avatar, a tracked
+// object) at their first contact. Each entity has its own exact colour, so
+// the test finds both in the picture (and the witness markers); not a
+// screenshot comparison.
+TEST_F(RenderCommandTest, WorldPairOfEntitiesAtFirstContact) {
+  auto write = [](const std::string& name, const std::string& text) {
+    std::ofstream(Path(name), std::ios::binary) << text;
+    return Path(name);
+  };
+  auto line = [](int64_t utime, double y) {
+    return "{\"utime\": " + std::to_string(utime) + ", \"links\": [[0, " + std::to_string(y) +
+           ", 0, 1, 0, 0, 0]]}\n";
+  };
+  write("bar.json", R"({"name": "bar", "links": [{"name": "bar", "parent": null,
+                        "a": [-0.5, 0, 0], "b": [0.5, 0, 0], "radius": 0.1}]})");
+  // alice stays at the origin; bob comes down from y = 1 to 0 over 20 ms and
+  // touches her at y = 0.2 (t = 1'016'000, alice's pair 1, tau 6000 us).
+  write("alice.jsonl", line(1'000'000, 0) + line(1'010'000, 0) + line(1'020'000, 0));
+  write("bob.jsonl", line(1'000'000, 1.0) + line(1'020'000, 0.0));
+  // A plate falls through alice from y = 1 to -1: it touches at y = 0.1
+  // (t = 1'009'000, alice's pair 0).
+  write("plate.obj", "v -1 0 -1\nv 1 0 -1\nv 0 0 1\nf 1 2 3\n");
+  write("plate.jsonl",
+        "{\"utime\": 1000000, \"pose\": [0, 1, 0, 1, 0, 0, 0]}\n"
+        "{\"utime\": 1020000, \"pose\": [0, -1, 0, 1, 0, 0, 0]}\n");
+  const std::string world = write("world.json", R"({"avatars": [
+      {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl"},
+      {"id": "bob", "skeleton": "bar.json", "poses": "bob.jsonl", "motion": "independent"}],
+    "objects": [{"id": "plate", "mesh": "plate.obj", "poses": "plate.jsonl"}], "env": []})");
+
+  struct Case {
+    std::string entity;
+    int64_t pair;
+    double tau_us;
+  };
+  for (const Case& c : {Case{"bob", 1, 6000}, Case{"plate", 0, 9000}}) {
+    SCOPED_TRACE(c.entity);
+    const std::string png = Path("entity_" + c.entity + ".png");
+    const std::string sidecar = Path("entity_" + c.entity + ".json");
+    const RunResult r =
+        Run({"render", "--world", world, "--avatar", "alice", "--entity", c.entity, "--out", png,
+             "--width", "320", "--height", "240", "--info-out", sidecar});
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+    const Png picture = ReadPng(png);
+    ASSERT_TRUE(picture.ok) << picture.error;
+    EXPECT_EQ(picture.width, 320);
+    EXPECT_EQ(picture.height, 240);
+    const json info = json::parse(ReadFile(sidecar));
+    EXPECT_EQ(info["pair"].get<int64_t>(), c.pair);
+    EXPECT_NEAR(info["tau_us"].get<double>(), c.tau_us, 100);  // eps = 1e-4 s.
+    const auto avatar = Rgb(info["colours"]["avatar"]), other = Rgb(info["colours"]["entity"]);
+    const auto witness = Rgb(info["colours"]["witness"]);
+    EXPECT_NE(avatar, other);
+    // Both entities are in the picture, each in its own colour, and both
+    // witness markers were drawn.
+    EXPECT_GT(picture.Count(avatar), 200u) << "avatar pixels";
+    EXPECT_GT(picture.Count(other), 200u) << "entity pixels";
+    ASSERT_EQ(info["witness"].size(), 2u);
+    for (const json& m : info["witness"]) {
+      ASSERT_TRUE(m["drawn"].get<bool>()) << m.dump();
+      const int x = m["pixel"][0], y = m["pixel"][1];
+      ASSERT_TRUE(x >= 0 && y >= 0 && x < 320 && y < 240) << m.dump();
+      EXPECT_EQ(picture.At(x, y), witness) << m.dump();
+    }
+  }
+
+  // --eye and --target place the camera as for the contact picture.
+  const std::string placed = Path("entity_placed.png"), placed_info = Path("entity_placed.json");
+  std::vector<std::string> args = {"render", "--world",    world,      "--avatar",
+                                   "alice",  "--entity",   "bob",      "--out",
+                                   placed,   "--info-out", placed_info};
+  for (const char* extra :
+       {"--width", "64", "--height", "48", "--eye", "0", "-3", "1", "--target", "0", "0.1", "0"}) {
+    args.push_back(extra);
+  }
+  const RunResult r = Run(args);
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const json placed_json = json::parse(ReadFile(placed_info));
+  EXPECT_EQ(placed_json["camera"]["eye"], json::array({0.0, -3.0, 1.0}));
+  EXPECT_EQ(placed_json["camera"]["target"], json::array({0.0, 0.1, 0.0}));
+  EXPECT_EQ(ReadPng(placed).width, 64);
+
+  // Bad choices are refused with one line.
+  const std::string png = Path("entity_refused.png");
+  ExpectRefused({"render", "--world", world, "--avatar", "carol", "--entity", "bob", "--out", png},
+                "--avatar 'carol' is not one of its avatars (alice, bob)", png);
+  ExpectRefused(
+      {"render", "--world", world, "--avatar", "alice", "--entity", "alice", "--out", png},
+      "--entity 'alice' is not another avatar or an object of it (bob, plate)", png);
+  ExpectRefused({"render", "--world", world, "--avatar", "alice", "--entity", "bob", "--pair", "0",
+                 "--out", png},
+                "pair 0 of alice has no contact with bob", png);
+  ExpectRefused({"render", "--world", world, "--avatar", "alice", "--entity", "bob", "--pair", "9",
+                 "--out", png},
+                "--pair 9 is out of range", png);
+  ExpectRefused({"render", "--world", world, "--avatar", "alice", "--out", png},
+                "--world needs --avatar ID and --entity ID", png);
+  ExpectRefused({"render", "--world", world, "--avatar", "alice", "--entity", "bob", "--skeleton",
+                 Path("bar.json"), "--out", png},
+                "drop --skeleton, --poses and --env", png);
+  ExpectRefused({"render", "--avatar", "alice", "--entity", "bob", "--out", png},
+                "--avatar and --entity need --world", png);
+  ExpectRefused({"render", "--out", png}, "give --skeleton and --poses", png);
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -10,6 +10,7 @@
 
 #include <nlohmann/json.hpp>
 #include <random>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -356,6 +357,21 @@ TEST_F(WorldCommandTest, GpuAndCpuBackendsGiveTheSameRecords) {
     EXPECT_EQ(a[i], b[i]) << "record " << i;
   }
   EXPECT_GE(env_contacts, 2);  // alice lies on the floor.
+  // auto (issue 11): calibrated with the first avatar on this scene, both
+  // figures on stderr, the same records whichever it kept.
+  const RunResult automatic = Run({"world", "--world", world, "--backend", "auto", "--per-link"});
+  ASSERT_TRUE(automatic.exited && automatic.code == 0) << automatic.Describe();
+  EXPECT_TRUE(std::regex_search(
+      automatic.err, std::regex("sweptccd world: backend (cpu|gpu) \\(auto: cpu [0-9]+ us, gpu "
+                                "[0-9]+ us per pair, medians of [1-9][0-9]* timed pairs each; ")))
+      << automatic.err;
+  std::vector<json> c = Records(automatic.out);
+  ASSERT_EQ(c.size(), a.size());
+  for (size_t i = 0; i < c.size(); ++i) {
+    c[i].erase("elapsed_us");
+    c[i].erase("stats");
+    EXPECT_EQ(a[i], c[i]) << "record " << i;
+  }
 }
 
 TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
