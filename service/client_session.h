@@ -29,6 +29,7 @@ inline constexpr char kBadSignature[] = "bad_signature";    // mac missing, wron
 inline constexpr char kStaleSession[] = "stale_session";    // session below the client's current.
 inline constexpr char kUtimeJump[] = "utime_jump";          // utime beyond the horizon.
 inline constexpr char kRateLimited[] = "rate_limited";      // Over the client's input rate.
+inline constexpr char kUnknownObject[] = "unknown_object";  // object_pose_t of no configured object.
 }
 
 /// Default horizon of the utime_jump rule: 10 s.
