@@ -116,6 +116,9 @@ class ClientSession {
   int64_t streams_started() const { return streams_started_; }
   /// The current stream's session; meaningful once a pose was accepted.
   int64_t session() const { return session_; }
+  /// The newest accepted pose of the current stream (quaternions
+  /// normalised), or null before the first.
+  const Pose* last_pose() const { return last_ ? &last_->pose : nullptr; }
 
  private:
   // Session, seq, utime and horizon rules against the last accepted pose.
