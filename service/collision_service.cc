@@ -223,6 +223,21 @@ void CollisionService::QueueSharedLocked(std::vector<SharedJob>* due) {
   if (due->empty()) return;
   for (SharedJob& job : *due) shared_ready_.push_back(std::move(job));
   due->clear();
+  // Bounded: when the workers cannot keep up, the oldest due entries are
+  // dropped unanswered and counted (shared_dropped, the log), never queued
+  // without bound.
+  int64_t dropped = 0;
+  while (static_cast<int>(shared_ready_.size()) > options_.shared_max_pending) {
+    shared_ready_.pop_front();
+    ++dropped;
+  }
+  if (dropped > 0) {
+    if (shared_dropped_ == 0 || (shared_dropped_ + dropped) / 1000 != shared_dropped_ / 1000) {
+      spdlog::warn("shared world: {} due entries dropped unanswered so far (workers behind)",
+                   shared_dropped_ + dropped);
+    }
+    shared_dropped_ += dropped;
+  }
   work_cv_.notify_all();
 }
 
@@ -666,6 +681,11 @@ std::vector<std::string> CollisionService::ExpireSilent(SteadyClock::time_point 
 int64_t CollisionService::shared_published() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return shared_published_;
+}
+
+int64_t CollisionService::shared_dropped() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return shared_dropped_;
 }
 
 size_t CollisionService::shared_pending() const {

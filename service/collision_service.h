@@ -194,6 +194,9 @@ class CollisionService {
   /// Shared-world entries published, and (pair, entity) entries waiting.
   int64_t shared_published() const;
   size_t shared_pending() const;
+  /// Due shared entries dropped unanswered because more than
+  /// shared_max_pending waited for a worker (the workers were behind).
+  int64_t shared_dropped() const;
 
   int64_t publish_errors() const;
   int64_t ignored_after_stop() const;
@@ -258,6 +261,7 @@ class CollisionService {
   std::deque<SharedJob> shared_ready_;         // Due shared entries, oldest first.
   world::EntityQueryOptions entity_options_;
   int64_t shared_published_ = 0;
+  int64_t shared_dropped_ = 0;
   int64_t last_session_ = 0;     // Sessions handed out are strictly increasing.
   int64_t live_joined_ = 0, live_left_ = 0, live_expired_ = 0;
   int64_t instance_ = 0;         // status_t.instance.

@@ -32,9 +32,20 @@ security: {room_key: room.key}
 YAML
 "$service" --config "$work/sweptccd.yaml" 2> "$work/daemon.log" &
 daemon=$!
-trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
+monitor=
+trap 'kill -KILL $daemon $monitor 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
+# `sweptccd monitor` shows the shared entries (verified with the service key).
+"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --timeout 60 \
+  > "$work/monitor.out" 2> "$work/monitor.err" &
+monitor=$!
+wait_for "$work/monitor.out" listening
 "$tool" --key "$work/room.key" play "$url" "$work" "$work/offline.jsonl"
+kill -INT $monitor
+wait $monitor
+grep -q '"type":"shared_contact".*"entity":"cup".*"entity_kind":"object"' "$work/monitor.out"
+grep -q '"type":"shared_contact".*"entity":"bob".*"entity_kind":"client"' "$work/monitor.out"
+! grep '"type":"shared' "$work/monitor.out" | grep -q '"verified":false'
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
