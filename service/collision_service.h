@@ -107,8 +107,8 @@ struct ServiceOptions {
   int64_t silence_timeout_ms = 5000;
   /// The shared world (SPEC 8 "Live"): every pair is also answered against
   /// every other client and tracked object (shared_contact_t). Off: only the
-  /// environment part, and `objects` must be empty.
-  bool shared_world = true;
+  /// environment part, and `objects` must be empty. Off by default.
+  bool shared_world = false;
   std::vector<TrackedObjectConfig> objects;
   int shared_max_history = 4096;  // Samples kept per entity.
   int shared_max_pending = 4096;  // (pair, entity) entries waiting, in all.

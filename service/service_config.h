@@ -63,8 +63,9 @@ struct ServiceConfig {
   std::vector<ClientSpec> clients;
   /// The shared world (docs/SERVICE.md "Shared world"): pairs answered
   /// against every other client and tracked object too. Its windows end by
-  /// silence_timeout_ms (no timeout of its own).
-  bool shared_world = true;
+  /// silence_timeout_ms (no timeout of its own). Off by default: with N
+  /// co-located clients it publishes N-1 messages per pair on the bus.
+  bool shared_world = false;
   std::vector<ObjectSpec> objects;
   SecurityConfig security;
 };

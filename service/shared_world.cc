@@ -375,7 +375,8 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
       Settle(other, [&](const Entry& x) { return &x == &pending_.back(); }, false, now, due);
     }
   }
-  CutSilent(now, due);
+  // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
+  // scan of every entry per pair would cost O(entities x pending).)
   while (static_cast<int>(pending_.size()) > options_.max_pending) {
     const Entry& oldest = pending_.front();
     const std::string e = oldest.e;

@@ -93,7 +93,8 @@ class SharedWorld {
   /// not registered; `mesh` holds one object.
   void AddObject(const std::string& id, std::shared_ptr<const Environment> mesh, Time now);
   /// An avatar that left or expired: every entry waiting for it is cut now
-  /// (appended to *due), its own pending entries are dropped, then it is gone.
+  /// (appended to *due), its own pending entries are dropped unanswered (its
+  /// pairs' shared parts go with it), then it is gone.
   void RemoveAvatar(const std::string& id, Time now, std::vector<SharedJob>* due);
   bool Has(const std::string& id) const { return entities_.count(id) > 0; }
 
@@ -118,7 +119,9 @@ class SharedWorld {
                std::vector<SharedJob>* due);
 
   /// Cuts every entry whose entity was silent, or that itself waited, for
-  /// silence_timeout_us before `now`.
+  /// silence_timeout_us before `now`. The service calls it on the daemon's
+  /// silence timer (8 times per timeout, CollisionService::ExpireSilent), so
+  /// a cut comes between 1 and 9/8 of the timeout. O(entities x pending).
   void CutSilent(Time now, std::vector<SharedJob>* due);
   /// Cuts everything still pending (the service is stopping).
   void CutAll(Time now, std::vector<SharedJob>* due);

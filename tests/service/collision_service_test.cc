@@ -570,6 +570,7 @@ TEST_F(CollisionServiceTest, SharedWorldAnswersEachPairAgainstEveryOtherEntityOn
   options.max_pose_rate_hz = 1e6;
   options.pose_burst = 1 << 20;
   options.silence_timeout_ms = 3'600'000;  // No cut by silence in this test.
+  options.shared_world = true;
   TriangleMesh cube;
   for (int c = 0; c < 8; ++c) {
     cube.vertices.emplace_back((c & 1) ? 0.2f : -0.2f, (c & 2) ? 0.2f : -0.2f,

@@ -23,6 +23,7 @@ lcm_url: "$url"
 environment: [floor.obj]
 workers: 2
 silence_timeout_ms: 300
+shared_world: true
 clients:
   - {id: alice, skeleton: arm.json}
   - {id: bob, skeleton: arm.json}

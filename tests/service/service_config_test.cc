@@ -205,6 +205,7 @@ TEST(ServiceConfigTest, TrackedObjectsParseAndShareTheIdSpace) {
 environment: [room.ply]
 clients: [{id: alice, skeleton: a.json}]
 security: {room_key: room.key}
+shared_world: true
 )";
   const ServiceConfig c = ParseServiceConfig(
       base + "channels: {object_pose: OP, shared_contact: SC}\n"
@@ -223,9 +224,15 @@ security: {room_key: room.key}
             std::string::npos);
   EXPECT_NE(RefusalOf(base + "objects: [{id: \"bad id\", mesh: m.obj}]\n").find("id rule"),
             std::string::npos);
-  EXPECT_NE(RefusalOf(base + "shared_world: false\nobjects: [{id: cup, mesh: m.obj}]\n")
-                .find("shared_world: true"),
-            std::string::npos);
+  const std::string off = R"(
+environment: [room.ply]
+clients: [{id: alice, skeleton: a.json}]
+security: {room_key: room.key}
+)";
+  EXPECT_NE(RefusalOf(off + "objects: [{id: cup, mesh: m.obj}]\n").find("shared_world: true"),
+            std::string::npos)
+      << "off by default";
+  EXPECT_FALSE(ParseServiceConfig(off, "cfg.yaml", "/").shared_world);
   EXPECT_NE(RefusalOf(base + "objects: [{id: cup}]\n").find("missing 'mesh'"), std::string::npos);
   EXPECT_NE(RefusalOf(base + "objects: [{id: cup, mesh: m.obj, colour: red}]\n").find("colour"),
             std::string::npos);
@@ -233,10 +240,11 @@ security: {room_key: room.key}
 environment: [room.ply]
 clients: [{id: alice, skeleton: a.json}]
 security: {client_keys: {alice: a.key}}
+shared_world: true
 objects: [{id: cup, mesh: m.obj}]
 )";
   EXPECT_NE(RefusalOf(no_room).find("object 'cup' has no key"), std::string::npos);
-  EXPECT_FALSE(ParseServiceConfig(base + "shared_world: false\n", "cfg.yaml", "/").shared_world);
+  EXPECT_TRUE(ParseServiceConfig(base, "cfg.yaml", "/").shared_world);
 }
 
 }  // namespace
