@@ -37,16 +37,33 @@ monitor=
 trap 'kill -KILL $daemon $monitor 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
 # `sweptccd monitor` shows the shared entries (verified with the service key).
-"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --timeout 60 \
+"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --all --timeout 60 \
   > "$work/monitor.out" 2> "$work/monitor.err" &
 monitor=$!
 wait_for "$work/monitor.out" listening
 "$tool" --key "$work/room.key" play "$url" "$work" "$work/offline.jsonl"
+# `sweptccd simulate-tracker` plays a tracked object too (--object), 10 s
+# later on the shared time base, in new sessions: alice's pairs against the
+# cup come out of it.
+"$sweptccd" simulate-tracker --lcm-url "$url" --key "$work/room.key" --poses "$work/alice.jsonl" \
+  --client alice --object "cup=$work/cup.jsonl" --utime-start 10000000 --speed 2 \
+  > "$work/simulate.out"
+grep -q "^simulate-tracker: $(grep -c . "$work/cup.jsonl") object poses sent, 0 object line" \
+  "$work/simulate.out"
+for _ in $(seq 50); do
+  grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' \
+    "$work/monitor.out" && break
+  sleep 0.1
+done
+grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' "$work/monitor.out"
 kill -INT $monitor
 wait $monitor
 grep -q '"type":"shared_contact".*"entity":"cup".*"entity_kind":"object"' "$work/monitor.out"
 grep -q '"type":"shared_contact".*"entity":"bob".*"entity_kind":"client"' "$work/monitor.out"
 ! grep '"type":"shared' "$work/monitor.out" | grep -q '"verified":false'
+# The only rejection of the whole run: the unknown object.
+[ "$(grep -c '"type":"reject"' "$work/monitor.out")" = 1 ]
+grep -q '"type":"reject".*"client":"ghost".*unknown_object' "$work/monitor.out"
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
