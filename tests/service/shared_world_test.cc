@@ -160,7 +160,10 @@ void ExpectEqualToOffline(const shared_contact_t& live, const json& off) {
   }
 }
 
-TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
+// far_tail: bob's last samples jump 1000 km away. An answer whose rounding
+// slack scaled with the whole stream would change for every earlier window
+// (WindowScale keeps it to the window's samples, live and offline).
+void RunClientsAtDifferentRates(bool far_tail) {
   const std::vector<std::string> ids = {"alice", "bob", "box"};
   const int64_t period[3] = {11'111, 16'667, 33'333};  // 90, 60, 30 Hz.
   const int64_t phase[3] = {0, 5'000, 12'000};
@@ -179,6 +182,9 @@ TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
       Arrival a{t + delay[e], e, {}, {}};
       if (e < 2) {
         a.pose = (e == 0 ? alice : bob).Next(t);
+        if (far_tail && e == 1 && t > end - 50'000) {
+          for (LinkPose& l : a.pose.links) l.p.x() += 1e6;
+        }
         used[e].push_back(a.pose);
       } else {
         box_p += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng)) +
@@ -286,6 +292,15 @@ TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
   EXPECT_EQ(got_all, expected_all);
   EXPECT_GT(waited, 100) << "bob's delay makes entries wait";
 }
+
+TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
+  RunClientsAtDifferentRates(false);
+}
+
+// Regression: the slack of `sweptccd world` once scaled with the entity's
+// whole stream, which a live service cannot know; 1000 km at the end made
+// every earlier window's answer differ from the live one.
+TEST(SharedWorld, AFarLaterSampleChangesNoEarlierAnswer) { RunClientsAtDifferentRates(true); }
 
 struct Fixture {
   SharedWorldOptions so;
