@@ -79,6 +79,9 @@ struct DaemonConnection::Handlers {
   void JoinReply(const lcm::ReceiveBuffer* b, const std::string& c) noexcept {
     Deliver<join_reply_t>(b, c, self->on_join_reply_, false);
   }
+  void SharedContact(const lcm::ReceiveBuffer* b, const std::string& c) noexcept {
+    Deliver<shared_contact_t>(b, c, self->on_shared_contact_, true);
+  }
 };
 
 DaemonConnection::DaemonConnection(Options options) : options_(std::move(options)) {
@@ -93,6 +96,7 @@ DaemonConnection::DaemonConnection(Options options) : options_(std::move(options
   lcm_->subscribe(ch.reject, &Handlers::Rejection, handlers_.get());
   lcm_->subscribe(ch.status, &Handlers::Status, handlers_.get());
   lcm_->subscribe(ch.join_reply, &Handlers::JoinReply, handlers_.get());
+  lcm_->subscribe(ch.shared_contact, &Handlers::SharedContact, handlers_.get());
 }
 
 DaemonConnection::~DaemonConnection() { Stop(); }

@@ -11,5 +11,8 @@ inline constexpr char kStatusChannel[] = "SWEPTCCD_STATUS";    // status_t, out.
 inline constexpr char kJoinChannel[] = "SWEPTCCD_JOIN";              // join_request_t, in.
 inline constexpr char kJoinReplyChannel[] = "SWEPTCCD_JOIN_REPLY";  // join_reply_t, out.
 inline constexpr char kLeaveChannel[] = "SWEPTCCD_LEAVE";            // leave_t, in.
+// The shared world (SPEC section 8, docs/SERVICE.md "Shared world").
+inline constexpr char kObjectPoseChannel[] = "SWEPTCCD_OBJECT_POSE";  // object_pose_t, in.
+inline constexpr char kSharedContactChannel[] = "SWEPTCCD_SHARED_CONTACT";  // shared_contact_t, out.
 
 }  // namespace sweptccd

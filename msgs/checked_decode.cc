@@ -8,6 +8,7 @@ namespace {
 
 constexpr size_t kMac = 32;               // byte mac[32], the last field of each type.
 constexpr size_t kContactRecord = 104;    // contact_record_t: 2 int32, int64, 11 doubles.
+constexpr size_t kEntityContact = 104;    // entity_contact_t: 2 int32, int64, 11 doubles.
 constexpr size_t kLinkBracket = 4 + 32 + 3 + kContactRecord;  // link_bracket_t.
 constexpr size_t kMinString = 5;          // int32 length + the NUL.
 
@@ -222,6 +223,41 @@ std::string CheckWire(const leave_t*, const void* data, size_t size, const WireL
   r.Fixed("utime", 8);
   r.String("client_id", limits.max_id_bytes);
   r.Fixed("session", 8);
+  r.Fixed("mac", kMac);
+  return r.Finish();
+}
+
+std::string CheckWire(const object_pose_t*, const void* data, size_t size,
+                      const WireLimits& limits) {
+  if (std::string p = TooLong(size, limits); !p.empty()) return p;
+  WireReader r(data, size);
+  r.Fingerprint(object_pose_t::getHash());
+  r.Fixed("utime", 8);
+  r.String("object_id", limits.max_id_bytes);
+  r.Fixed("session", 8);
+  r.Fixed("seq", 8);
+  r.Fixed("position", 3 * 8);
+  r.Fixed("orientation", 4 * 8);
+  r.Fixed("mac", kMac);
+  return r.Finish();
+}
+
+std::string CheckWire(const shared_contact_t*, const void* data, size_t size,
+                      const WireLimits& limits) {
+  if (std::string p = TooLong(size, limits); !p.empty()) return p;
+  WireReader r(data, size);
+  r.Fingerprint(shared_contact_t::getHash());
+  r.Fixed("utime", 8);
+  r.String("client_id", limits.max_id_bytes);
+  r.Fixed("seq0..utime1", 5 * 8);
+  r.String("entity", limits.max_id_bytes);
+  r.Fixed("entity_kind..t_to", 1 + 2 * 8);
+  r.Fixed("result", 1);
+  r.String("error", limits.max_text_bytes);
+  r.Fixed("initially_colliding..t_hi", 2 + 4 * 8);
+  const int32_t contacts = r.Count("num_contacts", limits.max_contacts, kEntityContact);
+  r.Fixed("contacts", static_cast<size_t>(contacts) * kEntityContact);
+  r.Fixed("waited_us..compute_us", 8 + 1 + 8 + 8);
   r.Fixed("mac", kMac);
   return r.Finish();
 }

@@ -16,7 +16,9 @@
 #include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/join_request_t.hpp"
 #include "sweptccd/leave_t.hpp"
+#include "sweptccd/object_pose_t.hpp"
 #include "sweptccd/rejection_t.hpp"
+#include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
@@ -62,9 +64,14 @@ std::string CheckWire(const join_request_t*, const void* data, size_t size,
 std::string CheckWire(const join_reply_t*, const void* data, size_t size,
                       const WireLimits& limits);
 std::string CheckWire(const leave_t*, const void* data, size_t size, const WireLimits& limits);
+std::string CheckWire(const object_pose_t*, const void* data, size_t size,
+                      const WireLimits& limits);
+std::string CheckWire(const shared_contact_t*, const void* data, size_t size,
+                      const WireLimits& limits);
 
 /// The client_id of an encoded tracker_pose_t, join_request_t or leave_t (all
-/// three start with fingerprint, utime, client_id) that CheckWire accepted (to
+/// three start with fingerprint, utime, client_id; so does object_pose_t's
+/// object_id) that CheckWire accepted (to
 /// pick the key before verifying). Precondition: CheckWire returned "".
 std::string PeekPoseClientId(const void* data, size_t size);
 

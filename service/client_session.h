@@ -29,6 +29,7 @@ inline constexpr char kBadSignature[] = "bad_signature";    // mac missing, wron
 inline constexpr char kStaleSession[] = "stale_session";    // session below the client's current.
 inline constexpr char kUtimeJump[] = "utime_jump";          // utime beyond the horizon.
 inline constexpr char kRateLimited[] = "rate_limited";      // Over the client's input rate.
+inline constexpr char kUnknownObject[] = "unknown_object";  // object_pose_t of no configured object.
 }
 
 /// Default horizon of the utime_jump rule: 10 s.
@@ -115,6 +116,9 @@ class ClientSession {
   int64_t streams_started() const { return streams_started_; }
   /// The current stream's session; meaningful once a pose was accepted.
   int64_t session() const { return session_; }
+  /// The newest accepted pose of the current stream (quaternions
+  /// normalised), or null before the first.
+  const Pose* last_pose() const { return last_ ? &last_->pose : nullptr; }
 
  private:
   // Session, seq, utime and horizon rules against the last accepted pose.

@@ -105,6 +105,39 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     client_index_[clients_.back()->config.client_id] = clients_.back();
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
+  if (!options_.shared_world && !options_.objects.empty()) {
+    throw InputError("collision service: tracked objects need the shared world; set "
+                     "shared_world: true, or remove the objects");
+  }
+  if (options_.shared_world) {
+    SharedWorldOptions so;
+    so.silence_timeout_us = options_.silence_timeout_ms * 1000;
+    so.max_history = options_.shared_max_history;
+    so.max_pending = options_.shared_max_pending;
+    shared_ = std::make_unique<SharedWorld>(so);
+    entity_options_.eps_s = options_.query.eps_s;
+    entity_options_.delta_m = options_.query.delta_m;
+    entity_options_.max_intervals = options_.query.max_intervals;
+    const SteadyClock::time_point now = SteadyClock::now();
+    for (const auto& c : clients_) {
+      shared_->AddAvatar(c->config.client_id, c->config.skeleton, c->config.motion, now);
+    }
+    for (const TrackedObjectConfig& o : options_.objects) {
+      if (!IsValidClientId(o.object_id)) {
+        throw InputError("collision service: object id '" + EscapeForDisplay(o.object_id) +
+                         "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+      }
+      if (configured_ids_.count(o.object_id) || shared_->Has(o.object_id)) {
+        throw InputError("collision service: id '" + o.object_id +
+                         "' names two entities; give every client and object its own id");
+      }
+      if (!o.mesh || o.mesh->num_objects() != 1) {
+        throw InputError("collision service: object '" + o.object_id +
+                         "' needs exactly one mesh");
+      }
+      shared_->AddObject(o.object_id, o.mesh, now);
+    }
+  }
   instance_ = NowUtime();
   workers_.reserve(options_.num_workers);
   for (int i = 0; i < options_.num_workers; ++i) {
@@ -173,11 +206,67 @@ std::optional<Rejection> CollisionService::AdmitLocked(const std::shared_ptr<Cli
   }
   const bool was_ready = client.session.ready();
   std::optional<Rejection> rejection = client.session.OnPose(pose, receive_utime, receive_time);
+  if (!rejection && shared_) {
+    std::vector<SharedJob> due;
+    shared_->OnAvatarSample(client.config.client_id, client.session.session(),
+                            *client.session.last_pose(), receive_time, &due);
+    QueueSharedLocked(&due);
+  }
   if (!rejection && !was_ready && client.session.ready()) {
     ready_.push_back(index);
     work_cv_.notify_one();
   }
   return rejection;
+}
+
+void CollisionService::QueueSharedLocked(std::vector<SharedJob>* due) {
+  if (due->empty()) return;
+  for (SharedJob& job : *due) shared_ready_.push_back(std::move(job));
+  due->clear();
+  // Bounded: when the workers cannot keep up, the oldest due entries are
+  // dropped unanswered and counted (shared_dropped, the log), never queued
+  // without bound.
+  int64_t dropped = 0;
+  while (static_cast<int>(shared_ready_.size()) > options_.shared_max_pending) {
+    shared_ready_.pop_front();
+    ++dropped;
+  }
+  if (dropped > 0) {
+    if (shared_dropped_ == 0 || (shared_dropped_ + dropped) / 1000 != shared_dropped_ / 1000) {
+      spdlog::warn("shared world: {} due entries dropped unanswered so far (workers behind)",
+                   shared_dropped_ + dropped);
+    }
+    shared_dropped_ += dropped;
+  }
+  work_cv_.notify_all();
+}
+
+void CollisionService::OnObjectPose(const object_pose_t& pose) {
+  const SteadyClock::time_point receive_time = SteadyClock::now();
+  std::optional<Rejection> rejection;
+  bool attributed = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (stopping_) {
+      ++ignored_after_stop_;
+      return;
+    }
+    if (!shared_) {
+      rejection = Rejection{rejection_code::kUnknownObject,
+                            "this daemon runs without the shared world (shared_world: false); "
+                            "object poses are not taken"};
+    } else {
+      std::vector<SharedJob> due;
+      rejection = shared_->OnObjectPose(pose, options_.max_utime_jump_us, receive_time, &due);
+      QueueSharedLocked(&due);
+    }
+    attributed = rejection && rejection->reason != rejection_code::kUnknownObject;
+    if (rejection && !attributed) ++rejected_unattributed_;
+  }
+  if (rejection) {
+    Reject(IsValidClientId(pose.object_id) ? pose.object_id : "", pose.seq, *rejection,
+           attributed);
+  }
 }
 
 void CollisionService::OnRefused(const std::string& client_id, const Rejection& rejection) {
@@ -312,13 +401,38 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
 void CollisionService::WorkerLoop() {
   std::unique_lock<std::mutex> lock(mutex_);
   for (;;) {
-    work_cv_.wait(lock, [this] { return !ready_.empty() || (stopping_ && in_flight_ == 0); });
-    if (ready_.empty()) break;  // Stopping, nothing left anywhere.
+    work_cv_.wait(lock, [this] {
+      return !ready_.empty() || !shared_ready_.empty() || (stopping_ && in_flight_ == 0);
+    });
+    if (ready_.empty() && shared_ready_.empty()) break;  // Stopping, nothing left anywhere.
+    if (ready_.empty()) {
+      // A shared entry: environment parts go first (their latency never
+      // waits for the shared world).
+      SharedJob job = std::move(shared_ready_.front());
+      shared_ready_.pop_front();
+      ++in_flight_;
+      lock.unlock();
+      shared_contact_t event = AnswerSharedJob(job, entity_options_);
+      if (event.result == shared_contact_t::RESULT_INVALID) {
+        spdlog::error("client '{}' pair {} against '{}': {}", job.client_id, job.pair, job.entity,
+                      EscapeForDisplay(event.error, 1024));
+      }
+      event.utime = NowUtime();
+      SafePublish([&] { publisher_->PublishSharedContact(event); }, "shared contact");
+      lock.lock();
+      ++shared_published_;
+      --in_flight_;
+      if (IdleLocked()) {
+        idle_cv_.notify_all();
+        if (stopping_) work_cv_.notify_all();
+      }
+      continue;
+    }
     const std::shared_ptr<Client> index = ready_.front();
     ready_.pop_front();
     Client& client = *index;
     if (client.removed) {  // Left or expired: its pending pair goes with it.
-      if (ready_.empty() && in_flight_ == 0) {
+      if (IdleLocked()) {
         idle_cv_.notify_all();
         if (stopping_) work_cv_.notify_all();
       }
@@ -340,12 +454,21 @@ void CollisionService::WorkerLoop() {
       client.latencies_us.pop_front();
     }
     client.session.FinishPair();
+    if (shared_ && !client.removed) {
+      // The pair's shared part, after its environment part was published:
+      // entries the other entities cover already are due at once.
+      std::vector<SharedJob> due;
+      const SteadyClock::time_point now = SteadyClock::now();
+      shared_->AddPair(client.config.client_id, pair, now, &due);
+      if (stopping_) shared_->CutAll(now, &due);
+      QueueSharedLocked(&due);
+    }
     --in_flight_;
     if (client.session.ready() && !client.removed) {
       ready_.push_back(index);
       work_cv_.notify_one();
     }
-    if (ready_.empty() && in_flight_ == 0) {
+    if (IdleLocked()) {
       idle_cv_.notify_all();
       if (stopping_) work_cv_.notify_all();  // Let the other workers leave.
     }
@@ -354,7 +477,7 @@ void CollisionService::WorkerLoop() {
 
 void CollisionService::WaitUntilIdle() {
   std::unique_lock<std::mutex> lock(mutex_);
-  idle_cv_.wait(lock, [this] { return ready_.empty() && in_flight_ == 0; });
+  idle_cv_.wait(lock, [this] { return IdleLocked(); });
 }
 
 void CollisionService::Stop() {
@@ -362,6 +485,12 @@ void CollisionService::Stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;
+    if (shared_) {
+      // Nothing more will arrive: what still waits ends now (ended_by_timeout).
+      std::vector<SharedJob> due;
+      shared_->CutAll(SteadyClock::now(), &due);
+      QueueSharedLocked(&due);
+    }
   }
   work_cv_.notify_all();
   for (std::thread& t : workers_) {
@@ -431,6 +560,11 @@ bool CollisionService::LiveKey(const std::string& client_id, std::optional<MacKe
 
 void CollisionService::RemoveLocked(const std::shared_ptr<Client>& client) {
   client->removed = true;
+  if (shared_) {
+    std::vector<SharedJob> due;
+    shared_->RemoveAvatar(client->config.client_id, SteadyClock::now(), &due);
+    QueueSharedLocked(&due);
+  }
   client_index_.erase(client->config.client_id);
   clients_.erase(std::remove(clients_.begin(), clients_.end(), client), clients_.end());
 }
@@ -448,6 +582,11 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
     if (configured_ids_.count(id)) {
       out = {join_reply_t::REASON_ID_IN_USE,
              "client id '" + id + "' is a configured client of this daemon; pick another id", 0, {}};
+      return false;
+    }
+    if (shared_ && shared_->Has(id) && !client_index_.count(id)) {
+      out = {join_reply_t::REASON_ID_IN_USE,
+             "id '" + id + "' is a tracked object of this daemon; pick another id", 0, {}};
       return false;
     }
     const auto it = client_index_.find(id);
@@ -499,6 +638,9 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   last_session_ = client->assigned_session;
   clients_.push_back(client);
   client_index_[id] = client;
+  if (shared_) {
+    shared_->AddAvatar(id, client->config.skeleton, client->config.motion, SteadyClock::now());
+  }
   ++live_joined_;
   return {join_reply_t::REASON_ACCEPTED, "", client->assigned_session, client->key};
 }
@@ -528,7 +670,27 @@ std::vector<std::string> CollisionService::ExpireSilent(SteadyClock::time_point 
     RemoveLocked(c);
     ++live_expired_;
   }
+  if (shared_) {
+    std::vector<SharedJob> due;
+    shared_->CutSilent(now, &due);
+    QueueSharedLocked(&due);
+  }
   return expired;
+}
+
+int64_t CollisionService::shared_published() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return shared_published_;
+}
+
+int64_t CollisionService::shared_dropped() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return shared_dropped_;
+}
+
+size_t CollisionService::shared_pending() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return shared_ ? shared_->pending() : 0;
 }
 
 int64_t CollisionService::publish_errors() const {

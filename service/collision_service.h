@@ -24,10 +24,12 @@
 #include "core/avatar/skeleton.h"
 #include "service/client_session.h"
 #include "service/publisher.h"
+#include "service/shared_world.h"
 #include "service/token_bucket.h"
 #include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/join_reply_t.hpp"
+#include "sweptccd/object_pose_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
@@ -42,6 +44,12 @@ struct ClientConfig {
   /// Per-client tolerances (a live client's join): 0 takes ServiceOptions::query's.
   double eps_s = 0;
   double delta_m = 0;
+};
+
+/// A tracked object (SPEC section 8): configured, never joined.
+struct TrackedObjectConfig {
+  std::string object_id;                     // Id rule; unique across clients and objects.
+  std::shared_ptr<const Environment> mesh;   // One object, in the object's frame.
 };
 
 /// A live client's join (docs/SERVICE.md, "Live clients"), built off the
@@ -94,7 +102,16 @@ struct ServiceOptions {
   /// Live clients (joined over LCM) at most at once; 0: joins are refused.
   int max_live_clients = 0;
   /// A live client with no pose (nor join) for this long is dropped, ms, > 0.
+  /// The same timeout ends the shared world's windows (docs/SERVICE.md
+  /// "Shared world"): there is no second one.
   int64_t silence_timeout_ms = 5000;
+  /// The shared world (SPEC 8 "Live"): every pair is also answered against
+  /// every other client and tracked object (shared_contact_t). Off: only the
+  /// environment part, and `objects` must be empty. Off by default.
+  bool shared_world = false;
+  std::vector<TrackedObjectConfig> objects;
+  int shared_max_history = 4096;  // Samples kept per entity.
+  int shared_max_pending = 4096;  // (pair, entity) entries waiting, in all.
 };
 
 /// Owns the client sessions and the worker pool.
@@ -128,6 +145,11 @@ class CollisionService {
   /// "decode_error" rejection and counts it.
   void OnUndecodable(const std::string& channel, const std::string& problem,
                      const char* type = "sweptccd.tracker_pose_t");
+
+  /// A tracked object's pose (bytes, id rule and mac checked by the
+  /// transport): used, or refused with one rejection (unknown_object for an
+  /// id that is no configured object; nothing else is touched).
+  void OnObjectPose(const object_pose_t& pose);
 
   /// A pose refused by the transport before decoding (bad_client_id,
   /// bad_signature): publishes the rejection and counts it as unattributed
@@ -169,6 +191,13 @@ class CollisionService {
   /// Publishes Status() through the publisher.
   void PublishStatus();
 
+  /// Shared-world entries published, and (pair, entity) entries waiting.
+  int64_t shared_published() const;
+  size_t shared_pending() const;
+  /// Due shared entries dropped unanswered because more than
+  /// shared_max_pending waited for a worker (the workers were behind).
+  int64_t shared_dropped() const;
+
   int64_t publish_errors() const;
   int64_t ignored_after_stop() const;
   /// Rejections not attributable to a registered client (unknown client,
@@ -196,6 +225,10 @@ class CollisionService {
   };
 
   void WorkerLoop();
+  // Under mutex_: hands due shared-world entries to the workers.
+  void QueueSharedLocked(std::vector<SharedJob>* due);
+  // Whether nothing is ready or in flight (under mutex_).
+  bool IdleLocked() const { return ready_.empty() && shared_ready_.empty() && in_flight_ == 0; }
   // Under mutex_: removes a client from the maps and the order.
   void RemoveLocked(const std::shared_ptr<Client>& client);
   contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
@@ -224,6 +257,11 @@ class CollisionService {
   std::condition_variable work_cv_;  // Workers wait for ready clients.
   std::condition_variable idle_cv_;  // WaitUntilIdle waits for quiescence.
   std::deque<std::shared_ptr<Client>> ready_;  // Clients with a pending pair, none in flight.
+  std::unique_ptr<SharedWorld> shared_;        // Null when options_.shared_world is off.
+  std::deque<SharedJob> shared_ready_;         // Due shared entries, oldest first.
+  world::EntityQueryOptions entity_options_;
+  int64_t shared_published_ = 0;
+  int64_t shared_dropped_ = 0;
   int64_t last_session_ = 0;     // Sessions handed out are strictly increasing.
   int64_t live_joined_ = 0, live_left_ = 0, live_expired_ = 0;
   int64_t instance_ = 0;         // status_t.instance.

@@ -19,6 +19,7 @@ struct LcmTransport::Impl {
   LcmChannels channels;
   CollisionService* service = nullptr;
   lcm::Subscription* subscription = nullptr;
+  lcm::Subscription* object_subscription = nullptr;
   LiveSessionHandler* live = nullptr;
   lcm::Subscription* join_subscription = nullptr;
   lcm::Subscription* leave_subscription = nullptr;
@@ -76,6 +77,42 @@ struct LcmTransport::Impl {
     DecodeResult<tracker_pose_t> decoded = DecodeChecked<tracker_pose_t>(data, size, security.limits);
     if (!decoded.ok()) return service->OnUndecodable(channel, decoded.problem + bytes);
     service->OnPose(*decoded.message);
+  }
+
+  void HandleObjectPose(const lcm::ReceiveBuffer* rbuf, const std::string& channel) noexcept {
+    ++received;
+    Guard("object pose", channel, [&] { AdmitObject(rbuf->data, rbuf->data_size, channel); });
+  }
+
+  // As Admit: bytes, id rule, the object's key (security.client_keys, else
+  // the room key), decode.
+  void AdmitObject(const void* data, size_t size, const std::string& channel) {
+    const std::string bytes = ", " + std::to_string(size) + " bytes";
+    const char* type = "sweptccd.object_pose_t";
+    const std::string problem =
+        CheckWire(static_cast<const object_pose_t*>(nullptr), data, size, security.limits);
+    if (!problem.empty()) return service->OnUndecodable(channel, problem + bytes, type);
+    const std::string id = PeekPoseClientId(data, size);  // object_id: the same offset.
+    if (!IsValidClientId(id)) {
+      return service->OnRefused(
+          "", Rejection{rejection_code::kBadClientId,
+                        "object_id '" + EscapeForDisplay(id) +
+                            "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"});
+    }
+    if (security.signed_mode) {
+      const MacKey* key = security.keys.KeyFor(id);
+      if (key == nullptr || !VerifyEncoded(data, size, *key)) {
+        return service->OnRefused(
+            id, Rejection{rejection_code::kBadSignature,
+                          key == nullptr ? "no key for object '" + id +
+                                               "' and no room key; add it under objects[].key"
+                                         : "the mac of a pose of object '" + id +
+                                               "' does not verify; sign with the object's key"});
+      }
+    }
+    DecodeResult<object_pose_t> decoded = DecodeChecked<object_pose_t>(data, size, security.limits);
+    if (!decoded.ok()) return service->OnUndecodable(channel, decoded.problem + bytes, type);
+    service->OnObjectPose(*decoded.message);
   }
 
   template <class F>
@@ -199,6 +236,11 @@ void LcmTransport::Subscribe(CollisionService* service) {
   if (impl_->subscription == nullptr) {
     throw InputError("LCM transport: cannot subscribe to channel " + impl_->channels.pose);
   }
+  impl_->object_subscription =
+      impl_->lcm->subscribe(impl_->channels.object_pose, &Impl::HandleObjectPose, impl_.get());
+  if (impl_->object_subscription == nullptr) {
+    throw InputError("LCM transport: cannot subscribe to channel " + impl_->channels.object_pose);
+  }
 }
 
 void LcmTransport::SubscribeLive(LiveSessionHandler* handler) {
@@ -217,7 +259,8 @@ void LcmTransport::SubscribeLive(LiveSessionHandler* handler) {
 
 void LcmTransport::Unsubscribe() {
   for (lcm::Subscription** s :
-       {&impl_->subscription, &impl_->join_subscription, &impl_->leave_subscription}) {
+       {&impl_->subscription, &impl_->object_subscription, &impl_->join_subscription,
+        &impl_->leave_subscription}) {
     if (*s != nullptr) {
       impl_->lcm->unsubscribe(*s);
       *s = nullptr;
@@ -239,6 +282,10 @@ void LcmTransport::PublishRejection(const rejection_t& rejection) {
 
 void LcmTransport::PublishStatus(const status_t& status) {
   impl_->Publish(impl_->channels.status, status);
+}
+
+void LcmTransport::PublishSharedContact(const shared_contact_t& event) {
+  impl_->Publish(impl_->channels.shared_contact, event);
 }
 
 const LcmChannels& LcmTransport::channels() const { return impl_->channels; }

@@ -40,6 +40,8 @@ struct LcmChannels {
   std::string join = kJoinChannel;             // join_request_t, in.
   std::string join_reply = kJoinReplyChannel;  // join_reply_t, out.
   std::string leave = kLeaveChannel;           // leave_t, in.
+  std::string object_pose = kObjectPoseChannel;        // object_pose_t, in.
+  std::string shared_contact = kSharedContactChannel;  // shared_contact_t, out.
 };
 
 /// How the transport authenticates what it receives and signs what it sends.
@@ -77,7 +79,9 @@ class LcmTransport : public Publisher {
   LcmTransport(const LcmTransport&) = delete;
   LcmTransport& operator=(const LcmTransport&) = delete;
 
-  /// Subscribes to the pose channel and forwards to `service` (which must
+  /// Subscribes to the pose channel and the object pose channel (object
+  /// poses: the same checks, the object's key, then
+  /// CollisionService::OnObjectPose) and forwards to `service` (which must
   /// outlive this object, or Unsubscribe() first). Call once.
   void Subscribe(CollisionService* service);
   /// Subscribes to the join and leave channels and forwards them to
@@ -93,6 +97,7 @@ class LcmTransport : public Publisher {
   void PublishContact(const contact_event_t& event) override;
   void PublishRejection(const rejection_t& rejection) override;
   void PublishStatus(const status_t& status) override;
+  void PublishSharedContact(const shared_contact_t& event) override;
 
   const LcmChannels& channels() const;
   /// Pose messages received on the pose channel (decodable or not).

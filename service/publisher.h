@@ -4,6 +4,7 @@
 
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
+#include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/status_t.hpp"
 
 namespace sweptccd {
@@ -20,6 +21,10 @@ class Publisher {
   virtual void PublishContact(const contact_event_t& event) = 0;
   virtual void PublishRejection(const rejection_t& rejection) = 0;
   virtual void PublishStatus(const status_t& status) = 0;
+  /// The shared part of a pair against one other entity (docs/SERVICE.md
+  /// "Shared world"), from worker threads, after that pair's contact event.
+  /// Default: dropped (a publisher that does not serve the shared world).
+  virtual void PublishSharedContact(const shared_contact_t& /*event*/) {}
 };
 
 }  // namespace sweptccd

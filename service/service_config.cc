@@ -135,14 +135,23 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
              "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
-             "max_links", "max_pose_rate_hz", "max_live_clients", "silence_timeout_ms"},
+             "max_links", "max_pose_rate_hz", "max_live_clients", "silence_timeout_ms",
+             "shared_world", "objects"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
   if (const YAML::Node ch = root["channels"]) {
     if (!ch.IsMap()) throw InputError(at + "channels: expected a mapping");
-    CheckKeys(ch, {"pose", "contact", "reject", "status", "join", "join_reply", "leave"},
+    CheckKeys(ch, {"pose", "contact", "reject", "status", "join", "join_reply", "leave",
+                   "object_pose", "shared_contact"},
               at + "channels");
+    if (ch["object_pose"]) {
+      c.channels.object_pose = Get<std::string>(ch["object_pose"], at + "channels.object_pose");
+    }
+    if (ch["shared_contact"]) {
+      c.channels.shared_contact =
+          Get<std::string>(ch["shared_contact"], at + "channels.shared_contact");
+    }
     if (ch["join"]) c.channels.join = Get<std::string>(ch["join"], at + "channels.join");
     if (ch["join_reply"]) {
       c.channels.join_reply = Get<std::string>(ch["join_reply"], at + "channels.join_reply");
@@ -218,6 +227,23 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       c.clients.push_back(spec);
     }
   }
+  if (root["shared_world"]) c.shared_world = Get<bool>(root["shared_world"], at + "shared_world");
+  if (const YAML::Node objects = root["objects"]) {
+    if (!objects.IsSequence()) throw InputError(at + "objects: expected a list");
+    for (size_t i = 0; i < objects.size(); ++i) {
+      const std::string where = at + "objects[" + std::to_string(i) + "]";
+      const YAML::Node e = objects[i];
+      if (!e.IsMap()) throw InputError(where + ": expected a mapping");
+      CheckKeys(e, {"id", "mesh", "key"}, where);
+      if (!e["id"]) throw InputError(where + ": missing 'id'");
+      if (!e["mesh"]) throw InputError(where + ": missing 'mesh'");
+      ObjectSpec spec;
+      spec.id = Get<std::string>(e["id"], where + ".id");
+      spec.mesh_path = Resolve(base_dir, Get<std::string>(e["mesh"], where + ".mesh"));
+      if (e["key"]) spec.key_path = Resolve(base_dir, Get<std::string>(e["key"], where + ".key"));
+      c.objects.push_back(spec);
+    }
+  }
   return c;
 }
 
@@ -253,6 +279,28 @@ void ValidateServiceConfig(const ServiceConfig& c) {
                        "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
     }
     if (!ids.insert(s.id).second) throw InputError("configuration: duplicate client id '" + s.id + "'");
+  }
+  for (const ObjectSpec& o : c.objects) {
+    if (!IsValidClientId(o.id)) {
+      throw InputError("configuration: object id '" + EscapeForDisplay(o.id) +
+                       "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+    }
+    if (!ids.insert(o.id).second) {
+      throw InputError("configuration: id '" + o.id +
+                       "' names two entities (clients and objects share one id space)");
+    }
+    if (!o.key_path.empty() && c.security.client_keys.count(o.id)) {
+      throw InputError("configuration: object '" + o.id +
+                       "' has a key and a security.client_keys entry; keep one");
+    }
+    if (c.security.mode != "unsigned" && o.key_path.empty() && c.security.room_key.empty() &&
+        !c.security.client_keys.count(o.id)) {
+      throw InputError("configuration: object '" + o.id +
+                       "' has no key; give objects[].key or set security.room_key");
+    }
+  }
+  if (!c.shared_world && !c.objects.empty()) {
+    throw InputError("configuration: objects need shared_world: true");
   }
   if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");

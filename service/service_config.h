@@ -22,6 +22,14 @@ struct ClientSpec {
   std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
 };
 
+/// A tracked object (SPEC section 8; docs/SERVICE.md "Shared world"):
+/// configured, never joined. Its poses come as object_pose_t.
+struct ObjectSpec {
+  std::string id;         // Id rule; unique across clients and objects.
+  std::string mesh_path;  // One mesh file (SPEC 4), in the object's frame.
+  std::string key_path;   // Optional: its key (else the room key), as client_keys.
+};
+
 /// The `security:` block (docs/SERVICE.md, "Signed messages").
 struct SecurityConfig {
   std::string mode = "signed";  // signed, or unsigned for a lab bench.
@@ -53,6 +61,12 @@ struct ServiceConfig {
   /// setting for every silence rule of the daemon.
   int64_t silence_timeout_ms = 5000;
   std::vector<ClientSpec> clients;
+  /// The shared world (docs/SERVICE.md "Shared world"): pairs answered
+  /// against every other client and tracked object too. Its windows end by
+  /// silence_timeout_ms (no timeout of its own). Off by default: with N
+  /// co-located clients it publishes N-1 messages per pair on the bus.
+  bool shared_world = false;
+  std::vector<ObjectSpec> objects;
   SecurityConfig security;
 };
 

@@ -29,7 +29,7 @@ parsers=(fuzz_skeleton fuzz_pose fuzz_filter fuzz_config
 # reason length INT32_MIN, 2^26 links or contacts, 2^24 clients).
 decoders=(fuzz_decode_tracker_pose_t fuzz_decode_status_t fuzz_decode_rejection_t
           fuzz_decode_contact_event_t fuzz_decode_join_request_t fuzz_decode_join_reply_t
-          fuzz_decode_leave_t)
+          fuzz_decode_leave_t fuzz_decode_object_pose_t fuzz_decode_shared_contact_t)
 # 1: the decoder targets run by default (in CI). Set since Decode() calls
 # DecodeChecked; before that lcm-gen's decoders failed in seconds.
 decoders_checked=1

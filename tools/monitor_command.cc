@@ -66,6 +66,9 @@ class Monitor {
     connection->OnStatus([this](const status_t& s, bool verified) {
       Guard(o_.status_channel, [&] { Verified(verified), Status(s); });
     });
+    connection->OnSharedContact([this](const shared_contact_t& s, bool verified) {
+      Guard(kSharedContactChannel, [&] { Verified(verified), Shared(s); });
+    });
     connection->OnRejection([this](const rejection_t& r, bool verified) {
       Guard(o_.reject_channel, [&] { Verified(verified), Reject(r); });
     });
@@ -268,6 +271,67 @@ class Monitor {
     }
   }
 
+  // A shared-world entry: the pair of one client against another client or
+  // a tracked object (docs/SERVICE.md "Shared world"). Free ones with --all.
+  void Shared(const shared_contact_t& s) {
+    const bool contact = s.result == shared_contact_t::RESULT_CONTACT;
+    const bool invalid = s.result == shared_contact_t::RESULT_INVALID;
+    ++shared_total_;
+    if (contact) ++shared_contact_total_;
+    if (!contact && !invalid && !o_.all) return;
+    const char* kind = s.entity_kind == shared_contact_t::KIND_OBJECT ? "object" : "client";
+    if (o_.json) {
+      json j{{"type", contact ? "shared_contact" : invalid ? "shared_invalid" : "shared_free"},
+             {"client", s.client_id},
+             {"pair", s.pair},
+             {"seq0", s.seq0},
+             {"seq1", s.seq1},
+             {"entity", s.entity},
+             {"entity_kind", kind},
+             {"window", {s.t_from, s.t_to}},
+             {"waited_us", s.waited_us},
+             {"ended_by_timeout", static_cast<bool>(s.ended_by_timeout)},
+             {"compute_us", s.compute_us}};
+      if (contact) {
+        j["t_lo"] = s.t_lo;
+        j["t_hi"] = s.t_hi;
+        j["initially_colliding"] = static_cast<bool>(s.initially_colliding);
+        j["undecided"] = static_cast<bool>(s.undecided);
+        json contacts = json::array();
+        for (const entity_contact_t& c : s.contacts) {
+          contacts.push_back({{"link", c.link},
+                              {"other_link", c.other_link},
+                              {"triangle", c.triangle},
+                              {"s", c.s},
+                              {"separation", c.separation}});
+        }
+        j["contacts"] = contacts;
+      }
+      if (invalid) j["error"] = s.error;
+      EmitMsg(j);
+      return;
+    }
+    std::string head = fmt::format("shared {} {} pair {} seq {}-{} with {} {} window {}..{} us",
+                                   contact ? "contact" : invalid ? "invalid" : "free",
+                                   Name(s.client_id), s.pair, s.seq0, s.seq1, kind,
+                                   EscapeForDisplay(s.entity), s.t_from, s.t_to);
+    if (contact) {
+      head += fmt::format(" t {:.1f}..{:.1f} us", s.t_lo, s.t_hi);
+      if (!s.contacts.empty()) {
+        const entity_contact_t& c = s.contacts[0];
+        head += fmt::format(" link {} {} {} separation {:.5f} m", LinkName(c.link),
+                            c.other_link >= 0 ? "other_link" : "triangle",
+                            c.other_link >= 0 ? c.other_link : c.triangle, c.separation);
+      }
+      if (s.initially_colliding) head += " initially_colliding";
+      if (s.undecided) head += " undecided";
+    }
+    if (invalid) head += " error: " + EscapeForDisplay(s.error, 1024);
+    head += fmt::format(" waited {} us", s.waited_us);
+    if (s.ended_by_timeout) head += " ended_by_timeout";
+    Show(head);
+  }
+
   void Reject(const rejection_t& r) {
     ++tally_[r.client_id].rejected;
     if (o_.json) {
@@ -345,6 +409,7 @@ class Monitor {
   std::optional<Skeleton> skeleton_;
   std::optional<MacKey> key_;  // --key; none: nothing is verified.
   bool verified_ = false;      // Of the message being shown.
+  int64_t shared_total_ = 0, shared_contact_total_ = 0;  // Shared-world entries seen.
   int64_t unverified_ = 0;
   std::map<std::string, ClientTally> tally_;
   int64_t contact_total_ = 0;

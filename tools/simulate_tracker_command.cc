@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cstdint>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -18,9 +19,12 @@
 #include <set>
 
 #include "core/errors.h"
+#include "core/world/world_file.h"
+#include "sweptccd/object_pose_t.hpp"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "msgs/signing.h"
+#include "msgs/text.h"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "service/daemon/stop_signal.h"
 #include "sweptccd_client/live_client.h"
@@ -239,6 +243,9 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
                   "--join: key file that verifies the daemon's replies (default: --key)");
   app->add_option("--join-ignore", o->ignore_rules,
                   "--join: LINK:OBJECT filter rule sent with the join; repeat");
+  app->add_option("--object", o->objects,
+                  "ID=POSES.jsonl: a tracked object's pose lines (SPEC 8), sent as object_pose_t "
+                  "on SWEPTCCD_OBJECT_POSE by utime among the avatars' samples; repeatable");
   app->add_option("--session", o->session,
                   "Stream session, >= 0 (default: the wall clock in microseconds at start, so a "
                   "restarted tracker starts a new stream)");
@@ -378,6 +385,63 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
     std::fprintf(stderr, "error: simulate-tracker: %s\n", e.what());
     return 2;
   }
+  // Tracked objects: every usable line, by utime (unusable ones skipped and
+  // counted, as pose lines are).
+  std::vector<object_pose_t> objects;
+  std::shared_ptr<DaemonConnection> object_connection = shared;
+  int64_t object_lines_skipped = 0;
+  try {
+    for (const std::string& spec : o.objects) {
+      const size_t eq = spec.find('=');
+      if (eq == std::string::npos || eq == 0 || !IsValidClientId(spec.substr(0, eq))) {
+        throw InputError("--object '" + EscapeForDisplay(spec) +
+                         "': use ID=POSES.jsonl with an id of 1-64 characters from A-Z a-z 0-9 _ . -");
+      }
+      const std::string path = spec.substr(eq + 1);
+      std::ifstream in(path);
+      if (!in) throw InputError("--object " + path + ": cannot open the file");
+      std::string line;
+      int64_t seq = 0;
+      while (std::getline(in, line)) {
+        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+        world::RigidSample x;
+        std::string error;
+        if (!world::ParseObjectPoseLine(line, &x, &error)) {
+          ++object_lines_skipped;
+          continue;
+        }
+        object_pose_t m{};
+        m.utime = x.utime + static_cast<int64_t>(o.bvh.utime_start);
+        m.object_id = spec.substr(0, eq);
+        m.session = session;
+        m.seq = seq++;
+        for (int c = 0; c < 3; ++c) m.position[c] = x.p[c];
+        m.orientation[0] = x.q.w(), m.orientation[1] = x.q.x(), m.orientation[2] = x.q.y();
+        m.orientation[3] = x.q.z();
+        objects.push_back(m);
+      }
+    }
+    std::stable_sort(objects.begin(), objects.end(),
+                     [](const object_pose_t& a, const object_pose_t& b) { return a.utime < b.utime; });
+    if (!objects.empty() && !object_connection) {
+      DaemonConnection::Options co;
+      co.lcm_url = o.lcm_url;
+      object_connection = std::make_shared<DaemonConnection>(std::move(co));
+    }
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: simulate-tracker: %s\n", e.what());
+    return 2;
+  }
+  size_t next_object = 0;
+  int64_t objects_sent = 0;
+  auto publish_objects_until = [&](int64_t utime, int64_t rebase) {
+    for (; next_object < objects.size() && objects[next_object].utime <= utime; ++next_object) {
+      object_pose_t m = objects[next_object];
+      m.utime += rebase;
+      const std::vector<uint8_t> bytes = EncodeSigned(m, key);
+      if (object_connection->Publish(kObjectPoseChannel, bytes)) ++objects_sent;
+    }
+  };
   for (auto& [id, client] : live) {
     const JoinResult joined = client->Join();
     if (!joined.ok()) {
@@ -437,6 +501,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
         break;
       }
       ++rounds;
+      if (loop == 0) publish_objects_until(utime, rebase_us);
       SendRound(o, *sample, utime + rebase_us, session, o.seq_start + loop * shape.n + k,
                 &clients,
                 &counters, publish);
@@ -460,6 +525,12 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       publish(*c.held);
       c.held.reset();
     }
+  }
+  if (!stopped && !objects.empty()) publish_objects_until(INT64_MAX - 1, rebase_us);
+  if (!objects.empty()) {
+    std::printf("simulate-tracker: %lld object poses sent, %lld object line(s) skipped\n",
+                static_cast<long long>(objects_sent),
+                static_cast<long long>(object_lines_skipped));
   }
   for (auto& [id, client] : live) client->Leave();
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();

@@ -71,6 +71,12 @@ struct SimulateTrackerCommandOptions {
   bool join = false;
   std::string service_key_path;  // Verifies join replies; default: key_path.
   std::vector<std::string> ignore_rules;  // --join: LINK:OBJECT filter rules.
+  /// --object ID=POSES.jsonl, repeated: tracked objects of the shared world
+  /// (SPEC 8 object pose lines), published as object_pose_t on
+  /// SWEPTCCD_OBJECT_POSE interleaved by utime with the avatars' samples
+  /// (first pass only; --utime-start and --rebase-utime apply), signed with
+  /// --key, with the avatars' session.
+  std::vector<std::string> objects;
 };
 
 void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* options);

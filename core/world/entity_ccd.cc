@@ -4,7 +4,9 @@
 #include <cmath>
 #include <map>
 #include <queue>
+#include <utility>
 
+#include "core/errors.h"
 #include "core/geometry/distance.h"
 
 namespace sweptccd::world {
@@ -120,7 +122,7 @@ class AvatarTarget : public OtherTarget {
 class ObjectTarget : public OtherTarget {
  public:
   ObjectTarget(const World& world, int a, int o, double scale)
-      : world_(world), a_(a), o_(o), e_(world.objects[o]), bvh_(e_.mesh.object(0).bvh) {
+      : world_(world), a_(a), o_(o), e_(world.objects[o]), bvh_(e_.mesh->object(0).bvh) {
     const Aabb bounds = bvh_.bounds();
     for (int c = 0; c < 8; ++c) {
       const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
@@ -129,7 +131,7 @@ class ObjectTarget : public OtherTarget {
       rho_ = std::max(rho_, corner.norm());
     }
     if (scale < 0) scale = EntityScale(e_);
-    tol_ = e_.mesh.coordinate_tolerance() + std::ldexp(scale + 10.0, -22) + 1e-9;
+    tol_ = e_.mesh->coordinate_tolerance() + std::ldexp(scale + 10.0, -22) + 1e-9;
   }
 
   std::vector<int> RootCandidates(int link_a) const override {
@@ -284,8 +286,38 @@ double EntityScale(const AvatarEntity& e) {
 }
 
 double EntityScale(const ObjectEntity& e) {
-  double scale = e.mesh.num_objects() > 0 ? e.mesh.object(0).bvh.max_abs_coordinate() : 0.0;
+  double scale = e.mesh->num_objects() > 0 ? e.mesh->object(0).bvh.max_abs_coordinate() : 0.0;
   for (const RigidSample& x : e.used) scale = std::max(scale, x.p.cwiseAbs().maxCoeff());
+  return scale;
+}
+
+namespace {
+
+// The sample indices [first, last] the pieces use.
+std::pair<size_t, size_t> WindowSamples(size_t num_samples, const std::vector<Piece>& pieces) {
+  SWEPTCCD_CHECK(!pieces.empty() && num_samples > 0);
+  const size_t first = static_cast<size_t>(pieces.front().k);
+  const size_t last = std::min(static_cast<size_t>(pieces.back().k) + 1, num_samples - 1);
+  SWEPTCCD_CHECK(first <= last);
+  return {first, last};
+}
+
+}  // namespace
+
+double WindowScale(const AvatarEntity& e, const std::vector<Piece>& pieces) {
+  const auto [first, last] = WindowSamples(e.used.size(), pieces);
+  double scale = 0;
+  for (size_t k = first; k <= last; ++k) {
+    for (const LinkPose& l : e.used[k].links) scale = std::max(scale, l.p.cwiseAbs().maxCoeff());
+  }
+  for (const Link& l : e.skeleton.links()) scale = std::max({scale, l.a_L.norm(), l.b_L.norm()});
+  return scale;
+}
+
+double WindowScale(const ObjectEntity& e, const std::vector<Piece>& pieces) {
+  const auto [first, last] = WindowSamples(e.used.size(), pieces);
+  double scale = e.mesh->num_objects() > 0 ? e.mesh->object(0).bvh.max_abs_coordinate() : 0.0;
+  for (size_t k = first; k <= last; ++k) scale = std::max(scale, e.used[k].p.cwiseAbs().maxCoeff());
   return scale;
 }
 

@@ -107,6 +107,16 @@ class OtherTarget {
 double EntityScale(const AvatarEntity& entity);
 double EntityScale(const ObjectEntity& entity);
 
+/// The same over the geometry and only the samples the window's pieces use
+/// (pieces.front().k to pieces.back().k + 1, clamped to the samples): the
+/// scale a window's answer is computed with. It depends on nothing outside
+/// the window, so a live service holding only those samples (a slice of
+/// the entity's history, re-based so that its first sample is
+/// pieces.front().k) answers bit-equal to `sweptccd world`. O(pieces).
+/// Precondition: pieces non-empty and from SplitWindow over entity.used.
+double WindowScale(const AvatarEntity& entity, const std::vector<Piece>& pieces);
+double WindowScale(const ObjectEntity& entity, const std::vector<Piece>& pieces);
+
 /// The other entity's targets; `scale` is EntityScale of it (< 0: computed
 /// here, O(samples); callers answering many pairs compute it once).
 std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale = -1);

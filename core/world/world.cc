@@ -1,5 +1,7 @@
 #include "core/world/world.h"
 
+#include <cmath>
+
 namespace sweptccd::world {
 
 bool IsValidEntityId(const std::string& id) {
@@ -38,6 +40,22 @@ bool World::IgnoresObject(int a, int link_a, int o) const {
 
 RigidMotion::RigidMotion(const RigidSample& a, const RigidSample& b) : x0(a), x1(b) {
   angle = SlerpAngle(x0.q, x1.q);
+}
+
+std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out) {
+  for (int k = 0; k < 7; ++k) {
+    if (!std::isfinite(pose[k])) return "non-finite number";
+  }
+  for (int k = 0; k < 3; ++k) {
+    if (std::fabs(pose[k]) > kMaxCoordinate) return "position beyond 1e9 m";
+  }
+  const Eigen::Quaterniond q(pose[3], pose[4], pose[5], pose[6]);
+  const double norm = q.norm();
+  if (!(norm >= kMinQuaternionNorm)) return "quaternion norm below 1e-6";
+  out->utime = utime;
+  out->p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
+  out->q = Eigen::Quaterniond(q.coeffs() / norm);
+  return {};
 }
 
 }  // namespace sweptccd::world

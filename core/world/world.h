@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -27,6 +28,13 @@ struct RigidSample {
   Eigen::Quaterniond q{1, 0, 0, 0};
 };
 
+/// A rigid sample from its utime and pose [px, py, pz, qw, qx, qy, qz] (SPEC
+/// 8, "Trajectory"): empty and *out set (quaternion normalised) when usable,
+/// else the problem ("non-finite number", "position beyond 1e9 m",
+/// "quaternion norm below 1e-6"). The one rule of object pose lines
+/// (ParseObjectPoseLine) and of the service's object_pose_t. Pure.
+std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out);
+
 /// An avatar: its skeleton, motion model, the records of its stream (SPEC 2
 /// numbering) and its used samples (the first valid pose, then every pose
 /// that closed a valid pair: strictly increasing utimes, unit quaternions).
@@ -39,10 +47,11 @@ struct AvatarEntity {
 };
 
 /// A tracked object: its mesh (one-object Environment, in the object's
-/// frame) and its used samples (strictly increasing utimes).
+/// frame; shared and immutable, so the live service hands it to every
+/// answer without a copy) and its used samples (strictly increasing utimes).
 struct ObjectEntity {
   std::string id;
-  Environment mesh;
+  std::shared_ptr<const Environment> mesh = std::make_shared<const Environment>();
   std::vector<RigidSample> used;
 };
 

@@ -148,20 +148,10 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
       return false;
     }
     v[k] = p[k].get<double>();
-    if (!std::isfinite(v[k])) {
-      *error = "non-finite number";
-      return false;
-    }
   }
-  Eigen::Quaterniond q(v[3], v[4], v[5], v[6]);
-  const double norm = q.norm();
-  if (!(norm >= kMinQuaternionNorm)) {
-    *error = "quaternion norm below 1e-6";
-    return false;
-  }
-  sample->p = Eigen::Vector3d(v[0], v[1], v[2]);
-  sample->q = Eigen::Quaterniond(q.coeffs() / norm);
-  return true;
+  const int64_t utime = sample->utime;
+  *error = MakeRigidSample(utime, v, sample);
+  return error->empty();
 }
 
 LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
@@ -243,7 +233,9 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
     ObjectEntity o;
     o.id = object_ids[i];
     const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
-    o.mesh.AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
+    auto mesh = std::make_shared<Environment>();
+    mesh->AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
+    o.mesh = std::move(mesh);
     ReadObjectPoses(Resolve(dir, StringField(e, "poses", where)), &o);
     out.world.objects.push_back(std::move(o));
   }

@@ -102,7 +102,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
   for (size_t o = 0; o < w_.world.objects.size(); ++o) {
     const ObjectEntity& e = w_.world.objects[o];
     double rho = 0;
-    const Aabb bounds = e.mesh.object(0).bvh.bounds();
+    const Aabb bounds = e.mesh->object(0).bvh.bounds();
     for (int c = 0; c < 8; ++c) {
       const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
                                    (c & 2) ? bounds.hi.y() : bounds.lo.y(),
@@ -158,9 +158,11 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   }
   const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
   const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  // The rounding slack from the window's samples only (WindowScale): what a
+  // live service holding only those answers with too.
   const std::unique_ptr<OtherTarget> target =
-      b >= 0 ? MakeAvatarTarget(w_.world, a, b, avatar_scale_[b])
-             : MakeObjectTarget(w_.world, a, o, object_scale_[o]);
+      b >= 0 ? MakeAvatarTarget(w_.world, a, b, WindowScale(w_.world.avatars[b], pieces))
+             : MakeObjectTarget(w_.world, a, o, WindowScale(w_.world.objects[o], pieces));
   *answer = AnswerOther(A.skeleton, motion, u0, u1, pieces, *target, entity_options_);
   return true;
 }

@@ -109,6 +109,14 @@ ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
   options.max_pose_rate_hz = config.max_pose_rate_hz;
   options.max_live_clients = config.max_live_clients;
   options.silence_timeout_ms = config.silence_timeout_ms;
+  options.shared_world = config.shared_world;
+  for (const ObjectSpec& spec : config.objects) {
+    auto mesh = std::make_shared<Environment>();
+    mesh->AddMesh(LoadMeshFile(spec.mesh_path,
+                               MeshLoadOptions{config.max_mesh_bytes, kDefaultMaxMeshLineBytes}),
+                  spec.mesh_path);
+    options.objects.push_back({spec.id, std::move(mesh)});
+  }
   return options;
 }
 
@@ -372,6 +380,13 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   SetLogLevel(config.log_level);
   // Key files first: a bad key is refused before the environment loads.
   TransportSecurity security = LoadTransportSecurity(config.security);
+  // A tracked object's own key (objects[].key) verifies its poses, as a
+  // client's key does (one id space).
+  if (security.signed_mode) {
+    for (const ObjectSpec& o : config.objects) {
+      if (!o.key_path.empty()) security.keys.SetClientKey(o.id, LoadKeyFile(o.key_path));
+    }
+  }
   std::shared_ptr<const Environment> env = LoadEnvironment(config);
   std::vector<ClientConfig> clients = LoadClients(config, *env);
   // No pose may claim more links than the largest configured skeleton.

@@ -180,7 +180,8 @@ def sign(data, key=FUZZ_KEY):
 def messages(m):
     fp = {name: getattr(m, name)._get_packed_fingerprint()
           for name in ("tracker_pose_t", "status_t", "contact_event_t", "rejection_t",
-                       "join_request_t", "join_reply_t", "leave_t")}
+                       "join_request_t", "join_reply_t", "leave_t", "object_pose_t",
+                       "shared_contact_t")}
     p = m.tracker_pose_t()
     p.utime, p.client_id, p.session, p.seq, p.num_links = 1000000, "alice", 1700000000000000, 7, 2
     p.position = [[0, 0, 1], [0, 0.2, 1]]
@@ -285,6 +286,34 @@ def messages(m):
     write("fuzz_decode_leave_t", "leave_signed.lcm", sign(lv.encode()))
     write("fuzz_decode_leave_t", "attack_client_id_length_int32_min.lcm",
           fp["leave_t"] + struct.pack(">qi", 1, -2**31) + bytes(40))
+    op = m.object_pose_t()
+    op.utime, op.object_id, op.session, op.seq = 1000000, "cup", 1700000000000000, 3
+    op.position, op.orientation, op.mac = [0.5, 0, 0.8], [1, 0, 0, 0], bytes(32)
+    write("fuzz_decode_object_pose_t", "cup.lcm", op.encode())
+    write("fuzz_decode_object_pose_t", "cup_signed.lcm", sign(op.encode()))
+    # Attack: object_id length INT32_MIN (as the 36-byte tracker_pose_t datagram).
+    write("fuzz_decode_object_pose_t", "attack_object_id_length_int32_min.lcm",
+          fp["object_pose_t"] + struct.pack(">qi", 1, -2**31) + bytes(16))
+    sc = m.shared_contact_t()
+    sc.utime, sc.client_id, sc.seq0, sc.seq1, sc.pair = 1, "alice", 1, 2, 0
+    sc.utime0, sc.utime1, sc.entity, sc.entity_kind = 1000000, 1011111, "cup", 1
+    sc.t_from, sc.t_to, sc.result, sc.error = 1000000, 1011111, 1, ""
+    sc.initially_colliding, sc.undecided = False, False
+    sc.s_lo, sc.s_hi, sc.t_lo, sc.t_hi = 0.5, 0.51, 1005555.0, 1005666.0
+    ec = m.entity_contact_t()
+    ec.link, ec.other_link, ec.triangle, ec.s = 3, -1, 12, 0.51
+    ec.point_link, ec.point_other, ec.normal, ec.separation = [0, 0, 1], [0, 0, 0.9], [0, 0, 1], -1e-4
+    sc.num_contacts, sc.contacts = 1, [ec]
+    sc.waited_us, sc.ended_by_timeout, sc.receive_utime, sc.compute_us = 800, False, 5, 12.5
+    sc.mac = bytes(32)
+    write("fuzz_decode_shared_contact_t", "contact.lcm", sc.encode())
+    write("fuzz_decode_shared_contact_t", "contact_signed.lcm", sign(sc.encode()))
+    # Attack: num_contacts = 2^26 in a short message.
+    sc.num_contacts, sc.contacts = 0, []
+    raw = bytearray(sc.encode())
+    at = 8 + 8 + (4 + 6) + 40 + (4 + 4) + 17 + 1 + 5 + 2 + 32
+    raw[at:at + 4] = struct.pack(">i", 2**26)
+    write("fuzz_decode_shared_contact_t", "attack_num_contacts_2pow26.lcm", bytes(raw))
 
 
 def main():

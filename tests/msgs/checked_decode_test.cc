@@ -48,6 +48,8 @@ status_t Make(RandomMessages& r, const status_t*) { return r.Status(); }
 join_request_t Make(RandomMessages& r, const join_request_t*) { return r.Join(); }
 join_reply_t Make(RandomMessages& r, const join_reply_t*) { return r.JoinReply(); }
 leave_t Make(RandomMessages& r, const leave_t*) { return r.Leave(); }
+object_pose_t Make(RandomMessages& r, const object_pose_t*) { return r.ObjectPose(); }
+shared_contact_t Make(RandomMessages& r, const shared_contact_t*) { return r.SharedContact(); }
 
 template <class T>
 class CheckedDecodeTest : public ::testing::Test {
@@ -70,7 +72,8 @@ class CheckedDecodeTest : public ::testing::Test {
 };
 
 using MessageTypes = ::testing::Types<tracker_pose_t, contact_event_t, rejection_t, status_t,
-                                      join_request_t, join_reply_t, leave_t>;
+                                      join_request_t, join_reply_t, leave_t, object_pose_t,
+                                      shared_contact_t>;
 TYPED_TEST_SUITE(CheckedDecodeTest, MessageTypes);
 
 TYPED_TEST(CheckedDecodeTest, ValidMessagesDecodeLikeTheGeneratedDecoder) {
@@ -240,6 +243,19 @@ TEST(CheckedDecode, HugeContactCountIsRefusedWithoutAllocating) {
   std::string problem;
   EXPECT_LT(LargestAllocationDecoding<contact_event_t>(bytes, &problem), 1024u);
   EXPECT_NE(problem.find("num_contacts at byte 102 is 67108864"), std::string::npos) << problem;
+}
+
+TEST(CheckedDecode, HugeSharedContactCountIsRefusedWithoutAllocating) {
+  shared_contact_t e = RandomMessages(20).SharedContact();
+  e.contacts.clear();
+  e.num_contacts = 0;
+  e.client_id = "a", e.entity = "e", e.error = "";
+  std::vector<uint8_t> bytes = Encode(e);
+  // 8 + 8 + 6 + 40 + 6 + 17 + 1 + 5 + 2 + 32 = 125: num_contacts.
+  PutInt32(&bytes, 125, 1 << 26);
+  std::string problem;
+  EXPECT_LT(LargestAllocationDecoding<shared_contact_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("num_contacts at byte 125 is 67108864"), std::string::npos) << problem;
 }
 
 TEST(CheckedDecode, AllocationFailureIsARefusalNotAnAbort) {

@@ -10,6 +10,8 @@
 #include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/join_request_t.hpp"
 #include "sweptccd/leave_t.hpp"
+#include "sweptccd/object_pose_t.hpp"
+#include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -172,6 +174,51 @@ class RandomMessages {
     l.session = Int();
     Mac(l.mac);
     return l;
+  }
+  object_pose_t ObjectPose() {
+    object_pose_t m;
+    m.utime = Int();
+    m.object_id = Text(20);
+    m.session = Int();
+    m.seq = Int();
+    for (double& v : m.position) v = Real();
+    for (double& v : m.orientation) v = Real();
+    Mac(m.mac);
+    return m;
+  }
+  shared_contact_t SharedContact() {
+    shared_contact_t e;
+    e.utime = Int();
+    e.client_id = Text(20);
+    e.seq0 = Int(), e.seq1 = Int(), e.pair = Int(), e.utime0 = Int(), e.utime1 = Int();
+    e.entity = Text(20);
+    e.entity_kind = static_cast<int8_t>(Below(2));
+    e.t_from = Int(), e.t_to = Int();
+    e.result = static_cast<int8_t>(Below(3));
+    e.error = Text(30);
+    e.initially_colliding = Below(2), e.undecided = Below(2);
+    e.s_lo = Real(), e.s_hi = Real(), e.t_lo = Real(), e.t_hi = Real();
+    e.num_contacts = Below(4);
+    for (int i = 0; i < e.num_contacts; ++i) {
+      entity_contact_t c;
+      c.link = static_cast<int32_t>(Int());
+      c.other_link = static_cast<int32_t>(Int());
+      c.triangle = Int();
+      c.s = Real();
+      for (int k = 0; k < 3; ++k) {
+        c.point_link[k] = Real();
+        c.point_other[k] = Real();
+        c.normal[k] = Real();
+      }
+      c.separation = Real();
+      e.contacts.push_back(c);
+    }
+    e.waited_us = Int();
+    e.ended_by_timeout = Below(2);
+    e.receive_utime = Int();
+    e.compute_us = Real();
+    Mac(e.mac);
+    return e;
   }
 
  private:

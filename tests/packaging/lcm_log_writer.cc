@@ -174,6 +174,58 @@ void Fill(leave_t& m) {
   m.session = 77;
 }
 
+void Fill(object_pose_t& m) {
+  m.utime = 1700000000800000LL;
+  m.object_id = "cup";
+  m.session = 78;
+  m.seq = 11;
+  for (int i = 0; i < 3; ++i) m.position[i] = 0.5 + i;
+  m.orientation[0] = 0.5, m.orientation[1] = -0.5, m.orientation[2] = 0.5, m.orientation[3] = 0.5;
+}
+
+void Fill(entity_contact_t& m) {
+  m.link = 4;
+  m.other_link = 6;
+  m.triangle = 98765432101LL;
+  m.s = 0.625;
+  for (int i = 0; i < 3; ++i) {
+    m.point_link[i] = 3.5 + i;
+    m.point_other[i] = -4.25 - i;
+    m.normal[i] = 0.5 * (i + 1);
+  }
+  m.separation = -2.0e-4;
+}
+
+void Fill(shared_contact_t& m) {
+  m.utime = 1700000000900000LL;
+  m.client_id = "alice";
+  m.seq0 = 21;
+  m.seq1 = 22;
+  m.pair = 20;
+  m.utime0 = 1700000000000001LL;
+  m.utime1 = 1700000000011112LL;
+  m.entity = "cup";
+  m.entity_kind = shared_contact_t::KIND_OBJECT;
+  m.t_from = 1700000000000002LL;
+  m.t_to = 1700000000011111LL;
+  m.result = shared_contact_t::RESULT_CONTACT;
+  m.error = "no error, but every field set";
+  m.initially_colliding = 1;
+  m.undecided = 1;
+  m.s_lo = 0.25;
+  m.s_hi = 0.3125;
+  m.t_lo = 1.7e15 + 2.5;
+  m.t_hi = 1.7e15 + 3.5;
+  m.num_contacts = 2;
+  m.contacts.resize(2);
+  Fill(m.contacts[0]);
+  Fill(m.contacts[1]);
+  m.waited_us = 4321;
+  m.ended_by_timeout = 1;
+  m.receive_utime = 1700000000011200LL;
+  m.compute_us = 17.25;
+}
+
 // Encodes `m`, signs it when its type ends in `byte mac[32]`, publishes it.
 template <class T>
 auto Sign(std::vector<uint8_t>& bytes, int) -> decltype(std::declval<T&>().mac, void()) {
@@ -243,11 +295,17 @@ int main(int argc, char** argv) {
   leave_t leave{};
   Fill(leave);
   Publish(lcm, manifest, kLeaveChannel, "leave_t", leave);
+  object_pose_t object_pose{};
+  Fill(object_pose);
+  Publish(lcm, manifest, kObjectPoseChannel, "object_pose_t", object_pose);
+  shared_contact_t shared{};
+  Fill(shared);
+  Publish(lcm, manifest, kSharedContactChannel, "shared_contact_t", shared);
   manifest.close();
   if (!manifest) {
     std::fprintf(stderr, "lcm_log_writer: cannot write %s\n", argv[2]);
     return 1;
   }
-  std::printf("lcm_log_writer: %d types, %d messages\n", count, count + 4);
+  std::printf("lcm_log_writer: %d types, %d messages\n", count, count + 9);
   return 0;
 }

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <set>
 #include <thread>
+#include <tuple>
 
 #include "core/errors.h"
 #include "service_test_util.h"
@@ -555,4 +558,99 @@ TEST_F(RateLimitTest, BadRatesAreRefused) {
 }
 
 }  // namespace
+
+// The shared world (docs/SERVICE.md "Shared world"): two clients whose
+// streams interleave and a tracked object; every pair answered once against
+// each overlapping entity, after its environment part; what the last samples
+// cannot cover waits until Stop() cuts it (ended_by_timeout).
+TEST_F(CollisionServiceTest, SharedWorldAnswersEachPairAgainstEveryOtherEntityOnce) {
+  ServiceOptions options;
+  options.num_workers = 2;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.silence_timeout_ms = 3'600'000;  // No cut by silence in this test.
+  options.shared_world = true;
+  TriangleMesh cube;
+  for (int c = 0; c < 8; ++c) {
+    cube.vertices.emplace_back((c & 1) ? 0.2f : -0.2f, (c & 2) ? 0.2f : -0.2f,
+                               (c & 4) ? 0.2f : -0.2f);
+  }
+  cube.indices = {0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1,
+                  2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3};
+  auto mesh = std::make_shared<Environment>();
+  mesh->AddMesh(cube, "cube");
+  options.objects = {{"box", mesh}};
+  auto service = MakeWith({"a", "b"}, options);
+  // a at 90 Hz from 1.0 s, b at 90 Hz from 1.003 s, the box at 50 Hz.
+  struct Msg {
+    int64_t utime;
+    int who;
+    int64_t k;
+  };
+  std::vector<Msg> msgs;
+  for (int64_t k = 0; k < 10; ++k) msgs.push_back({1'000'000 + k * kDtUs, 0, k});
+  for (int64_t k = 0; k < 10; ++k) msgs.push_back({1'003'000 + k * kDtUs, 1, k});
+  for (int64_t k = 0; k < 7; ++k) msgs.push_back({1'000'000 + k * 20'000, 2, k});
+  std::stable_sort(msgs.begin(), msgs.end(),
+                   [](const Msg& x, const Msg& y) { return x.utime < y.utime; });
+  for (const Msg& m : msgs) {
+    if (m.who == 2) {
+      object_pose_t o{};
+      o.utime = m.utime;
+      o.object_id = "box";
+      o.session = 1;
+      o.seq = m.k;
+      o.position[0] = 0.1 * static_cast<double>(m.k), o.position[2] = 0.6;
+      o.orientation[0] = 1;
+      service->OnObjectPose(o);
+    } else {
+      tracker_pose_t p = Sample(m.who == 0 ? "a" : "b", m.k);
+      p.utime = m.utime;
+      service->OnPose(p);
+    }
+    service->WaitUntilIdle();  // One pose at a time: no pair merged by latest-wins.
+  }
+  // b's last pair ends after a's last sample: it waits for a.
+  EXPECT_EQ(service->shared_pending(), 1u);
+  // An object pose for an unknown object: one rejection, nothing else.
+  const size_t published = publisher_.shared().size();
+  const int64_t unattributed = service->rejected_unattributed();
+  object_pose_t cup{};
+  cup.utime = 2'000'000, cup.object_id = "cup", cup.session = 1, cup.seq = 1;
+  cup.orientation[0] = 1;
+  service->OnObjectPose(cup);
+  service->WaitUntilIdle();
+  ASSERT_EQ(publisher_.rejections().size(), 1u);
+  EXPECT_EQ(publisher_.rejections()[0].reason, "unknown_object");
+  EXPECT_EQ(publisher_.rejections()[0].client_id, "cup");
+  EXPECT_EQ(service->rejected_unattributed(), unattributed + 1);
+  EXPECT_EQ(publisher_.shared().size(), published);
+  EXPECT_EQ(service->shared_pending(), 1u);
+  service->Stop();
+
+  const std::vector<shared_contact_t> shared = publisher_.shared();
+  EXPECT_EQ(publisher_.shared_before_contact(), 0);
+  EXPECT_EQ(service->shared_published(), static_cast<int64_t>(shared.size()));
+  std::set<std::tuple<std::string, int64_t, std::string>> keys;
+  int cut = 0, contacts = 0;
+  for (const shared_contact_t& s : shared) {
+    EXPECT_TRUE(keys.insert({s.client_id, s.pair, s.entity}).second) << "published twice";
+    EXPECT_NE(s.client_id, s.entity);
+    EXPECT_EQ(s.entity_kind == shared_contact_t::KIND_OBJECT, s.entity == "box");
+    EXPECT_LE(s.t_from, s.t_to);
+    EXPECT_GE(s.t_from, s.utime0);
+    EXPECT_LE(s.t_to, s.utime1);
+    EXPECT_EQ(s.error, "");
+    cut += s.ended_by_timeout;
+    contacts += s.result == 1;
+    if (!s.ended_by_timeout) EXPECT_EQ(s.t_to, s.utime1) << "covered: the whole pair";
+  }
+  // 9 pairs each of a and b, against the other avatar and the box.
+  EXPECT_EQ(shared.size(), 36u);
+  EXPECT_EQ(cut, 1) << "b's last pair against a, cut at a's last sample";
+  EXPECT_GT(contacts, 0) << "the two avatars walk the same path";
+  EXPECT_EQ(service->shared_pending(), 0u);
+}
+
 }  // namespace sweptccd

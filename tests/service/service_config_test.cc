@@ -199,5 +199,53 @@ TEST(ServiceConfigTest, MaxMeshBytesAndMaxLinks) {
             std::string::npos);
 }
 
+// The shared world: tracked objects (id, mesh, key) and the switch.
+TEST(ServiceConfigTest, TrackedObjectsParseAndShareTheIdSpace) {
+  const std::string base = R"(
+environment: [room.ply]
+clients: [{id: alice, skeleton: a.json}]
+security: {room_key: room.key}
+shared_world: true
+)";
+  const ServiceConfig c = ParseServiceConfig(
+      base + "channels: {object_pose: OP, shared_contact: SC}\n"
+             "objects: [{id: cup, mesh: cup.obj, key: cup.key}, {id: ball, mesh: /abs/ball.stl}]\n",
+      "cfg.yaml", "/base");
+  EXPECT_TRUE(c.shared_world);
+  EXPECT_EQ(c.channels.object_pose, "OP");
+  EXPECT_EQ(c.channels.shared_contact, "SC");
+  ASSERT_EQ(c.objects.size(), 2u);
+  EXPECT_EQ(c.objects[0].id, "cup");
+  EXPECT_EQ(c.objects[0].mesh_path, "/base/cup.obj");
+  EXPECT_EQ(c.objects[0].key_path, "/base/cup.key");
+  EXPECT_EQ(c.objects[1].key_path, "");
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+  EXPECT_NE(RefusalOf(base + "objects: [{id: alice, mesh: m.obj}]\n").find("names two entities"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "objects: [{id: \"bad id\", mesh: m.obj}]\n").find("id rule"),
+            std::string::npos);
+  const std::string off = R"(
+environment: [room.ply]
+clients: [{id: alice, skeleton: a.json}]
+security: {room_key: room.key}
+)";
+  EXPECT_NE(RefusalOf(off + "objects: [{id: cup, mesh: m.obj}]\n").find("shared_world: true"),
+            std::string::npos)
+      << "off by default";
+  EXPECT_FALSE(ParseServiceConfig(off, "cfg.yaml", "/").shared_world);
+  EXPECT_NE(RefusalOf(base + "objects: [{id: cup}]\n").find("missing 'mesh'"), std::string::npos);
+  EXPECT_NE(RefusalOf(base + "objects: [{id: cup, mesh: m.obj, colour: red}]\n").find("colour"),
+            std::string::npos);
+  const std::string no_room = R"(
+environment: [room.ply]
+clients: [{id: alice, skeleton: a.json}]
+security: {client_keys: {alice: a.key}}
+shared_world: true
+objects: [{id: cup, mesh: m.obj}]
+)";
+  EXPECT_NE(RefusalOf(no_room).find("object 'cup' has no key"), std::string::npos);
+  EXPECT_TRUE(ParseServiceConfig(base, "cfg.yaml", "/").shared_world);
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -8,6 +8,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -189,6 +190,23 @@ class CapturingPublisher : public Publisher {
     std::lock_guard<std::mutex> lock(mutex_);
     statuses_.push_back(s);
   }
+  // Also counts shared entries published before their pair's contact event.
+  void PublishSharedContact(const shared_contact_t& s) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const bool env_first = std::any_of(contacts_.begin(), contacts_.end(), [&](const auto& e) {
+      return e.client_id == s.client_id && e.pair == s.pair;
+    });
+    if (!env_first) ++shared_before_contact_;
+    shared_.push_back(s);
+  }
+  std::vector<shared_contact_t> shared() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return shared_;
+  }
+  int shared_before_contact() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return shared_before_contact_;
+  }
 
   // While closed, workers block inside PublishContact.
   void CloseGate() {
@@ -240,6 +258,8 @@ class CapturingPublisher : public Publisher {
   std::vector<contact_event_t> contacts_;
   std::vector<rejection_t> rejections_;
   std::vector<status_t> statuses_;
+  std::vector<shared_contact_t> shared_;
+  int shared_before_contact_ = 0;
 };
 
 // Expects `event` to be exactly what CcdEngine::Query answers for (m0, m1).

@@ -35,6 +35,7 @@
 #include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/join_request_t.hpp"
 #include "sweptccd/rejection_t.hpp"
+#include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 
@@ -54,6 +55,8 @@ struct ClientChannels {
   std::string join = kJoinChannel;
   std::string join_reply = kJoinReplyChannel;
   std::string leave = kLeaveChannel;
+  std::string object_pose = kObjectPoseChannel;        // Tracked objects' samples (in).
+  std::string shared_contact = kSharedContactChannel;  // Shared-world entries (out).
 };
 
 /// Receives and checks what the daemon publishes.
@@ -84,6 +87,8 @@ class DaemonConnection {
   void OnRejection(Callback<rejection_t> cb) { on_rejection_ = std::move(cb); }
   void OnStatus(Callback<status_t> cb) { on_status_ = std::move(cb); }
   void OnJoinReply(Callback<join_reply_t> cb) { on_join_reply_ = std::move(cb); }
+  /// The shared world's entries (a pair against another client or object).
+  void OnSharedContact(Callback<shared_contact_t> cb) { on_shared_contact_ = std::move(cb); }
   /// A message that failed its byte checks: the channel and a one-line problem.
   void OnUndecodable(std::function<void(const std::string&, const std::string&)> cb) {
     on_undecodable_ = std::move(cb);
@@ -115,6 +120,7 @@ class DaemonConnection {
   Callback<rejection_t> on_rejection_;
   Callback<status_t> on_status_;
   Callback<join_reply_t> on_join_reply_;
+  Callback<shared_contact_t> on_shared_contact_;
   std::function<void(const std::string&, const std::string&)> on_undecodable_;
   std::mutex publish_mutex_;
   std::thread thread_;

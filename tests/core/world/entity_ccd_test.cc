@@ -117,7 +117,7 @@ struct Reference {
         const int k1 = std::min<int>(k + 1, O.used.size() - 1);
         const Vector3d x = (1 - s) * O.used[k].p + s * O.used[k1].p;
         const Eigen::Matrix3d R = Slerp(O.used[k].q, O.used[k1].q, s).toRotationMatrix();
-        const TriangleBvh& bvh = O.mesh.object(0).bvh;
+        const TriangleBvh& bvh = O.mesh->object(0).bvh;
         for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
           Vector3d ta, tb, tc;
           bvh.Triangle(slot, &ta, &tb, &tc);
@@ -334,7 +334,9 @@ void RandomObjectWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
   ObjectEntity& O = w->objects[0];
   O.id = "o";
   const bool thrown = rng.P(0.3);
-  O.mesh.AddMesh(RandomMesh(rng, thrown), "mesh");
+  auto mesh = std::make_shared<Environment>();
+  mesh->AddMesh(RandomMesh(rng, thrown), "mesh");
+  O.mesh = std::move(mesh);
   const int64_t step = rng.P(0.7) ? 11'111 : 3'000 + rng.I(20'000);
   int64_t t = u0 - step + rng.I(static_cast<int>(step));
   if (rng.P(0.25)) t = u0 + rng.I(13'889);
@@ -571,7 +573,9 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
     for (int e = 0; e < 2; ++e) {
       ObjectEntity O;
       O.id = "o" + std::to_string(e);
-      O.mesh.AddMesh(RandomMesh(rng, false), "mesh");
+      auto mesh = std::make_shared<Environment>();
+      mesh->AddMesh(RandomMesh(rng, false), "mesh");
+      O.mesh = std::move(mesh);
       RigidSample x;
       x.utime = rng.I(30'000);
       x.p = rng.Box(1.0);

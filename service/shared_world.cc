@@ -1,0 +1,404 @@
+#include "service/shared_world.h"
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <utility>
+
+#include "core/errors.h"
+#include "core/query/ccd_query.h"
+#include "core/query/result_json.h"
+
+namespace sweptccd {
+
+namespace {
+
+int64_t MicrosSince(SteadyClock::time_point from, SteadyClock::time_point to) {
+  return std::max<int64_t>(
+      0, std::chrono::duration_cast<std::chrono::microseconds>(to - from).count());
+}
+
+void Put3(const Eigen::Vector3d& v, double out[3]) {
+  for (int k = 0; k < 3; ++k) out[k] = v[k];
+}
+
+// As `sweptccd world` prints them (world_query.cc): s rounded so that it
+// never narrows the certified bracket; t inside the window.
+double SOf(double tau, double dur, bool up) {
+  double s = tau / dur;
+  const long double back = static_cast<long double>(s) * dur;
+  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
+  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
+  return std::clamp(s, 0.0, 1.0);
+}
+
+entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
+  entity_contact_t out;
+  out.link = c.link;
+  out.other_link = c.other_link;
+  out.triangle = c.triangle;
+  out.s = std::clamp(c.tau / dur, 0.0, 1.0);
+  Put3(c.point_link, out.point_link);
+  Put3(c.point_other, out.point_other);
+  Put3(c.normal, out.normal);
+  out.separation = c.separation;
+  return out;
+}
+
+}  // namespace
+
+shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+  shared_contact_t m{};
+  m.client_id = job.client_id;
+  m.seq0 = job.seq0;
+  m.seq1 = job.seq1;
+  m.pair = job.pair;
+  m.utime0 = job.pose0.utime;
+  m.utime1 = job.pose1.utime;
+  m.entity = job.entity;
+  m.entity_kind = job.entity_is_object ? shared_contact_t::KIND_OBJECT
+                                       : shared_contact_t::KIND_AVATAR;
+  m.t_from = job.t_from;
+  m.t_to = job.t_to;
+  m.result = shared_contact_t::RESULT_FREE;
+  m.waited_us = job.waited_us;
+  m.ended_by_timeout = job.ended_by_timeout;
+  m.receive_utime = job.receive_utime;
+  const auto start = SteadyClock::now();
+  try {
+    // A two-entity world: A (its pair) and E (the slice of its history the
+    // window uses). Index 0 is A; E is avatar 1 or object 0.
+    world::World w;
+    world::AvatarEntity a;
+    a.id = job.client_id;
+    a.skeleton = *job.skeleton_a;
+    a.motion = job.motion_a;
+    a.used = {job.pose0, job.pose1};
+    w.avatars.push_back(std::move(a));
+    std::vector<int64_t> times;
+    if (job.entity_is_object) {
+      world::ObjectEntity o;
+      o.id = job.entity;
+      o.mesh = job.mesh_e;
+      o.used = job.object_samples;
+      for (const world::RigidSample& x : o.used) times.push_back(x.utime);
+      w.objects.push_back(std::move(o));
+    } else {
+      world::AvatarEntity e;
+      e.id = job.entity;
+      e.skeleton = *job.skeleton_e;
+      e.motion = job.motion_e;
+      e.used = job.avatar_samples;
+      for (const Pose& p : e.used) times.push_back(p.utime);
+      w.avatars.push_back(std::move(e));
+    }
+    w.rules.assign(w.avatars.size(), {});
+    const int64_t u0 = job.pose0.utime, u1 = job.pose1.utime;
+    const std::vector<world::Piece> pieces = world::SplitWindow(u0, job.t_from, job.t_to, times);
+    const PairMotion motion(w.avatars[0].skeleton, job.pose0, job.pose1, job.motion_a);
+    const std::unique_ptr<world::OtherTarget> target =
+        job.entity_is_object
+            ? world::MakeObjectTarget(w, 0, 0, world::WindowScale(w.objects[0], pieces))
+            : world::MakeAvatarTarget(w, 0, 1, world::WindowScale(w.avatars[1], pieces));
+    const world::OtherAnswer ans =
+        world::AnswerOther(w.avatars[0].skeleton, motion, u0, u1, pieces, *target, options);
+    if (ans.contact) {
+      const world::OtherBracket& b = ans.bracket;
+      const double dur = static_cast<double>(u1 - u0);
+      const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
+      m.result = shared_contact_t::RESULT_CONTACT;
+      m.initially_colliding = b.initially_colliding;
+      m.undecided = b.undecided;
+      m.s_lo = b.initially_colliding ? static_cast<double>(job.t_from - u0) / dur : s_lo;
+      m.s_hi = s_hi;
+      m.t_lo = b.initially_colliding
+                   ? static_cast<double>(job.t_from)
+                   : std::max(BracketTimeLo(u0, u1, s_lo), static_cast<double>(job.t_from));
+      m.t_hi = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(job.t_to));
+      if (b.has_witness) m.contacts.push_back(ContactOf(b.witness, dur));
+      m.num_contacts = static_cast<int32_t>(m.contacts.size());
+    }
+  } catch (const std::exception& e) {
+    m.result = shared_contact_t::RESULT_INVALID;
+    m.error = std::string("query failed: ") + e.what();
+    m.contacts.clear();
+    m.num_contacts = 0;
+  }
+  m.compute_us =
+      std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+  return m;
+}
+
+SharedWorld::SharedWorld(SharedWorldOptions options) : options_(options) {
+  if (options_.silence_timeout_us < 1 || options_.max_history < 2 || options_.max_pending < 1) {
+    throw InputError("shared world: silence_timeout_us must be >= 1, max_history >= 2 and "
+                     "max_pending >= 1");
+  }
+}
+
+void SharedWorld::AddAvatar(const std::string& id, std::shared_ptr<const Skeleton> skeleton,
+                            MotionModel motion, Time now) {
+  SWEPTCCD_CHECK(!Has(id) && skeleton);
+  Entity e;
+  e.id = id;
+  e.skeleton = std::move(skeleton);
+  e.motion = motion;
+  e.last_heard = now;
+  e.last_sample_time = now;
+  entities_.emplace(id, std::move(e));
+  order_.push_back(id);
+}
+
+void SharedWorld::AddObject(const std::string& id, std::shared_ptr<const Environment> mesh,
+                            Time now) {
+  SWEPTCCD_CHECK(!Has(id) && mesh && mesh->num_objects() == 1);
+  Entity e;
+  e.id = id;
+  e.is_object = true;
+  e.mesh = std::move(mesh);
+  e.last_heard = now;
+  e.last_sample_time = now;
+  entities_.emplace(id, std::move(e));
+  order_.push_back(id);
+}
+
+void SharedWorld::RemoveAvatar(const std::string& id, Time now, std::vector<SharedJob>* due) {
+  if (!Has(id)) return;
+  Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+  pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
+                                [&](const Entry& x) { return x.a == id; }),
+                 pending_.end());
+  entities_.erase(id);
+  order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
+}
+
+int64_t SharedWorld::history_size(const std::string& id) const {
+  const auto it = entities_.find(id);
+  return it == entities_.end() ? 0 : static_cast<int64_t>(it->second.size());
+}
+
+void SharedWorld::Append(Entity* e, Time now) {
+  e->last_heard = now;
+  e->last_sample_time = now;
+  while (static_cast<int>(e->size()) > options_.max_history) {
+    if (e->is_object) {
+      e->object_samples.pop_front();
+    } else {
+      e->avatar_samples.pop_front();
+    }
+    e->evicted = true;
+  }
+}
+
+void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const Pose& pose,
+                                 Time now, std::vector<SharedJob>* due) {
+  const auto it = entities_.find(id);
+  if (it == entities_.end()) return;
+  Entity& e = it->second;
+  if (e.has_stream && session != e.session) {
+    // A new stream: what waited for the old one ends at its last sample.
+    Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+    e.avatar_samples.clear();
+    e.evicted = false;
+  }
+  e.has_stream = true;
+  e.session = session;
+  // ClientSession accepted it: strictly after the last sample of the stream.
+  SWEPTCCD_CHECK(e.avatar_samples.empty() || pose.utime > e.avatar_samples.back().utime);
+  e.avatar_samples.push_back(pose);
+  Append(&e, now);
+  Settle(id, [&](const Entry& x) { return Covered(e, x); }, /*cut=*/false, now, due);
+}
+
+std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
+                                                   int64_t max_utime_jump_us, Time now,
+                                                   std::vector<SharedJob>* due) {
+  const auto it = entities_.find(msg.object_id);
+  if (it == entities_.end() || !it->second.is_object) {
+    return Rejection{rejection_code::kUnknownObject,
+                     "object_id '" + msg.object_id +
+                         "' is not a tracked object of this daemon; configure it under "
+                         "`objects:` (id, mesh, key)"};
+  }
+  Entity& e = it->second;
+  double v[7];
+  for (int k = 0; k < 3; ++k) v[k] = msg.position[k];
+  for (int k = 0; k < 4; ++k) v[3 + k] = msg.orientation[k];
+  world::RigidSample x;
+  const std::string problem = world::MakeRigidSample(msg.utime, v, &x);
+  if (!problem.empty()) {
+    const char* code = problem.find("finite") != std::string::npos
+                           ? rejection_code::kNonFinite
+                           : problem.find("position") != std::string::npos
+                                 ? rejection_code::kPositionOutOfRange
+                                 : rejection_code::kZeroQuaternion;
+    return Rejection{code, "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) +
+                               ": " + problem + "; send a finite pose with a unit quaternion"};
+  }
+  const bool new_stream = !e.has_stream || msg.session > e.session;
+  if (!new_stream) {
+    if (msg.session < e.session) {
+      return Rejection{rejection_code::kStaleSession,
+                       "object '" + msg.object_id + "' session " + std::to_string(msg.session) +
+                           " is older than its current session " + std::to_string(e.session) +
+                           "; a restarted tracker takes a greater session"};
+    }
+    if (msg.seq <= e.last_seq) {
+      return Rejection{rejection_code::kNonIncreasingSeq,
+                       "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) +
+                           " is not greater than " + std::to_string(e.last_seq) +
+                           "; number samples strictly increasingly"};
+    }
+    const int64_t last = e.object_samples.empty() ? msg.utime - 1 : e.object_samples.back().utime;
+    if (msg.utime <= last) {
+      return Rejection{rejection_code::kNonIncreasingUtime,
+                       "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
+                           " is not after " + std::to_string(last) +
+                           "; stamp samples strictly increasingly"};
+    }
+    if (msg.utime - last > max_utime_jump_us) {
+      return Rejection{rejection_code::kUtimeJump,
+                       "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
+                           " is more than max_utime_jump_s after " + std::to_string(last) +
+                           "; fix the tracker's clock, or start a new session"};
+    }
+  }
+  if (new_stream && e.has_stream) {
+    Settle(msg.object_id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+    e.object_samples.clear();
+    e.evicted = false;
+  }
+  e.has_stream = true;
+  e.session = msg.session;
+  e.last_seq = msg.seq;
+  e.object_samples.push_back(x);
+  Append(&e, now);
+  Settle(msg.object_id, [&](const Entry& y) { return Covered(e, y); }, /*cut=*/false, now, due);
+  return std::nullopt;
+}
+
+bool SharedWorld::Covered(const Entity& e, const Entry& entry) {
+  // A sample strictly after utime1: the window [t_from, utime1] and every
+  // sample the offline answer uses for it (SplitWindow stops at the first
+  // sample at or after t_to) are in.
+  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair.pose1.utime;
+}
+
+bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time now,
+                          SharedJob* job) const {
+  const size_t n = e.size();
+  if (n == 0) return false;
+  const int64_t u0 = entry.pair.pose0.utime, u1 = entry.pair.pose1.utime;
+  const int64_t t_from = std::max(u0, e.utime(0));
+  const int64_t t_to = std::min(u1, e.utime(n - 1));
+  if (t_from > t_to) return false;  // No overlap: no entry (as offline).
+  // f: the last sample at or before t_from; l: the first at or after t_to.
+  size_t f = 0;
+  while (f + 1 < n && e.utime(f + 1) <= t_from) ++f;
+  size_t l = f;
+  while (l + 1 < n && e.utime(l) < t_to) ++l;
+  if (n >= 2) {
+    // SplitWindow's pieces use samples k and k+1 (k clamped to n - 2).
+    if (f == n - 1) --f;
+    if (l == f) ++l;
+  }
+  job->client_id = entry.a;
+  job->pair = entry.pair.pair;
+  job->seq0 = entry.pair.seq0;
+  job->seq1 = entry.pair.seq1;
+  job->receive_utime = entry.pair.receive_utime;
+  job->skeleton_a = entry.skeleton_a;
+  job->motion_a = entry.motion_a;
+  job->pose0 = entry.pair.pose0;
+  job->pose1 = entry.pair.pose1;
+  job->entity = e.id;
+  job->entity_is_object = e.is_object;
+  job->skeleton_e = e.skeleton;
+  job->motion_e = e.motion;
+  job->mesh_e = e.mesh;
+  job->avatar_samples.clear();
+  job->object_samples.clear();
+  for (size_t k = f; k <= l; ++k) {
+    if (e.is_object) {
+      job->object_samples.push_back(e.object_samples[k]);
+    } else {
+      job->avatar_samples.push_back(e.avatar_samples[k]);
+    }
+  }
+  job->t_from = t_from;
+  job->t_to = t_to;
+  // The window may reach before the oldest sample kept: then it is cut too.
+  job->ended_by_timeout = cut || (e.evicted && e.utime(0) > u0);
+  job->waited_us = MicrosSince(entry.pair.receive_time, cut ? now : e.last_sample_time);
+  return true;
+}
+
+template <class Pred>
+void SharedWorld::Settle(const std::string& id, Pred pred, bool cut, Time now,
+                         std::vector<SharedJob>* due) {
+  const auto it = entities_.find(id);
+  if (it == entities_.end()) return;
+  const Entity& e = it->second;
+  auto keep = pending_.begin();
+  for (auto x = pending_.begin(); x != pending_.end(); ++x) {
+    if (x->e == id && pred(*x)) {
+      SharedJob job;
+      if (MakeJob(e, *x, cut, now, &job)) {
+        if (job.ended_by_timeout) ++entries_cut_;
+        due->push_back(std::move(job));
+      }
+      continue;
+    }
+    if (keep != x) *keep = std::move(*x);
+    ++keep;
+  }
+  pending_.erase(keep, pending_.end());
+}
+
+void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
+                          std::vector<SharedJob>* due) {
+  const auto it = entities_.find(id);
+  if (it == entities_.end() || it->second.is_object) return;
+  const Entity& a = it->second;
+  for (const std::string& other : order_) {
+    if (other == id) continue;
+    Entry entry;
+    entry.a = id;
+    entry.skeleton_a = a.skeleton;
+    entry.motion_a = a.motion;
+    entry.pair = pair;
+    entry.e = other;
+    entry.created = now;
+    pending_.push_back(std::move(entry));
+    const Entity& e = entities_.at(other);
+    if (Covered(e, pending_.back())) {
+      Settle(other, [&](const Entry& x) { return &x == &pending_.back(); }, false, now, due);
+    }
+  }
+  // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
+  // scan of every entry per pair would cost O(entities x pending).)
+  while (static_cast<int>(pending_.size()) > options_.max_pending) {
+    const Entry& oldest = pending_.front();
+    const std::string e = oldest.e;
+    const Entry* p = &oldest;
+    Settle(e, [&](const Entry& x) { return &x == p; }, /*cut=*/true, now, due);
+  }
+}
+
+void SharedWorld::CutSilent(Time now, std::vector<SharedJob>* due) {
+  const auto timeout = std::chrono::microseconds(options_.silence_timeout_us);
+  for (const std::string& id : order_) {
+    const Entity& e = entities_.at(id);
+    const bool silent = now - e.last_heard >= timeout;
+    Settle(id, [&](const Entry& x) { return silent || now - x.created >= timeout; },
+           /*cut=*/true, now, due);
+  }
+}
+
+void SharedWorld::CutAll(Time now, std::vector<SharedJob>* due) {
+  for (const std::string& id : order_) {
+    Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+  }
+}
+
+}  // namespace sweptccd

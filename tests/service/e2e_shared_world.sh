@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# The shared world end to end (SPEC 8 "Live"; docs/SERVICE.md "Shared
+# world"), over udpm:// inside a private network namespace this script
+# creates (never the host network): the daemon with two configured avatars
+# (90 Hz and 60 Hz, different phases) and a tracked object (30 Hz); every
+# shared entry equal to `sweptccd world` on the same samples, except entries
+# ended by the timeout and pairs merged by latest-wins; an object pose for an
+# unknown object is one clear rejection and disturbs nothing.
+#   e2e_shared_world.sh SWEPTCCD SERVICE SHARED_WORLD_TOOL SOURCE_DIR WORK_DIR
+set -euo pipefail
+source "$(dirname "$0")/../../tools/netns.sh"
+enter_private_netns "$@"
+sweptccd=$1 service=$2 tool=$3 work=$5
+rm -rf "$work"
+mkdir -p "$work"
+setup_loopback_multicast
+url=$SWEPTCCD_URL
+"$tool" write "$work"
+"$sweptccd" world --world "$work/world.json" --output "$work/offline.jsonl"
+"$sweptccd" keygen --out "$work/room.key"
+cat > "$work/sweptccd.yaml" <<YAML
+lcm_url: "$url"
+environment: [floor.obj]
+workers: 2
+silence_timeout_ms: 300
+shared_world: true
+clients:
+  - {id: alice, skeleton: arm.json}
+  - {id: bob, skeleton: arm.json}
+objects:
+  - {id: cup, mesh: cube.obj}
+security: {room_key: room.key}
+YAML
+"$service" --config "$work/sweptccd.yaml" 2> "$work/daemon.log" &
+daemon=$!
+monitor=
+trap 'kill -KILL $daemon $monitor 2>/dev/null || true' EXIT
+wait_for "$work/daemon.log" ready
+# `sweptccd monitor` shows the shared entries (verified with the service key).
+"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --all --timeout 60 \
+  > "$work/monitor.out" 2> "$work/monitor.err" &
+monitor=$!
+wait_for "$work/monitor.out" listening
+"$tool" --key "$work/room.key" play "$url" "$work" "$work/offline.jsonl"
+# `sweptccd simulate-tracker` plays a tracked object too (--object), 10 s
+# later on the shared time base, in new sessions: alice's pairs against the
+# cup come out of it.
+"$sweptccd" simulate-tracker --lcm-url "$url" --key "$work/room.key" --poses "$work/alice.jsonl" \
+  --client alice --object "cup=$work/cup.jsonl" --utime-start 10000000 --speed 2 \
+  > "$work/simulate.out"
+grep -q "^simulate-tracker: $(grep -c . "$work/cup.jsonl") object poses sent, 0 object line" \
+  "$work/simulate.out"
+for _ in $(seq 50); do
+  grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' \
+    "$work/monitor.out" && break
+  sleep 0.1
+done
+grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' "$work/monitor.out"
+kill -INT $monitor
+wait $monitor
+grep -q '"type":"shared_contact".*"entity":"cup".*"entity_kind":"object"' "$work/monitor.out"
+grep -q '"type":"shared_contact".*"entity":"bob".*"entity_kind":"client"' "$work/monitor.out"
+! grep '"type":"shared' "$work/monitor.out" | grep -q '"verified":false'
+# The only rejection of the whole run: the unknown object.
+[ "$(grep -c '"type":"reject"' "$work/monitor.out")" = 1 ]
+grep -q '"type":"reject".*"client":"ghost".*unknown_object' "$work/monitor.out"
+kill -TERM $daemon
+wait $daemon
+grep -q stopped "$work/daemon.log"
+grep -q "unknown_object" "$work/daemon.log"
+echo "e2e_shared_world: passed"

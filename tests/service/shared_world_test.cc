@@ -1,0 +1,466 @@
+// The daemon's shared world (service/shared_world.h) against `sweptccd
+// world`'s engine (core/world/world_query.h) on the same samples: two avatars
+// at 90 Hz and 60 Hz with different phases and network delays and a tracked
+// object at 30 Hz, fed in arrival order on a fake steady clock (no sleeps);
+// every entry equal to the offline one. Then the cuts: silence, a full
+// pending list, a history too short, a new session; and bad object poses.
+
+#include "service/shared_world.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "core/world/world_query.h"
+
+namespace sweptccd {
+namespace {
+
+using Time = SharedWorld::Time;
+using json = nlohmann::json;
+
+Time At(int64_t us) { return Time(std::chrono::microseconds(us)); }
+
+std::shared_ptr<const Skeleton> Arm() {
+  Link root{"upper", -1, {0, 0, 0}, {0, 0.3, 0}, 0.05};
+  Link child{"fore", 0, {0, 0, 0}, {0.3, 0, 0}, 0.04};
+  return std::make_shared<const Skeleton>(Skeleton::FromLinks("arm", {root, child}, "test"));
+}
+
+// A cube of half size h around the object's frame origin.
+std::shared_ptr<const Environment> Cube(double h) {
+  TriangleMesh m;
+  for (int c = 0; c < 8; ++c) {
+    m.vertices.emplace_back((c & 1) ? h : -h, (c & 2) ? h : -h, (c & 4) ? h : -h);
+  }
+  const uint32_t f[12][3] = {{0, 1, 3}, {0, 3, 2}, {4, 6, 7}, {4, 7, 5}, {0, 4, 5}, {0, 5, 1},
+                             {2, 3, 7}, {2, 7, 6}, {0, 2, 6}, {0, 6, 4}, {1, 5, 7}, {1, 7, 3}};
+  for (const auto& t : f) m.indices.insert(m.indices.end(), {t[0], t[1], t[2]});
+  auto env = std::make_shared<Environment>();
+  env->AddMesh(m, "cube");
+  return env;
+}
+
+// A random walk of the arm around `center` (its bones keep their length).
+class Walker {
+ public:
+  Walker(uint64_t seed, Eigen::Vector3d center) : rng_(seed), p_(center), center_(center) {}
+  Pose Next(int64_t utime) {
+    std::normal_distribution<double> n(0, 1);
+    p_ += 0.02 * Eigen::Vector3d(n(rng_), n(rng_), n(rng_)) + 0.1 * (center_ - p_);
+    q_ = (q_ * Eigen::Quaterniond(Eigen::AngleAxisd(0.15 * n(rng_), Eigen::Vector3d::UnitZ())))
+             .normalized();
+    Pose pose;
+    pose.utime = utime;
+    pose.links.push_back(LinkPose{p_, q_});
+    pose.links.push_back(LinkPose{p_ + q_ * Eigen::Vector3d(0, 0.3, 0), q_});
+    return pose;
+  }
+
+ private:
+  std::mt19937_64 rng_;
+  Eigen::Vector3d p_, center_;
+  Eigen::Quaterniond q_{1, 0, 0, 0};
+};
+
+object_pose_t ObjectPose(const std::string& id, int64_t utime, int64_t seq,
+                         const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+  object_pose_t m{};
+  m.utime = utime;
+  m.object_id = id;
+  m.session = 1;
+  m.seq = seq;
+  for (int k = 0; k < 3; ++k) m.position[k] = p[k];
+  m.orientation[0] = q.w(), m.orientation[1] = q.x(), m.orientation[2] = q.y();
+  m.orientation[3] = q.z();
+  return m;
+}
+
+// One sample as it arrives at the daemon.
+struct Arrival {
+  int64_t at_us;
+  int entity;  // 0 alice, 1 bob, 2 box.
+  Pose pose;
+  object_pose_t object;
+};
+
+// The offline world of the same samples, and its answerer.
+struct Offline {
+  world::LoadedWorld w;
+  std::unique_ptr<world::WorldAnswerer> answerer;
+  void AddAvatar(const std::string& id, const std::vector<Pose>& used) {
+    world::AvatarEntity a;
+    a.id = id;
+    a.skeleton = *Arm();
+    a.used = used;
+    for (size_t k = 1; k < used.size(); ++k) {
+      PairOutcome r;
+      r.pair = static_cast<int64_t>(k - 1);
+      r.valid = true;
+      r.utime0 = used[k - 1].utime;
+      r.utime1 = used[k].utime;
+      r.pose0 = used[k - 1];
+      r.pose1 = used[k];
+      a.records.push_back(r);
+    }
+    w.world.avatars.push_back(std::move(a));
+    w.world.rules.emplace_back();
+    w.env_filters.emplace_back();
+  }
+  // The `others` entries of avatar a's record r, by entity id.
+  std::map<std::string, json> Others(int a, size_t r) const {
+    std::map<std::string, json> out;
+    const json record = json::parse(answerer->RecordJson(a, r));
+    for (const json& e : record["others"]) {
+      out[e["entity"].get<std::string>()] = e;
+    }
+    return out;
+  }
+};
+
+void ExpectEqualToOffline(const shared_contact_t& live, const json& off) {
+  SCOPED_TRACE(live.client_id + " pair " + std::to_string(live.pair) + " vs " + live.entity);
+  EXPECT_EQ(live.t_from, off["window"][0].get<int64_t>());
+  EXPECT_EQ(live.t_to, off["window"][1].get<int64_t>());
+  EXPECT_EQ(live.entity_kind == shared_contact_t::KIND_OBJECT ? "object" : "avatar",
+            off["kind"].get<std::string>());
+  ASSERT_NE(+live.result, +shared_contact_t::RESULT_INVALID) << live.error;
+  const bool contact = off["result"] == "contact";
+  ASSERT_EQ(live.result == shared_contact_t::RESULT_CONTACT, contact);
+  EXPECT_EQ(live.initially_colliding, off["initially_colliding"].get<bool>());
+  EXPECT_EQ(live.undecided, off["undecided"].get<bool>());
+  if (!contact) return;
+  EXPECT_EQ(live.s_lo, off["s_lo"].get<double>());
+  EXPECT_EQ(live.s_hi, off["s_hi"].get<double>());
+  EXPECT_EQ(live.t_lo, off["t_lo"].get<double>());
+  EXPECT_EQ(live.t_hi, off["t_hi"].get<double>());
+  ASSERT_EQ(live.contacts.size(), off["contacts"].size());
+  for (size_t i = 0; i < live.contacts.size(); ++i) {
+    const entity_contact_t& c = live.contacts[i];
+    const json& o = off["contacts"][i];
+    EXPECT_EQ(c.link, o["link"].get<int>());
+    EXPECT_EQ(c.other_link, o.contains("other_link") ? o["other_link"].get<int>() : -1);
+    EXPECT_EQ(c.triangle, o.contains("triangle") ? o["triangle"].get<int64_t>() : -1);
+    EXPECT_EQ(c.s, o["s"].get<double>());
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(c.point_link[k], o["point_link"][k].get<double>());
+      EXPECT_EQ(c.point_other[k], o["point_other"][k].get<double>());
+      EXPECT_EQ(c.normal[k], o["normal"][k].get<double>());
+    }
+    EXPECT_EQ(c.separation, o["separation"].get<double>());
+  }
+}
+
+// far_tail: bob's last samples jump 1000 km away. An answer whose rounding
+// slack scaled with the whole stream would change for every earlier window
+// (WindowScale keeps it to the window's samples, live and offline).
+void RunClientsAtDifferentRates(bool far_tail) {
+  const std::vector<std::string> ids = {"alice", "bob", "box"};
+  const int64_t period[3] = {11'111, 16'667, 33'333};  // 90, 60, 30 Hz.
+  const int64_t phase[3] = {0, 5'000, 12'000};
+  const int64_t delay[3] = {1'000, 20'000, 7'000};  // Network delay to the daemon.
+  const int64_t start = 1'000'000, end = 2'500'000;
+  Walker alice(1, {0, 0, 0}), bob(2, {0.25, 0.05, 0});
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> n(0, 1);
+  std::vector<Arrival> arrivals;
+  std::vector<Pose> used[2];
+  std::vector<world::RigidSample> box_used;
+  Eigen::Vector3d box_p(0.1, 0.25, 0);
+  for (int e = 0; e < 3; ++e) {
+    int64_t seq = 0;
+    for (int64_t t = start + phase[e]; t <= end; t += period[e]) {
+      Arrival a{t + delay[e], e, {}, {}};
+      if (e < 2) {
+        a.pose = (e == 0 ? alice : bob).Next(t);
+        if (far_tail && e == 1 && t > end - 50'000) {
+          for (LinkPose& l : a.pose.links) l.p.x() += 1e6;
+        }
+        used[e].push_back(a.pose);
+      } else {
+        box_p += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng)) +
+                 0.2 * (Eigen::Vector3d(0.1, 0.25, 0) - box_p);
+        const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3 * n(rng), Eigen::Vector3d::UnitX()));
+        a.object = ObjectPose("box", t, ++seq, box_p, q);
+        world::RigidSample x;
+        const double v[7] = {box_p.x(), box_p.y(), box_p.z(), q.w(), q.x(), q.y(), q.z()};
+        ASSERT_EQ(world::MakeRigidSample(t, v, &x), "");
+        box_used.push_back(x);
+      }
+      arrivals.push_back(a);
+    }
+  }
+  std::stable_sort(arrivals.begin(), arrivals.end(),
+                   [](const Arrival& x, const Arrival& y) { return x.at_us < y.at_us; });
+
+  Offline off;
+  off.AddAvatar("alice", used[0]);
+  off.AddAvatar("bob", used[1]);
+  world::ObjectEntity box;
+  box.id = "box";
+  box.mesh = Cube(0.08);
+  box.used = box_used;
+  off.w.world.objects.push_back(box);
+  QueryOptions qo;
+  off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
+  world::EntityQueryOptions eo;
+  eo.eps_s = qo.eps_s;
+  eo.delta_m = qo.delta_m;
+  eo.max_intervals = qo.max_intervals;
+
+  SharedWorldOptions so;
+  so.silence_timeout_us = 200'000;
+  SharedWorld live(so);
+  // Registered as the streams start (silence counts from registration).
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(start));
+  live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(start));
+  live.AddObject("box", Cube(0.08), At(start));
+
+  std::vector<SharedJob> due;
+  int64_t pair_count[2] = {0, 0};
+  std::optional<Pose> last[2];
+  for (const Arrival& a : arrivals) {
+    if (a.entity == 2) {
+      ASSERT_FALSE(live.OnObjectPose(a.object, 10'000'000, At(a.at_us), &due).has_value());
+      continue;
+    }
+    live.OnAvatarSample(ids[a.entity], 1, a.pose, At(a.at_us), &due);
+    if (last[a.entity]) {
+      PosePair p;
+      p.pair = pair_count[a.entity]++;
+      p.seq0 = p.pair, p.seq1 = p.pair + 1;
+      p.pose0 = *last[a.entity];
+      p.pose1 = a.pose;
+      p.receive_time = At(a.at_us);
+      live.AddPair(ids[a.entity], p, At(a.at_us), &due);
+    }
+    last[a.entity] = a.pose;
+  }
+  const size_t covered = due.size();
+  // Every entity stops: what still waits ends at its last sample.
+  live.CutSilent(At(end + 1'000'000), &due);
+  EXPECT_EQ(live.pending(), 0u);
+
+  // Offline: every overlapping (record, entity) entry, and which of them the
+  // live service can certify (the entity has a sample after utime1).
+  std::set<std::tuple<std::string, int64_t, std::string>> expected_covered, expected_all;
+  const int64_t last_utime[3] = {used[0].back().utime, used[1].back().utime,
+                                 box_used.back().utime};
+  int contacts = 0;
+  for (int a = 0; a < 2; ++a) {
+    for (size_t r = 0; r < off.w.world.avatars[a].records.size(); ++r) {
+      for (const auto& [entity, e] : off.Others(a, r)) {
+        expected_all.insert({ids[a], static_cast<int64_t>(r), entity});
+        const int ei = entity == "alice" ? 0 : entity == "bob" ? 1 : 2;
+        if (last_utime[ei] > *off.w.world.avatars[a].records[r].utime1) {
+          expected_covered.insert({ids[a], static_cast<int64_t>(r), entity});
+        }
+        contacts += e["result"] == "contact";
+      }
+    }
+  }
+  EXPECT_GT(contacts, 20) << "the scene must have contacts to compare";
+  std::printf("%zu offline entries, %d contacts, %zu certified live at once or after a wait\n",
+              expected_all.size(), contacts, covered);
+  EXPECT_LT(contacts, static_cast<int>(expected_all.size())) << "and free entries";
+
+  std::set<std::tuple<std::string, int64_t, std::string>> got_covered, got_all;
+  int waited = 0;
+  for (size_t i = 0; i < due.size(); ++i) {
+    const SharedJob& job = due[i];
+    const auto key = std::make_tuple(job.client_id, job.pair, job.entity);
+    EXPECT_TRUE(got_all.insert(key).second) << "answered twice";
+    EXPECT_EQ(job.ended_by_timeout, i >= covered);
+    if (!job.ended_by_timeout) got_covered.insert(key);
+    waited += job.waited_us > 0;
+    const shared_contact_t m = AnswerSharedJob(job, eo);
+    const int a = job.client_id == "alice" ? 0 : 1;
+    // Entries the entity really ended are equal too: the same samples.
+    ExpectEqualToOffline(m, off.Others(a, static_cast<size_t>(job.pair)).at(job.entity));
+    EXPECT_EQ(m.waited_us, job.waited_us);
+  }
+  EXPECT_EQ(got_covered, expected_covered);
+  EXPECT_EQ(got_all, expected_all);
+  EXPECT_GT(waited, 100) << "bob's delay makes entries wait";
+}
+
+TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
+  RunClientsAtDifferentRates(false);
+}
+
+// Regression: the slack of `sweptccd world` once scaled with the entity's
+// whole stream, which a live service cannot know; 1000 km at the end made
+// every earlier window's answer differ from the live one.
+TEST(SharedWorld, AFarLaterSampleChangesNoEarlierAnswer) { RunClientsAtDifferentRates(true); }
+
+struct Fixture {
+  SharedWorldOptions so;
+  std::unique_ptr<SharedWorld> live;
+  Walker alice{5, {0, 0, 0}}, bob{6, {0.2, 0, 0}};
+  std::vector<SharedJob> due;
+  explicit Fixture(int max_history = 64, int max_pending = 64) {
+    so.silence_timeout_us = 100'000;
+    so.max_history = max_history;
+    so.max_pending = max_pending;
+    live = std::make_unique<SharedWorld>(so);
+    live->AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0));
+    live->AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
+  }
+  PosePair Pair(int64_t k, const Pose& p0, const Pose& p1, int64_t received_us) {
+    PosePair p;
+    p.pair = k, p.seq0 = k, p.seq1 = k + 1, p.pose0 = p0, p.pose1 = p1;
+    p.receive_time = At(received_us);
+    return p;
+  }
+};
+
+TEST(SharedWorld, ASilentEntityEndsTheWindowAtItsLastSampleAfterTheTimeout) {
+  Fixture f;
+  const Pose b0 = f.bob.Next(1'000'000), b1 = f.bob.Next(1'010'000);
+  f.live->OnAvatarSample("bob", 1, b0, At(1'000'000), &f.due);
+  f.live->OnAvatarSample("bob", 1, b1, At(1'010'000), &f.due);
+  const Pose a0 = f.alice.Next(1'005'000), a1 = f.alice.Next(1'020'000);
+  f.live->OnAvatarSample("alice", 1, a0, At(1'005'000), &f.due);
+  f.live->OnAvatarSample("alice", 1, a1, At(1'020'000), &f.due);
+  f.live->AddPair("alice", f.Pair(0, a0, a1, 1'020'000), At(1'020'000), &f.due);
+  EXPECT_TRUE(f.due.empty());
+  EXPECT_EQ(f.live->pending(), 1u);
+  // Bob's last sample was received at 1.010 s: silent from 1.110 s on.
+  f.live->CutSilent(At(1'109'999), &f.due);
+  EXPECT_TRUE(f.due.empty());
+  f.live->CutSilent(At(1'110'000), &f.due);
+  ASSERT_EQ(f.due.size(), 1u);
+  const SharedJob& job = f.due[0];
+  EXPECT_TRUE(job.ended_by_timeout);
+  EXPECT_EQ(job.entity, "bob");
+  EXPECT_EQ(job.t_from, 1'005'000);
+  EXPECT_EQ(job.t_to, 1'010'000);  // Bob's last sample, not utime1.
+  EXPECT_EQ(job.waited_us, 90'000);
+  EXPECT_EQ(f.live->pending(), 0u);
+  EXPECT_EQ(f.live->entries_cut(), 1);
+}
+
+TEST(SharedWorld, AnEntityThatStartsAfterThePairGetsNoEntry) {
+  Fixture f;
+  const Pose a0 = f.alice.Next(1'000'000), a1 = f.alice.Next(1'010'000);
+  f.live->OnAvatarSample("alice", 1, a0, At(1'000), &f.due);
+  f.live->OnAvatarSample("alice", 1, a1, At(2'000), &f.due);
+  f.live->AddPair("alice", f.Pair(0, a0, a1, 2'000), At(2'000), &f.due);
+  EXPECT_EQ(f.live->pending(), 1u) << "bob, not heard from yet, may still cover it";
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'020'000), At(3'000), &f.due);
+  EXPECT_TRUE(f.due.empty()) << "no overlap: nothing to answer, as offline";
+  EXPECT_EQ(f.live->pending(), 0u);
+}
+
+TEST(SharedWorld, TheWaitOfOneEntryIsBoundedByTheTimeoutToo) {
+  Fixture f;
+  // Bob keeps talking, but its clock lags: it never covers alice's pair.
+  const Pose a0 = f.alice.Next(2'000'000), a1 = f.alice.Next(2'010'000);
+  f.live->OnAvatarSample("alice", 1, a0, At(1'000'000), &f.due);
+  f.live->OnAvatarSample("alice", 1, a1, At(1'010'000), &f.due);
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'000'000), At(1'000'000), &f.due);
+  f.live->AddPair("alice", f.Pair(0, a0, a1, 1'010'000), At(1'010'000), &f.due);
+  for (int64_t t = 1'020'000; t < 1'110'000; t += 10'000) {
+    f.live->OnAvatarSample("bob", 1, f.bob.Next(t), At(t), &f.due);
+    f.live->CutSilent(At(t), &f.due);
+  }
+  EXPECT_EQ(f.live->pending(), 1u);
+  f.live->CutSilent(At(1'110'000), &f.due);
+  EXPECT_EQ(f.live->pending(), 0u);
+  EXPECT_TRUE(f.due.empty()) << "bob's samples end before alice's pair: no overlap";
+}
+
+TEST(SharedWorld, AFullPendingListCutsItsOldestEntry) {
+  Fixture f(/*max_history=*/64, /*max_pending=*/3);
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'000'000), At(1'000'000), &f.due);
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'100'000), At(1'000'001), &f.due);
+  Pose prev = f.alice.Next(1'000'000);
+  f.live->OnAvatarSample("alice", 1, prev, At(1'000'000), &f.due);
+  for (int k = 0; k < 5; ++k) {
+    const Pose next = f.alice.Next(1'110'000 + 10'000 * k);
+    f.live->OnAvatarSample("alice", 1, next, At(1'000'010 + k), &f.due);
+    f.live->AddPair("alice", f.Pair(k, prev, next, 1'000'010 + k), At(1'000'010 + k), &f.due);
+    prev = next;
+  }
+  // Pair 0 overlaps bob ([1.0, 1.11] against [1.0, 1.1]); pairs 1-4 do not.
+  EXPECT_EQ(f.live->pending(), 3u);
+  ASSERT_EQ(f.due.size(), 1u);
+  EXPECT_EQ(f.due[0].pair, 0);
+  EXPECT_TRUE(f.due[0].ended_by_timeout);
+  EXPECT_EQ(f.due[0].t_to, 1'100'000);
+}
+
+TEST(SharedWorld, AWindowBeforeTheKeptHistoryIsMarkedCut) {
+  Fixture f(/*max_history=*/4);
+  for (int k = 0; k < 10; ++k) {
+    f.live->OnAvatarSample("bob", 1, f.bob.Next(1'000'000 + 10'000 * k), At(k), &f.due);
+  }
+  EXPECT_EQ(f.live->history_size("bob"), 4);
+  const Pose a0 = f.alice.Next(1'005'000), a1 = f.alice.Next(1'075'000);
+  f.live->OnAvatarSample("alice", 1, a0, At(20), &f.due);
+  f.live->OnAvatarSample("alice", 1, a1, At(21), &f.due);
+  f.live->AddPair("alice", f.Pair(0, a0, a1, 21), At(21), &f.due);
+  ASSERT_EQ(f.due.size(), 1u);
+  EXPECT_TRUE(f.due[0].ended_by_timeout) << "bob's samples before 1.06 s are gone";
+  EXPECT_EQ(f.due[0].t_from, 1'060'000);
+}
+
+TEST(SharedWorld, ANewSessionCutsWhatWaitedForTheOldStream) {
+  Fixture f;
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'000'000), At(0), &f.due);
+  f.live->OnAvatarSample("bob", 1, f.bob.Next(1'010'000), At(1), &f.due);
+  const Pose a0 = f.alice.Next(1'000'000), a1 = f.alice.Next(1'020'000);
+  f.live->OnAvatarSample("alice", 1, a0, At(2), &f.due);
+  f.live->OnAvatarSample("alice", 1, a1, At(3), &f.due);
+  f.live->AddPair("alice", f.Pair(0, a0, a1, 3), At(3), &f.due);
+  EXPECT_TRUE(f.due.empty());
+  f.live->OnAvatarSample("bob", 2, f.bob.Next(5), At(4), &f.due);  // Restarted tracker.
+  ASSERT_EQ(f.due.size(), 1u);
+  EXPECT_TRUE(f.due[0].ended_by_timeout);
+  EXPECT_EQ(f.due[0].t_to, 1'010'000);
+  EXPECT_EQ(f.live->history_size("bob"), 1);
+}
+
+TEST(SharedWorld, BadObjectPosesAreRefusedAndDisturbNothing) {
+  SharedWorldOptions so;
+  SharedWorld live(so);
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0));
+  live.AddObject("box", Cube(0.1), At(0));
+  std::vector<SharedJob> due;
+  const Eigen::Quaterniond q(1, 0, 0, 0);
+  ASSERT_FALSE(live.OnObjectPose(ObjectPose("box", 100, 1, {0, 0, 0}, q), 10'000'000, At(0), &due));
+  auto reason = [&](const object_pose_t& m) {
+    const auto r = live.OnObjectPose(m, 10'000'000, At(1), &due);
+    return r ? r->reason : std::string("used");
+  };
+  EXPECT_EQ(reason(ObjectPose("cup", 200, 2, {0, 0, 0}, q)), "unknown_object");
+  EXPECT_EQ(reason(ObjectPose("alice", 200, 2, {0, 0, 0}, q)), "unknown_object")
+      << "an avatar's id is no object";
+  EXPECT_EQ(reason(ObjectPose("box", 200, 2, {NAN, 0, 0}, q)), "non_finite");
+  EXPECT_EQ(reason(ObjectPose("box", 200, 2, {2e9, 0, 0}, q)), "position_out_of_range");
+  EXPECT_EQ(reason(ObjectPose("box", 200, 2, {0, 0, 0}, Eigen::Quaterniond(0, 0, 0, 0))),
+            "zero_quaternion");
+  EXPECT_EQ(reason(ObjectPose("box", 200, 1, {0, 0, 0}, q)), "non_increasing_seq");
+  EXPECT_EQ(reason(ObjectPose("box", 100, 2, {0, 0, 0}, q)), "non_increasing_utime");
+  EXPECT_EQ(reason(ObjectPose("box", 100 + 10'000'001, 2, {0, 0, 0}, q)), "utime_jump");
+  object_pose_t stale = ObjectPose("box", 200, 2, {0, 0, 0}, q);
+  stale.session = 0;
+  EXPECT_EQ(reason(stale), "stale_session");
+  EXPECT_EQ(live.history_size("box"), 1);
+  EXPECT_EQ(live.pending(), 0u);
+  EXPECT_TRUE(due.empty());
+  EXPECT_EQ(reason(ObjectPose("box", 200, 2, {0, 0, 0}, q)), "used");
+  EXPECT_EQ(live.history_size("box"), 2);
+}
+
+}  // namespace
+}  // namespace sweptccd

@@ -1,0 +1,386 @@
+// shared_world_tool: the shared world end to end (tests/service/e2e_shared_world.sh).
+//
+//   shared_world_tool write DIR
+//     Writes a world (SPEC 8): DIR/arm.json (a two-link arm), DIR/alice.jsonl
+//     (90 Hz), DIR/bob.jsonl (60 Hz, 5 ms later), DIR/cube.obj and
+//     DIR/cup.jsonl (a tracked cube at 30 Hz, 12 ms later), DIR/floor.obj
+//     (far below) and DIR/world.json naming them.
+//   shared_world_tool --key FILE play URL DIR OFFLINE.jsonl
+//     Publishes every sample of DIR/world.json in utime order at real-time
+//     pace (tracker_pose_t for the avatars, object_pose_t for the cup, signed
+//     with FILE), then one object pose of an unknown object ("ghost"); reads
+//     contact_event_t, shared_contact_t and rejection_t (DecodeChecked, mac
+//     verified) until every pair's shared entries are in (bounded: 30 s).
+//     Checks: every shared entry of a pair not merged by latest-wins, not
+//     ended by the timeout, equals `sweptccd world`'s entry (OFFLINE.jsonl)
+//     bit for bit; every such pair has exactly its offline entries; the only
+//     rejection is one unknown_object for "ghost". Exit 0 when all hold.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <Eigen/Geometry>
+#include <lcm/lcm-cpp.hpp>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <tuple>
+#include <vector>
+
+#include "msgs/channels.h"
+#include "msgs/checked_decode.h"
+#include "msgs/signing.h"
+#include "msgs/text.h"
+
+namespace {
+
+using namespace sweptccd;
+using json = nlohmann::json;
+
+std::optional<MacKey> g_key;
+
+void WriteText(const std::string& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  if (!out) {
+    std::fprintf(stderr, "shared_world_tool: cannot write %s\n", path.c_str());
+    std::exit(2);
+  }
+}
+
+int Write(const std::string& dir) {
+  WriteText(dir + "/arm.json", R"({"name": "arm", "links": [
+    {"name": "upper", "parent": null, "a": [0, 0, 0], "b": [0, 0.3, 0], "radius": 0.05},
+    {"name": "fore", "parent": "upper", "a": [0, 0, 0], "b": [0.3, 0, 0], "radius": 0.04}]})");
+  std::string cube = "";
+  const double h = 0.08;
+  for (int c = 0; c < 8; ++c) {
+    cube += "v " + std::to_string((c & 1) ? h : -h) + " " + std::to_string((c & 2) ? h : -h) +
+            " " + std::to_string((c & 4) ? h : -h) + "\n";
+  }
+  cube += "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n";
+  WriteText(dir + "/cube.obj", cube);
+  WriteText(dir + "/floor.obj", "v -10 -10 -10\nv 10 -10 -10\nv 10 10 -10\nv -10 10 -10\nf 1 2 3 4\n");
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0, 1);
+  const int64_t start = 1'000'000, end = 2'500'000;
+  auto arm = [&](const std::string& file, Eigen::Vector3d center, int64_t phase, int64_t period) {
+    std::string text;
+    Eigen::Vector3d p = center;
+    double angle = 0;
+    for (int64_t t = start + phase; t <= end; t += period) {
+      p += 0.02 * Eigen::Vector3d(n(rng), n(rng), n(rng)) + 0.1 * (center - p);
+      angle += 0.15 * n(rng);
+      const Eigen::Quaterniond q(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
+      const Eigen::Vector3d c = p + q * Eigen::Vector3d(0, 0.3, 0);
+      char line[512];
+      std::snprintf(line, sizeof line,
+                    "{\"utime\": %lld, \"links\": [[%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, "
+                    "%.17g], [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]]}\n",
+                    static_cast<long long>(t), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(),
+                    c.x(), c.y(), c.z(), q.w(), q.x(), q.y(), q.z());
+      text += line;
+    }
+    WriteText(dir + "/" + file, text);
+  };
+  arm("alice.jsonl", {0, 0, 0}, 0, 11'111);
+  arm("bob.jsonl", {0.25, 0.05, 0}, 5'000, 16'667);
+  std::string cup;
+  Eigen::Vector3d p(0.1, 0.25, 0);
+  for (int64_t t = start + 12'000; t <= end; t += 33'333) {
+    p += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng)) + 0.2 * (Eigen::Vector3d(0.1, 0.25, 0) - p);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3 * n(rng), Eigen::Vector3d::UnitX()));
+    char line[512];
+    std::snprintf(line, sizeof line,
+                  "{\"utime\": %lld, \"pose\": [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]}\n",
+                  static_cast<long long>(t), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+    cup += line;
+  }
+  WriteText(dir + "/cup.jsonl", cup);
+  WriteText(dir + "/world.json", R"({
+  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "alice.jsonl"},
+              {"id": "bob", "skeleton": "arm.json", "poses": "bob.jsonl"}],
+  "objects": [{"id": "cup", "mesh": "cube.obj", "poses": "cup.jsonl"}],
+  "env": ["floor.obj"]})");
+  return 0;
+}
+
+template <class T>
+void Send(lcm::LCM& lcm, const std::string& channel, const T& m) {
+  const std::vector<uint8_t> bytes = EncodeSigned(m, g_key ? &*g_key : nullptr);
+  lcm.publish(channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+}
+
+struct Receiver {
+  std::vector<contact_event_t> contacts;
+  std::vector<shared_contact_t> shared;
+  std::vector<rejection_t> rejections;
+  int bad = 0;
+  template <class T>
+  bool Take(const lcm::ReceiveBuffer* rbuf, T* out) {
+    DecodeResult<T> d = DecodeChecked<T>(rbuf->data, rbuf->data_size, WireLimits{});
+    if (!d.ok() || (g_key && !VerifyEncoded(rbuf->data, rbuf->data_size, *g_key))) {
+      ++bad;
+      return false;
+    }
+    *out = std::move(*d.message);
+    return true;
+  }
+  void OnContact(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    contact_event_t m;
+    if (Take(rbuf, &m)) contacts.push_back(m);
+  }
+  void OnShared(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    shared_contact_t m;
+    if (Take(rbuf, &m)) shared.push_back(m);
+  }
+  void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    rejection_t m;
+    if (Take(rbuf, &m)) rejections.push_back(m);
+  }
+};
+
+// The differences between a live entry and the offline one ("" if none).
+std::string Diff(const shared_contact_t& s, const json& o) {
+  std::string d;
+  auto eq = [&](const char* what, double live, double off) {
+    if (!(live == off)) d += std::string(" ") + what;
+  };
+  eq("t_from", static_cast<double>(s.t_from), o["window"][0].get<double>());
+  eq("t_to", static_cast<double>(s.t_to), o["window"][1].get<double>());
+  const bool contact = o["result"] == "contact";
+  if ((s.result == 1) != contact) return d + " result";
+  if (s.initially_colliding != o["initially_colliding"].get<bool>()) d += " initially_colliding";
+  if (s.undecided != o["undecided"].get<bool>()) d += " undecided";
+  if (!contact) return d;
+  eq("s_lo", s.s_lo, o["s_lo"].get<double>());
+  eq("s_hi", s.s_hi, o["s_hi"].get<double>());
+  eq("t_lo", s.t_lo, o["t_lo"].get<double>());
+  eq("t_hi", s.t_hi, o["t_hi"].get<double>());
+  if (s.contacts.size() != o["contacts"].size()) return d + " contacts";
+  for (size_t i = 0; i < s.contacts.size(); ++i) {
+    const entity_contact_t& c = s.contacts[i];
+    const json& w = o["contacts"][i];
+    eq("link", c.link, w["link"].get<double>());
+    eq("other_link", c.other_link, w.contains("other_link") ? w["other_link"].get<double>() : -1);
+    eq("triangle", static_cast<double>(c.triangle),
+       w.contains("triangle") ? w["triangle"].get<double>() : -1);
+    eq("s", c.s, w["s"].get<double>());
+    for (int k = 0; k < 3; ++k) {
+      eq("point_link", c.point_link[k], w["point_link"][k].get<double>());
+      eq("point_other", c.point_other[k], w["point_other"][k].get<double>());
+      eq("normal", c.normal[k], w["normal"][k].get<double>());
+    }
+    eq("separation", c.separation, w["separation"].get<double>());
+  }
+  return d;
+}
+
+int Play(const std::string& url, const std::string& dir, const std::string& offline_path) {
+  lcm::LCM lcm(url);
+  if (!lcm.good()) return 2;
+  Receiver rx;
+  lcm.subscribe(kContactChannel, &Receiver::OnContact, &rx);
+  lcm.subscribe(kSharedContactChannel, &Receiver::OnShared, &rx);
+  lcm.subscribe(kRejectChannel, &Receiver::OnReject, &rx);
+  // Offline entries by (avatar, utime0, utime1) -> entity -> entry.
+  std::map<std::tuple<std::string, int64_t, int64_t>, std::map<std::string, json>> offline;
+  {
+    std::ifstream in(offline_path);
+    std::string line;
+    while (std::getline(in, line)) {
+      const json r = json::parse(line);
+      auto& e = offline[{r["avatar"].get<std::string>(), r["utime0"].get<int64_t>(),
+                         r["utime1"].get<int64_t>()}];
+      for (const json& o : r["others"]) e[o["entity"].get<std::string>()] = o;
+    }
+  }
+  // The raw lines of the files `write` made: the daemon normalises what it
+  // receives exactly as `sweptccd world` normalises what it reads.
+  struct Sample {
+    int64_t utime;
+    int kind;  // 0 avatar, 1 object.
+    std::string id;
+    int64_t seq;
+    json values;
+  };
+  std::vector<Sample> order;
+  for (const auto& [id, kind] : {std::pair<std::string, int>{"alice", 0}, {"bob", 0}, {"cup", 1}}) {
+    std::ifstream in(dir + "/" + id + ".jsonl");
+    std::string line;
+    int64_t seq = 0;
+    while (std::getline(in, line)) {
+      const json j = json::parse(line);
+      order.push_back({j["utime"].get<int64_t>(), kind, id, seq++,
+                       kind == 0 ? j["links"] : j["pose"]});
+    }
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [](const Sample& x, const Sample& y) { return x.utime < y.utime; });
+  std::map<std::string, int64_t> last_seq;
+  const auto t0 = std::chrono::steady_clock::now();
+  const int64_t u_first = order.front().utime;
+  for (const Sample& x : order) {
+    std::this_thread::sleep_until(t0 + std::chrono::microseconds(x.utime - u_first));
+    if (x.kind == 0) {
+      tracker_pose_t m{};
+      m.utime = x.utime;
+      m.client_id = x.id;
+      m.session = 1;
+      m.seq = x.seq;
+      m.num_links = static_cast<int32_t>(x.values.size());
+      for (const json& l : x.values) {
+        m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
+        m.orientation.push_back(
+            {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
+      }
+      Send(lcm, kPoseChannel, m);
+      last_seq[x.id] = m.seq;
+    } else {
+      object_pose_t m{};
+      m.utime = x.utime;
+      m.object_id = x.id;
+      m.session = 1;
+      m.seq = x.seq;
+      for (int c = 0; c < 3; ++c) m.position[c] = x.values[c].get<double>();
+      for (int c = 0; c < 4; ++c) m.orientation[c] = x.values[3 + c].get<double>();
+      Send(lcm, kObjectPoseChannel, m);
+    }
+    while (lcm.handleTimeout(0) > 0) {
+    }
+  }
+  object_pose_t ghost{};
+  ghost.utime = order.back().utime;
+  ghost.object_id = "ghost";
+  ghost.session = 1;
+  ghost.seq = 1;
+  ghost.orientation[0] = 1;
+  Send(lcm, kObjectPoseChannel, ghost);
+
+  // Until every pair's last pose is answered and each answered pair not
+  // merged by latest-wins has all its offline entries (bounded).
+  auto expected_keys = [&] {
+    std::set<std::tuple<std::string, int64_t, std::string>> keys;
+    for (const contact_event_t& c : rx.contacts) {
+      if (c.seq1 - c.seq0 != 1) continue;  // Merged by latest-wins.
+      const auto it = offline.find({c.client_id, c.utime0, c.utime1});
+      if (it == offline.end()) continue;
+      for (const auto& [entity, o] : it->second) keys.insert({c.client_id, c.pair, entity});
+    }
+    return keys;
+  };
+  auto done = [&] {
+    std::map<std::string, int64_t> answered;
+    for (const contact_event_t& c : rx.contacts) {
+      answered[c.client_id] = std::max(answered[c.client_id], c.seq1);
+    }
+    if (answered != last_seq) return false;
+    std::set<std::tuple<std::string, int64_t, std::string>> got;
+    for (const shared_contact_t& s : rx.shared) got.insert({s.client_id, s.pair, s.entity});
+    for (const auto& k : expected_keys()) {
+      if (!got.count(k)) return false;
+    }
+    return !rx.rejections.empty();
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (!done() && std::chrono::steady_clock::now() < deadline) lcm.handleTimeout(50);
+  // Anything more (a duplicate would show now).
+  for (int i = 0; i < 10; ++i) lcm.handleTimeout(50);
+
+  int failures = 0;
+  if (!done()) {
+    std::printf("FAIL: not every pair and shared entry arrived within 30 s\n");
+    ++failures;
+  }
+  std::set<std::tuple<std::string, int64_t, std::string>> seen;
+  int compared = 0, cut = 0, merged = 0, waited = 0, contacts = 0;
+  for (const shared_contact_t& s : rx.shared) {
+    if (!seen.insert({s.client_id, s.pair, s.entity}).second) {
+      std::printf("FAIL: %s pair %lld against %s published twice\n",
+                  EscapeForDisplay(s.client_id).c_str(), static_cast<long long>(s.pair),
+                  EscapeForDisplay(s.entity).c_str());
+      ++failures;
+    }
+    waited += s.waited_us > 0;
+    if (s.ended_by_timeout) {
+      ++cut;
+      continue;
+    }
+    if (s.seq1 - s.seq0 != 1) {
+      ++merged;
+      continue;
+    }
+    const auto it = offline.find({s.client_id, s.utime0, s.utime1});
+    const std::string entity = s.entity;
+    if (it == offline.end() || !it->second.count(entity)) {
+      std::printf("FAIL: %s [%lld, %lld] against %s: no such offline entry\n",
+                  EscapeForDisplay(s.client_id).c_str(), static_cast<long long>(s.utime0),
+                  static_cast<long long>(s.utime1), EscapeForDisplay(entity).c_str());
+      ++failures;
+      continue;
+    }
+    const std::string d = Diff(s, it->second.at(entity));
+    if (!d.empty()) {
+      std::printf("FAIL: %s [%lld, %lld] against %s differs:%s\n", s.client_id.c_str(),
+                  static_cast<long long>(s.utime0), static_cast<long long>(s.utime1),
+                  entity.c_str(), d.c_str());
+      ++failures;
+    }
+    ++compared;
+    contacts += s.result == 1;
+  }
+  for (const auto& k : expected_keys()) {
+    if (!seen.count(k)) {
+      std::printf("FAIL: %s pair %lld against %s never published\n", std::get<0>(k).c_str(),
+                  static_cast<long long>(std::get<1>(k)), std::get<2>(k).c_str());
+      ++failures;
+    }
+  }
+  if (rx.rejections.size() != 1 || rx.rejections[0].reason != "unknown_object" ||
+      rx.rejections[0].client_id != "ghost") {
+    std::printf("FAIL: expected exactly one unknown_object rejection for 'ghost', got %zu\n",
+                rx.rejections.size());
+    for (const rejection_t& r : rx.rejections) {
+      std::printf("  %s %s\n", r.reason.c_str(), EscapeForDisplay(r.message).c_str());
+    }
+    ++failures;
+  }
+  if (rx.bad > 0) {
+    std::printf("FAIL: %d messages did not decode or verify\n", rx.bad);
+    ++failures;
+  }
+  // The run must compare something real: most entries, some contacts.
+  if (compared < 200 || contacts < 10) {
+    std::printf("FAIL: only %d entries compared (%d contacts)\n", compared, contacts);
+    ++failures;
+  }
+  std::printf("shared_world_tool play: %zu pairs, %zu shared entries: %d equal to sweptccd world "
+              "(%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
+              rx.contacts.size(), rx.shared.size(), compared, contacts, cut, merged, waited,
+              failures);
+  return failures == 0 ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  if (args.size() >= 2 && args[0] == "--key") {
+    g_key = LoadKeyFile(args[1]);
+    args.erase(args.begin(), args.begin() + 2);
+  }
+  try {
+    if (args.size() == 2 && args[0] == "write") return Write(args[1]);
+    if (args.size() == 4 && args[0] == "play") return Play(args[1], args[2], args[3]);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "shared_world_tool: %s\n", e.what());
+    return 2;
+  }
+  std::fprintf(stderr, "usage: shared_world_tool write DIR | [--key FILE] play URL DIR OFFLINE\n");
+  return 2;
+}
