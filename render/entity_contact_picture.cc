@@ -64,7 +64,7 @@ void AppendObject(const world::ObjectEntity& object, double t, std::vector<float
   const world::RigidMotion motion(object.used[k0], object.used[k1]);
   const Eigen::Vector3d p = motion.PositionAt(s);
   const Eigen::Matrix3d R = motion.RotationAt(s).toRotationMatrix();
-  const TriangleBvh& bvh = object.mesh.object(0).bvh;
+  const TriangleBvh& bvh = object.mesh->object(0).bvh;
   for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
     Eigen::Vector3d v[3];
     bvh.Triangle(slot, &v[0], &v[1], &v[2]);
