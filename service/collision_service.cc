@@ -646,13 +646,17 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
 }
 
 bool CollisionService::LeaveLive(const std::string& client_id, int64_t session) {
+  // Declared before the lock: the client (its engine and buffers) is freed
+  // after the lock is released, so no worker waits on a leave's frees.
+  std::shared_ptr<Client> leaving;
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = client_index_.find(client_id);
   if (it == client_index_.end() || !it->second->live ||
       it->second->assigned_session != session) {
     return false;
   }
-  RemoveLocked(std::shared_ptr<Client>(it->second));
+  leaving = it->second;
+  RemoveLocked(leaving);
   ++live_left_;
   return true;
 }
@@ -660,8 +664,8 @@ bool CollisionService::LeaveLive(const std::string& client_id, int64_t session) 
 std::vector<std::string> CollisionService::ExpireSilent(SteadyClock::time_point now) {
   const auto timeout = std::chrono::milliseconds(options_.silence_timeout_ms);
   std::vector<std::string> expired;
+  std::vector<std::shared_ptr<Client>> silent;  // Freed after the lock, as in LeaveLive.
   std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<std::shared_ptr<Client>> silent;
   for (const auto& c : clients_) {
     if (c->live && now - c->last_heard >= timeout) silent.push_back(c);
   }
