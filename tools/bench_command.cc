@@ -38,6 +38,8 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
   app->add_option("--eps", o->eps_s, "Time tolerance, seconds");
   app->add_option("--delta", o->delta_m, "Distance tolerance, metres");
   app->add_flag("!--no-peers", o->peers, "Skip the FCL and Bullet peers");
+  app->add_flag("--fcl-ccd", o->fcl_ccd,
+                "Also time FCL's continuous query per link (linear motion, naive solver)");
   app->add_option("--motion", o->motion, "Motion model: articulated or independent")
       ->check(CLI::IsMember({"articulated", "independent"}));
   app->add_flag("--per-link", o->per_link, "Per-link mode (a bracket for every link)");
@@ -193,18 +195,7 @@ class FclPeer {
     bool hit = false;
     for (int i = 0; i < skel.num_links() && !hit; ++i) {
       const Link& l = skel.link(i);
-      const Eigen::Vector3d a = pose.links[i].p + pose.links[i].q * l.a_L;
-      const Eigen::Vector3d b = pose.links[i].p + pose.links[i].q * l.b_L;
-      const double len = (b - a).norm();
-      // fcl::Capsule is centred on its frame with its axis along z.
-      auto cap = std::make_shared<fcl::Capsuled>(l.radius, len);
-      fcl::Transform3d X = fcl::Transform3d::Identity();
-      X.translation() = 0.5 * (a + b);
-      if (len > 0) {
-        X.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), (b - a) / len)
-                         .toRotationMatrix();
-      }
-      fcl::CollisionObjectd capsule(cap, X);
+      fcl::CollisionObjectd capsule(Capsule(l), CapsuleFrame(l, pose.links[i]));
       for (const auto& obj : objects_) {
         fcl::CollisionRequestd request;
         fcl::CollisionResultd result;
@@ -217,7 +208,51 @@ class FclPeer {
     return hit;
   }
 
+  // FCL's continuous query: true when some capsule, moving linearly from its
+  // frame at pose0 to its frame at pose1, touches a mesh. The naive solver
+  // checks kFclCcdSteps evenly spaced discrete poses (not certified: thin
+  // geometry between them is missed).
+  bool Sweep(const Skeleton& skel, const Pose& pose0, const Pose& pose1) const {
+    fcl::ContinuousCollisionRequestd request;
+    request.ccd_motion_type = fcl::CCDM_LINEAR;
+    request.ccd_solver_type = fcl::CCDC_NAIVE;
+    request.num_max_iterations = kFclCcdSteps;
+    const fcl::Transform3d identity = fcl::Transform3d::Identity();
+    for (int i = 0; i < skel.num_links(); ++i) {
+      const Link& l = skel.link(i);
+      const auto capsule = Capsule(l);
+      const fcl::Transform3d X0 = CapsuleFrame(l, pose0.links[i]);
+      const fcl::Transform3d X1 = CapsuleFrame(l, pose1.links[i]);
+      for (const auto& obj : objects_) {
+        fcl::ContinuousCollisionResultd result;
+        fcl::continuousCollide<double>(capsule.get(), X0, X1, obj->collisionGeometry().get(),
+                                       identity, identity, request, result);
+        if (result.is_collide) return true;
+      }
+    }
+    return false;
+  }
+
+  static constexpr int kFclCcdSteps = 10;  // FCL's default num_max_iterations.
+
  private:
+  // fcl::Capsule is centred on its frame with its axis along z.
+  static std::shared_ptr<fcl::Capsuled> Capsule(const Link& l) {
+    return std::make_shared<fcl::Capsuled>(l.radius, (l.b_L - l.a_L).norm());
+  }
+  static fcl::Transform3d CapsuleFrame(const Link& l, const LinkPose& x) {
+    const Eigen::Vector3d a = x.p + x.q * l.a_L;
+    const Eigen::Vector3d b = x.p + x.q * l.b_L;
+    const double len = (b - a).norm();
+    fcl::Transform3d X = fcl::Transform3d::Identity();
+    X.translation() = 0.5 * (a + b);
+    if (len > 0) {
+      X.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), (b - a) / len)
+                       .toRotationMatrix();
+    }
+    return X;
+  }
+
   std::vector<std::unique_ptr<fcl::CollisionObjectd>> objects_;
   double build_s_ = 0;
 };
@@ -236,6 +271,8 @@ struct Row {
   Stats bullet_us;
   int bullet_misses = 0;  // Pairs where we found contact and Bullet's sweep saw none.
   double bullet_build_s = 0;
+  Stats fcl_ccd_us;       // --fcl-ccd only.
+  int fcl_ccd_misses = 0;  // Pairs where we found contact and FCL's continuous query saw none.
 };
 
 double Ratio(double num, double den) { return den > 0 ? num / den : 0.0; }
@@ -268,6 +305,26 @@ std::string TargetLines(const std::vector<Row>& rows) {
   }
   std::snprintf(buf, sizeof(buf), "targets met: %d of %d\n", met, total);
   out << buf;
+  return out.str();
+}
+
+// FCL's continuous query beside ours on the same pairs (--fcl-ccd).
+std::string FclCcdTable(const std::vector<Row>& rows) {
+  std::ostringstream out;
+  char buf[256];
+  std::snprintf(buf, sizeof(buf),
+                "\nFCL continuousCollide (linear motion, naive solver, %d steps) per link, "
+                "same pairs:\n%-22s %-18s %5s %9s %9s %9s %9s %9s %6s\n",
+                FclPeer::kFclCcdSteps, "scene", "clip", "pairs", "ours_med", "fccd_med",
+                "ours_p99", "fccd_p99", "fccd/ours", "fmiss");
+  out << buf;
+  for (const Row& r : rows) {
+    std::snprintf(buf, sizeof(buf), "%-22s %-18s %5d %9.1f %9.1f %9.1f %9.1f %9.2f %6d\n",
+                  r.scene.c_str(), r.clip.substr(0, 18).c_str(), r.pairs, r.ours_us.median,
+                  r.fcl_ccd_us.median, r.ours_us.p99, r.fcl_ccd_us.p99,
+                  Ratio(r.fcl_ccd_us.median, r.ours_us.median), r.fcl_ccd_misses);
+    out << buf;
+  }
   return out.str();
 }
 
@@ -384,7 +441,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         bullet = std::make_unique<BulletPeer>(meshes);
       }
       Row all_row;
-      std::vector<double> all_ours, all_theirs, all_gpu, all_bullet;
+      std::vector<double> all_ours, all_theirs, all_gpu, all_bullet, all_fcl_ccd;
+      const bool fcl_ccd = fcl && options.fcl_ccd;
       for (const std::string& clip_name : options.clips) {
         MocapImportOptions mo;
         mo.up_axis = scene.up;
@@ -412,7 +470,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         row.build_s = build_s;
         row.bytes_per_tri = static_cast<double>(env.memory_bytes()) / env.num_triangles();
         row.rss_per_tri = 1024.0 * (rss1 - rss0) / env.num_triangles();
-        std::vector<double> ours, theirs, gpu_times, bullet_times;
+        std::vector<double> ours, theirs, gpu_times, bullet_times, fcl_ccd_times;
         if (with_gpu) row.gpu_mismatches = 0;
         const int n = std::min<int>(options.max_pairs, static_cast<int>(clip.poses.size()) - 1);
         // Warm-up, untimed and alike for every method: the same first pairs
@@ -425,6 +483,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
           if (with_gpu) (void)gpu_engine.Query(p0, p1, q);
           if (fcl) (void)fcl->Collide(clip.skeleton, p1);
           if (bullet) (void)bullet->Sweep(clip.skeleton, p0, p1);
+          if (fcl_ccd) (void)fcl->Sweep(clip.skeleton, p0, p1);
         }
         for (int k = 0; k < n; ++k) {
           const Pose& p0 = clip.poses[k];
@@ -454,11 +513,20 @@ int RunBenchCommand(const BenchCommandOptions& options) {
             bullet_times.push_back(1e6 * (NowS() - c));
             if (r.contact && !hit) ++row.bullet_misses;
           }
+          if (fcl_ccd) {
+            const double c = NowS();
+            const bool hit = fcl->Sweep(clip.skeleton, p0, p1);
+            fcl_ccd_times.push_back(1e6 * (NowS() - c));
+            if (r.contact && !hit) ++row.fcl_ccd_misses;
+          }
         }
         all_ours.insert(all_ours.end(), ours.begin(), ours.end());
         all_theirs.insert(all_theirs.end(), theirs.begin(), theirs.end());
         all_gpu.insert(all_gpu.end(), gpu_times.begin(), gpu_times.end());
         all_bullet.insert(all_bullet.end(), bullet_times.begin(), bullet_times.end());
+        all_fcl_ccd.insert(all_fcl_ccd.end(), fcl_ccd_times.begin(), fcl_ccd_times.end());
+        row.fcl_ccd_us = Summarise(fcl_ccd_times);
+        all_row.fcl_ccd_misses += row.fcl_ccd_misses;
         row.bullet_us = Summarise(bullet_times);
         row.bullet_build_s = bullet ? bullet->build_s() : 0;
         all_row.bullet_misses += row.bullet_misses;
@@ -486,6 +554,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       all_row.fcl_us = Summarise(all_theirs);
       all_row.gpu_us = Summarise(all_gpu);
       all_row.bullet_us = Summarise(all_bullet);
+      all_row.fcl_ccd_us = Summarise(all_fcl_ccd);
       rows.push_back(all_row);
     }
     std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, motion %s%s, %d warm-up pairs, "
@@ -507,9 +576,11 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     std::fputs(FormatTable(rows, false).c_str(), stdout);
     std::fputs("\n", stdout);
     std::fputs(TargetLines(rows).c_str(), stdout);
+    const std::string fcl_ccd_table = options.peers && options.fcl_ccd ? FclCcdTable(rows) : "";
+    std::fputs(fcl_ccd_table.c_str(), stdout);
     if (!options.markdown_path.empty()) {
       std::ofstream md(options.markdown_path);
-      md << FormatTable(rows, true) << "\n```\n" << TargetLines(rows) << "```\n";
+      md << FormatTable(rows, true) << "\n```\n" << TargetLines(rows) << fcl_ccd_table << "```\n";
       if (!md) throw InputError(options.markdown_path + ": cannot write the Markdown table");
     }
     return 0;

@@ -26,6 +26,10 @@ struct BenchCommandOptions {
   double eps_s = 1e-4;
   double delta_m = 1e-3;
   bool peers = true;  // Also time FCL and Bullet in the same run.
+  /// Also time FCL's continuous query (fcl::continuousCollide, linear motion,
+  /// its naive solver: FCL_CCD_STEPS discrete checks; its conservative
+  /// advancement misses capsule-mesh contacts, see docs/BENCHMARKS.md).
+  bool fcl_ccd = false;
   std::string motion = "articulated";  // --motion: articulated or independent.
   bool per_link = false;               // --per-link: a bracket for every link.
   /// What times a pair: "wall" (steady clock) or "thread" (this thread's CPU
