@@ -1,11 +1,17 @@
 // Join churn for tools/service_bench/join_churn.sh: in one process (no
 // process start-up on the measured machine), live clients of the client
-// library join at JOINS_HZ, each stays LIFETIME_S and leaves; with STREAM 1
-// every live client publishes a pose (the first pose of POSES.jsonl,
-// stationary) at 90 Hz while it is live. Runs SECONDS, then prints the
-// joins, the refusals and the join round trip (median, p99, max).
+// library join at JOINS_HZ, each stays LIFETIME_S and leaves. MODE:
+//   join:   joins and leaves only;
+//   stream: every live client also publishes a pose (the first pose of
+//           POSES.jsonl, stationary) at 90 Hz while it is live;
+//   listen: the control: no join, no leave, no pose; at the same times the
+//           same receivers open (a DaemonConnection each, as a LiveClient
+//           has), live LIFETIME_S and close: what this process costs the
+//           machine without asking the daemon anything.
+// Runs SECONDS, then prints the joins, the refusals and the join round trip
+// (median, p99, max).
 //
-//   sweptccd_join_churn URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S SECONDS STREAM
+//   sweptccd_join_churn URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S SECONDS MODE
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -36,7 +42,7 @@ int main(int argc, char** argv) {
   using namespace sweptccd;
   if (argc != 9) {
     std::fprintf(stderr, "usage: %s URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S "
-                         "SECONDS STREAM\n", argv[0]);
+                         "SECONDS join|stream|listen\n", argv[0]);
     return 2;
   }
   try {
@@ -56,10 +62,15 @@ int main(int argc, char** argv) {
     const MacKey room = LoadKeyFile(argv[4]);
     const double joins_hz = std::stod(argv[5]), lifetime_s = std::stod(argv[6]);
     const double seconds = std::stod(argv[7]);
-    const bool stream = std::string(argv[8]) == "1";
+    const std::string mode = argv[8];
+    if (mode != "join" && mode != "stream" && mode != "listen") {
+      throw InputError("MODE '" + mode + "' is not join, stream or listen");
+    }
+    const bool stream = mode == "stream";
 
     struct Live {
-      std::unique_ptr<LiveClient> client;
+      std::unique_ptr<LiveClient> client;              // join, stream.
+      std::unique_ptr<DaemonConnection> listener;      // listen.
       Clock::time_point leave_at;
       int64_t seq = 0;
     };
@@ -76,10 +87,20 @@ int main(int argc, char** argv) {
     while (Clock::now() < end) {
       const Clock::time_point now = Clock::now();
       while (!live.empty() && live.front().leave_at <= now) {
-        live.front().client->Leave();
+        if (live.front().client) live.front().client->Leave();
         live.pop_front();
       }
-      if (now >= next_join) {
+      const auto life = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(lifetime_s));
+      if (now >= next_join && mode == "listen") {
+        next_join += join_period;
+        DaemonConnection::Options o;
+        o.lcm_url = url;
+        o.only_client_id = "churn" + std::to_string(k++);
+        auto listener = std::make_unique<DaemonConnection>(std::move(o));
+        listener->Start();
+        live.push_back({nullptr, std::move(listener), Clock::now() + life, 0});
+      } else if (now >= next_join) {
         next_join += join_period;
         LiveClient::Options o;
         o.lcm_url = url;
@@ -93,9 +114,7 @@ int main(int argc, char** argv) {
         join_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - a).count());
         if (r.ok()) {
           ++joins;
-          const auto life = std::chrono::duration_cast<Clock::duration>(
-              std::chrono::duration<double>(lifetime_s));
-          live.push_back({std::move(client), Clock::now() + life, 0});
+          live.push_back({std::move(client), nullptr, Clock::now() + life, 0});
         } else if (r.reason < 0) {
           ++no_reply;
         } else {
@@ -116,7 +135,9 @@ int main(int argc, char** argv) {
       }
       std::this_thread::sleep_until(stream ? std::min(next_join, next_tick) : next_join);
     }
-    for (Live& l : live) l.client->Leave();
+    for (Live& l : live) {
+      if (l.client) l.client->Leave();
+    }
     std::printf("join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
                 "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
                 static_cast<long long>(joins), static_cast<long long>(refused),

@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # Joins under load, inside a private network namespace (never the host
 # network): 8 configured clients stream the bundled walk at 90 Hz for 10 s
-# (sweptccd_latency_bench: publication -> contact event), three times:
+# (sweptccd_latency_bench: publication -> contact event), four times:
 #   alone     nothing else;
+#   listen    the control: the churn process opens and closes the same LCM
+#             receivers at the same times (10 a second, each open 0.8 s)
+#             but never joins: its own cost to the shared machine;
 #   churn     live clients join and leave at 10 per second, each live 0.8 s
 #             and streaming a pose at 90 Hz meanwhile (about 8 more clients
 #             streaming at any time, so more pairs to answer);
@@ -29,7 +32,7 @@ args=()
 for c in $(seq 0 7); do args+=(--client "client$c=$work/skeleton.json"); done
 echo "| run | clients | Hz | poses sent | events | median us | p99 us | max us |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|"
-for run in alone churn joinonly; do
+for run in alone listen churn joinonly; do
   "$build/bin/sweptccd-service" --lcm-url "$url" --env data/env/morse_apartment.ply.gz \
     --workers 2 --room-key "$work/room.key" --log-level info --max-live-clients 32 \
     --silence-timeout-ms 2000 "${args[@]}" 2> "$work/daemon_$run.log" &
@@ -37,10 +40,11 @@ for run in alone churn joinonly; do
   sleep 1
   churn=
   if [ "$run" != alone ]; then
-    stream=0
-    if [ "$run" = churn ]; then stream=1; fi
+    mode=join
+    if [ "$run" = churn ]; then mode=stream; fi
+    if [ "$run" = listen ]; then mode=listen; fi
     "$build/bin/sweptccd_join_churn" "$url" "$work/skeleton.json" "$work/poses.jsonl" \
-      "$work/room.key" 10 0.8 11 $stream > "$work/churn_$run.out" 2>&1 &
+      "$work/room.key" 10 0.8 11 $mode > "$work/churn_$run.out" 2>&1 &
     churn=$!
   fi
   line=$("$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" 8 90 10 "$work/room.key")
