@@ -275,6 +275,9 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
     }
   }
   std::vector<double> env_us, whole_us;
+  // The whole answer's times by record kind: every other entity cleared by
+  // the broad phase; link work but no shared contact; a shared contact.
+  std::vector<double> by_kind[3];
   Tally tally;
   for (int a = 0; a < n_avatars; ++a) {
     for (size_t r = 0; r < w.world.avatars[a].records.size(); ++r) {
@@ -285,11 +288,12 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
       env_us.push_back(1e6 * (t_env - t0));
       whole_us.push_back(1e6 * (t1 - t0));
       tally.env_contacts += env_contact;
-      bool any = false;
+      bool any = false, link_work = false;
       for (int e = 0; e < n_avatars + n_objects; ++e) {
         if (!answered[e]) continue;
         ++tally.entries;
         tally.culled += answers[e].culled_by_box;
+        link_work = link_work || !answers[e].culled_by_box;
         if (!answers[e].contact) continue;
         any = true;
         if (e < n_avatars) {
@@ -300,6 +304,7 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
         }
       }
       tally.records_with_contact += any;
+      by_kind[any ? 2 : link_work ? 1 : 0].push_back(whole_us.back());
     }
   }
   const bench::Stats env = bench::Summarise(env_us), whole = bench::Summarise(whole_us);
@@ -320,6 +325,10 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
   std::printf("| answer | records | median us | p99 us | max us |\n|---|---|---|---|---|\n");
   PrintLine("env-only", env_us.size(), env);
   PrintLine("whole", whole_us.size(), whole);
+  PrintLine("whole: all others cleared by the broad phase", by_kind[0].size(),
+            bench::Summarise(by_kind[0]));
+  PrintLine("whole: link work, no shared contact", by_kind[1].size(), bench::Summarise(by_kind[1]));
+  PrintLine("whole: a shared contact", by_kind[2].size(), bench::Summarise(by_kind[2]));
   std::printf("\n");
   PrintTarget("whole median / env-only median", env.median > 0 ? whole.median / env.median : 0, 2);
   PrintTarget("whole p99 / whole median", whole.median > 0 ? whole.p99 / whole.median : 0, 5);
