@@ -115,7 +115,7 @@ std::string ObjectPoseLine(int64_t utime, const Eigen::Vector3d& p, const Eigen:
 std::vector<Pose> Resample(const MocapClip& clip, double start_s, double rate_hz, double seconds) {
   if (clip.poses.size() < 2) throw InputError("world-bench: a clip with fewer than two frames");
   const double length_s = clip.frame_time_s * static_cast<double>(clip.poses.size() - 1);
-  start_s = std::clamp(length_s - seconds, 0.0, start_s);
+  start_s = std::min(start_s, std::max(0.0, length_s - seconds));
   const double end_s = std::min(length_s, start_s + seconds);
   std::vector<Pose> out;
   for (int k = 0; start_s + k / rate_hz <= end_s; ++k) {
