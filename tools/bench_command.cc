@@ -19,6 +19,7 @@
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
 #include "mocap/mocap_import.h"
+#include "tools/bench_common.h"
 #include "tools/bullet_peer.h"
 
 namespace sweptccd {
@@ -73,30 +74,13 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 bool g_thread_clock = false;
 
 double NowS() {
-  if (g_thread_clock) {
-    timespec ts;
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-  }
+  if (g_thread_clock) return bench::ThreadCpuSeconds();
   return std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
 }
 
-struct Stats {
-  double median = 0, p99 = 0, max = 0, mean = 0;
-};
-
-Stats Summarise(std::vector<double> v) {
-  Stats s;
-  if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
-  s.median = v[v.size() / 2];
-  s.p99 = v[std::min(v.size() - 1, static_cast<size_t>(0.99 * v.size()))];
-  s.max = v.back();
-  double sum = 0;
-  for (double x : v) sum += x;
-  s.mean = sum / v.size();
-  return s;
-}
+using bench::DataFile;
+using bench::Stats;
+using bench::Summarise;
 
 long ResidentKiB() {
   std::ifstream in("/proc/self/status");
@@ -122,13 +106,6 @@ struct SceneSpec {
   Eigen::Vector2d centre{0, 0};      // Horizontal centre of the walk.
 };
 
-// A data file by its plain name: as named when present, else its gzip
-// (data/ ships NAME.gz; a larger folder may hold either).
-std::string DataFile(const std::string& path) {
-  std::error_code ec;
-  return std::filesystem::exists(path, ec) ? path : path + ".gz";
-}
-
 TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
                         const MeshLoadOptions& options) {
   TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file), options);
@@ -136,32 +113,6 @@ TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
     v = (v.cast<double>() * m.scale + m.offset).cast<float>();
   }
   return mesh;
-}
-
-// Shifts the clip so the middle of its root path is at `centre` and its
-// lowest capsule point over the whole clip is 2 cm above the floor.
-void PlaceClip(MocapClip* clip, const SceneSpec& scene) {
-  const int up = scene.up == 'z' ? 2 : 1;
-  const int h0 = 0, h1 = scene.up == 'z' ? 1 : 2;
-  double lowest = 1e300;
-  Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
-  for (const Pose& pose : clip->poses) {
-    for (int i = 0; i < clip->skeleton.num_links(); ++i) {
-      const Link& l = clip->skeleton.link(i);
-      const LinkPose& X = pose.links[i];
-      for (const Eigen::Vector3d& e : {l.a_L, l.b_L}) {
-        lowest = std::min(lowest, (X.p + X.q * e)[up] - l.radius);
-      }
-    }
-    const Eigen::Vector3d& root = pose.links[clip->skeleton.root()].p;
-    lo = lo.cwiseMin(root);
-    hi = hi.cwiseMax(root);
-  }
-  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
-  offset[up] = scene.floor + 0.02 - lowest;
-  offset[h0] = scene.centre[0] - 0.5 * (lo[h0] + hi[h0]);
-  offset[h1] = scene.centre[1] - 0.5 * (lo[h1] + hi[h1]);
-  TranslateClip(clip, offset);
 }
 
 // FCL peer: discrete collision of the 16 capsules at the second pose of each
@@ -453,7 +404,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         std::vector<Pose> poses;
         for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
         clip.poses = poses;
-        PlaceClip(&clip, scene);
+        bench::PlaceClipOnFloor(&clip, scene.up, scene.floor, scene.centre);
         const CcdEngine engine(clip.skeleton, env);
         CcdEngine gpu_engine(clip.skeleton, env);
         if (gpu_backend) gpu_backend->Attach(&gpu_engine);

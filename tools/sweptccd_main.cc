@@ -16,6 +16,7 @@
 #include "tools/query_command.h"
 #include "tools/render_command.h"
 #include "tools/simulate_tracker_command.h"
+#include "tools/world_bench_command.h"
 #include "tools/world_command.h"
 
 int main(int argc, char** argv) {
@@ -122,6 +123,11 @@ int main(int argc, char** argv) {
   world->add_option("--max-intervals", wo.query.max_intervals,
                     "Work limit per query (default 2000000)");
 
+  sweptccd::WorldBenchOptions wb;
+  CLI::App* world_bench = app.add_subcommand(
+      "world-bench", "Benchmark a shared world: avatars and objects in the breakfast room");
+  sweptccd::AddWorldBenchOptions(world_bench, &wb);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -139,6 +145,7 @@ int main(int argc, char** argv) {
     return sweptccd::RunQueryCommand(q);
   }
   if (world->parsed()) return sweptccd::RunWorldCommand(wo);
+  if (world_bench->parsed()) return sweptccd::RunWorldBenchCommand(wb);
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
   if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
   if (render->parsed()) return sweptccd::RunRenderCommand(rn);

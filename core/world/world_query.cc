@@ -174,6 +174,15 @@ Aabb WorldAnswerer::PairBox(int a, size_t r) const {
   return MotionBox(A.skeleton, motion, BoxPad(avatar_scale_[a]));
 }
 
+QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
+  if (w_.env.num_objects() == 0) return QueryResult();  // `free`.
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  QueryOptions options = options_;
+  options.motion = A.motion;  // Each avatar moves by its own model.
+  return engines_[a]->Query(rec.pose0, rec.pose1, options);
+}
+
 std::string WorldAnswerer::RecordJson(int a, size_t r) const {
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
@@ -185,12 +194,7 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
     return j.dump(-1, ' ', false, ojson::error_handler_t::replace);
   }
   const auto start = std::chrono::steady_clock::now();
-  QueryResult env_result;  // `free` when there is no environment.
-  if (w_.env.num_objects() > 0) {
-    QueryOptions options = options_;
-    options.motion = A.motion;  // Each avatar moves by its own model.
-    env_result = engines_[a]->Query(rec.pose0, rec.pose1, options);
-  }
+  const QueryResult env_result = AnswerEnvironment(a, r);
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
   const double dur = static_cast<double>(u1 - u0);
   ojson others = ojson::array();

@@ -22,6 +22,10 @@ class WorldAnswerer {
   /// Calls f on each avatar's environment engine (to attach a backend).
   void ForEachEngine(const std::function<void(CcdEngine*)>& f);
 
+  /// The static-environment answer of avatar a's valid record r (SPEC 8:
+  /// `free` when the world has no environment), on the attached backend.
+  QueryResult AnswerEnvironment(int a, size_t r) const;
+
   /// The JSON record (one line, no newline) of record `r` of avatar `a`.
   std::string RecordJson(int a, size_t r) const;
 

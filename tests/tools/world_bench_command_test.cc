@@ -1,0 +1,127 @@
+// `sweptccd world-bench` at a tiny size (3 avatars, 2 objects, half a
+// second), run as the real binary: the world it writes (ids, rates, the
+// holder's ignore rules, a held object sampled at its holder's utimes, a
+// thrown one), `sweptccd world` reads that world, and the table has its rows,
+// counts that agree with the written streams and a met/missed line per
+// target. Counts and structure only: times are never asserted.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "tests/common/temp_dir_test.h"
+#include "tests/tools/run_binary.h"
+
+namespace sweptccd {
+namespace {
+
+using nlohmann::json;
+using testing::RunResult;
+
+const std::string kBinary = SWEPTCCD_BINARY;
+
+std::vector<std::string> Lines(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> out;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty()) out.push_back(line);
+  }
+  return out;
+}
+
+// The first number after `prefix` at the start of a line of `text`.
+double Field(const std::string& text, const std::string& prefix) {
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(prefix, 0) == 0) return std::stod(line.substr(prefix.size()));
+  }
+  ADD_FAILURE() << "no line starting with " << prefix << " in\n" << text;
+  return -1;
+}
+
+class WorldBenchCommandTest : public test::TempDirTest {
+ protected:
+  WorldBenchCommandTest() : TempDirTest("world_bench") {}
+  RunResult Run(const std::vector<std::string>& args) {
+    return testing::RunBinary(kBinary, args, Path("out.txt"), Path("err.txt"), 300);
+  }
+};
+
+TEST_F(WorldBenchCommandTest, WritesTheWorldAndPrintsTheTable) {
+  const RunResult r = Run({"world-bench", "--out", Path("w"), "--avatars", "3", "--objects", "2",
+                           "--seconds", "0.5", "--warmup", "2"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+
+  const json world = json::parse(std::ifstream(Path("w/world.json")));
+  ASSERT_EQ(world["avatars"].size(), 3u);
+  ASSERT_EQ(world["objects"].size(), 2u);
+  EXPECT_EQ(world["objects"][0]["id"], "held0");
+  EXPECT_EQ(world["objects"][1]["id"], "thrown");
+  ASSERT_EQ(world["env"].size(), 1u);
+  // Avatar 2 holds held0 in its right hand: hand and forearm ignore it.
+  EXPECT_EQ(world["avatars"][2]["ignore"], json::parse(R"([{"link": "hand_r", "entity": "held0"},
+                            {"link": "forearm_r", "entity": "held0"}])"));
+  EXPECT_TRUE(world["avatars"][0]["ignore"].empty());
+
+  // Rates 90, 72, 60 Hz over 0.5 s; the held object has its holder's utimes.
+  int64_t records = 0;
+  const size_t expected_poses[3] = {46, 37, 31};
+  std::vector<std::vector<std::string>> streams;
+  for (int k = 0; k < 3; ++k) {
+    streams.push_back(Lines(Path("w/avatar" + std::to_string(k) + ".jsonl")));
+    EXPECT_EQ(streams[k].size(), expected_poses[k]) << k;
+    records += static_cast<int64_t>(streams[k].size()) - 1;
+  }
+  const std::vector<std::string> held = Lines(Path("w/held0.jsonl"));
+  ASSERT_EQ(held.size(), streams[2].size());
+  for (size_t i = 0; i < held.size(); ++i) {
+    EXPECT_EQ(json::parse(held[i])["utime"], json::parse(streams[2][i])["utime"]) << i;
+  }
+  const std::vector<std::string> thrown = Lines(Path("w/thrown.jsonl"));
+  ASSERT_GE(thrown.size(), 30u);  // 120 Hz over 0.3 s at least.
+  // Thrown from 30% of the clip: it exists only for its flight.
+  EXPECT_EQ(json::parse(thrown.front())["utime"], 1'150'000);
+
+  // The table: both rows over every record, the ratio lines, the counts.
+  const std::string& out = r.out;
+  EXPECT_EQ(Field(out, "| env-only | "), records) << out;
+  EXPECT_EQ(Field(out, "| whole | "), records) << out;
+  for (const char* target : {"whole median / env-only median: ", "whole p99 / whole median: "}) {
+    EXPECT_TRUE(std::regex_search(
+        out, std::regex(std::string(target) + "[0-9.]+ \\(target <= [25]\\): (met|missed)")))
+        << target << "\n"
+        << out;
+  }
+  EXPECT_TRUE(std::regex_search(out, std::regex("avatar pairs with a shared contact: [0-3] of 3 ")))
+      << out;
+  const double entries = Field(out, "entity entries: ");
+  // Every other avatar overlaps every record (all streams cover the same
+  // half second, a millisecond apart at most); objects only where they exist.
+  EXPECT_GE(entries, 2.0 * records - 6) << out;
+  EXPECT_LE(entries, 4.0 * records) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex("entity contacts: avatar [0-9]+, held object "
+                                                "[0-9]+, thrown object [0-9]+")))
+      << out;
+
+  // The written world is a valid SPEC 8 world: one record per avatar pair.
+  const RunResult q = Run({"world", "--world", Path("w/world.json"), "--backend", "cpu"});
+  ASSERT_TRUE(q.exited && q.code == 0) << q.Describe();
+  EXPECT_EQ(std::count(q.out.begin(), q.out.end(), '\n'), records);
+}
+
+TEST_F(WorldBenchCommandTest, RefusesBadSizes) {
+  const RunResult r = Run({"world-bench", "--out", Path("w"), "--avatars", "1"});
+  EXPECT_TRUE(r.exited && r.code == 2) << r.Describe();
+  EXPECT_NE(r.err.find("--avatars >= 2"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace sweptccd

@@ -1,0 +1,375 @@
+#include "tools/world_bench_command.h"
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <utility>
+#include <vector>
+
+#include "core/avatar/motion.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
+#include "core/errors.h"
+#include "core/world/world_query.h"
+#include "mocap/mocap_import.h"
+#include "tools/bench_common.h"
+
+namespace sweptccd {
+
+void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* o) {
+  app->add_option("--out", o->out_dir, "Folder for the world file and what it names")->required();
+  app->add_option("--data", o->data_dir,
+                  "Folder with env/ and mocap/ (default: the project's data/, " SWEPTCCD_DATA_DIR
+                  ")");
+  app->add_option("--avatars", o->avatars, "Avatars (default 16)");
+  app->add_option("--objects", o->objects,
+                  "Tracked objects: the last thrown, the others held "
+                  "(default 4)");
+  app->add_option("--seconds", o->seconds, "Clip length per avatar (default 3)");
+  app->add_option("--spacing", o->spacing, "Metres between grid neighbours (default 0.8)");
+  app->add_option("--warmup", o->warmup, "Records per avatar answered untimed first (default 10)");
+  app->add_flag("--generate-only", o->generate_only, "Write the world, do not time it");
+}
+
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+// The room and where the group stands: the breakfast room (Y-up, floor at
+// y = -1.42), the grid centred on the free strip between the table's chairs
+// (the centre `sweptccd bench` walks around).
+constexpr char kRoom[] = "bitterli_breakfast_room.ply";
+constexpr double kFloor = -1.42;
+const Eigen::Vector2d kCentre(-0.67, -1.9);
+constexpr int64_t kUtime0 = 1'000'000;
+
+// Clips that stay roughly in place (a grid of walkers would leave it), each
+// avatar from its own start second; rates cycle 90 / 72 / 60 Hz.
+struct ClipChoice {
+  const char* file;
+  double start_s;
+};
+constexpr ClipChoice kClips[] = {
+    {"boxing_toes.bvh", 0},
+    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 0},
+    {"cmu_01_03_playground_climb_hang_swing.bvh", 0},
+    {"cmu_02_04_jump_balance.bvh", 0},
+    {"boxing_toes.bvh", 5},
+    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 6},
+    {"cmu_05_06_dance_cartwheel_pirouettes_jete.bvh", 0},
+    {"cmu_03_01_walk_uneven_terrain.bvh", 0},
+    {"boxing_toes.bvh", 10},
+    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 12},
+    {"cmu_01_03_playground_climb_hang_swing.bvh", 10},
+    {"cmu_01_01_playground_forward_jumps.bvh", 0},
+    {"boxing_toes.bvh", 15},
+    {"cmu_01_03_playground_climb_hang_swing.bvh", 20},
+    {"boxing_toes.bvh", 20},
+    {"cmu_01_01_playground_forward_jumps.bvh", 10},
+};
+constexpr double kRates[] = {90, 72, 60};
+constexpr double kThrownRate = 120;
+
+void WriteText(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out << text;
+  out.flush();
+  if (!out) throw InputError(path.string() + ": cannot write");
+}
+
+// A closed box mesh (12 triangles) centred at the object frame's origin.
+std::string BoxObj(const Eigen::Vector3d& half) {
+  std::string s;
+  for (int c = 0; c < 8; ++c) {
+    s += "v " + std::to_string((c & 1) ? half.x() : -half.x()) + ' ' +
+         std::to_string((c & 2) ? half.y() : -half.y()) + ' ' +
+         std::to_string((c & 4) ? half.z() : -half.z()) + '\n';
+  }
+  // Faces as quads of corner indices (1-based), outward.
+  static const int kQuads[6][4] = {{1, 3, 7, 5}, {2, 6, 8, 4}, {1, 5, 6, 2},
+                                   {3, 4, 8, 7}, {1, 2, 4, 3}, {5, 7, 8, 6}};
+  for (const auto& q : kQuads) {
+    s += "f " + std::to_string(q[0]) + ' ' + std::to_string(q[1]) + ' ' + std::to_string(q[2]) +
+         '\n';
+    s += "f " + std::to_string(q[0]) + ' ' + std::to_string(q[2]) + ' ' + std::to_string(q[3]) +
+         '\n';
+  }
+  return s;
+}
+
+std::string ObjectPoseLine(int64_t utime, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+  ojson j;
+  j["utime"] = utime;
+  j["pose"] = {p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z()};
+  return j.dump() + '\n';
+}
+
+// `seconds` of the clip from `start_s` (moved earlier when the clip ends
+// first), resampled at `rate_hz` by the clip's articulated motion between
+// its frames (so bone lengths stay those of the clip).
+std::vector<Pose> Resample(const MocapClip& clip, double start_s, double rate_hz, double seconds) {
+  if (clip.poses.size() < 2) throw InputError("world-bench: a clip with fewer than two frames");
+  const double length_s = clip.frame_time_s * static_cast<double>(clip.poses.size() - 1);
+  start_s = std::min(start_s, std::max(0.0, length_s - seconds));
+  const double end_s = std::min(length_s, start_s + seconds);
+  std::vector<Pose> out;
+  for (int k = 0; start_s + k / rate_hz <= end_s; ++k) {
+    const double f = (start_s + k / rate_hz) / clip.frame_time_s;
+    const size_t i = std::min(static_cast<size_t>(f), clip.poses.size() - 2);
+    const PairMotion m(clip.skeleton, clip.poses[i], clip.poses[i + 1], MotionModel::kArticulated);
+    Pose pose;
+    pose.utime = std::llround(k * 1e6 / rate_hz);
+    m.PosesAt(std::clamp(f - static_cast<double>(i), 0.0, 1.0), &pose.links);
+    out.push_back(std::move(pose));
+  }
+  return out;
+}
+
+struct GeneratedWorld {
+  std::string path;
+  std::vector<int> holder;  // Per object: the avatar holding it, -1 when thrown.
+};
+
+// Writes the world: avatars k = 0.. in a grid of `cols` columns, held
+// objects (pose = the holder's hand pose x a fixed offset, at the holder's
+// samples), the thrown one on a ballistic arc with spin over the diagonal.
+GeneratedWorld Generate(const WorldBenchOptions& o, const std::string& data) {
+  namespace fs = std::filesystem;
+  const fs::path out(o.out_dir);
+  fs::create_directories(out);
+  const int cols = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(o.avatars))));
+  const int rows = (o.avatars + cols - 1) / cols;
+  const int num_held = std::max(0, o.objects - 1);
+  GeneratedWorld g;
+  ojson world;
+  world["avatars"] = ojson::array();
+  world["objects"] = ojson::array();
+  std::vector<Skeleton> skeletons;
+  std::vector<std::vector<Pose>> streams;
+  for (int k = 0; k < o.avatars; ++k) {
+    const ClipChoice& choice = kClips[k % std::size(kClips)];
+    MocapImportOptions mo;
+    mo.up_axis = 'y';
+    MocapClip clip = ImportBvhFile(bench::DataFile(data + "/mocap/" + choice.file), mo);
+    const double rate = kRates[k % std::size(kRates)];
+    clip.poses = Resample(clip, choice.start_s, rate, o.seconds);
+    const Eigen::Vector2d cell((k % cols - 0.5 * (cols - 1)) * o.spacing,
+                               (k / cols - 0.5 * (rows - 1)) * o.spacing);
+    bench::PlaceClipOnFloor(&clip, 'y', kFloor, kCentre + cell);
+    const std::string id = "avatar" + std::to_string(k);
+    std::string lines;
+    for (Pose& pose : clip.poses) {
+      pose.utime += kUtime0 + 1000 * k;  // Clocks a little apart too.
+      lines += PoseToJsonLine(pose) + '\n';
+    }
+    WriteText(out / (id + ".json"), SkeletonToJson(clip.skeleton) + '\n');
+    WriteText(out / (id + ".jsonl"), lines);
+    ojson a = {{"id", id}, {"skeleton", id + ".json"}, {"poses", id + ".jsonl"}};
+    a["ignore"] = ojson::array();
+    skeletons.push_back(clip.skeleton);
+    streams.push_back(std::move(clip.poses));
+    world["avatars"].push_back(a);
+  }
+  // Held objects: avatar (5 j + 2) mod n holds object j in its right hand
+  // (left for odd j), at the far end of the hand link; the holder's hand
+  // and forearm never count as touching it (the grip is not a contact).
+  const std::vector<std::string>& names = MocapLinkNames();
+  const auto link_index = [&](const std::string& name) {
+    return static_cast<int>(std::find(names.begin(), names.end(), name) - names.begin());
+  };
+  for (int j = 0; j < num_held; ++j) {
+    const int h = (5 * j + 2) % o.avatars;
+    const std::string side = j % 2 ? "_l" : "_r";
+    const int hand = link_index("hand" + side);
+    const Eigen::Vector3d grip = skeletons[h].link(hand).b_L;
+    std::string lines;
+    for (const Pose& pose : streams[h]) {
+      const LinkPose& X = pose.links[hand];
+      lines += ObjectPoseLine(pose.utime, X.p + X.q * grip, X.q);
+    }
+    const std::string id = "held" + std::to_string(j);
+    WriteText(out / (id + ".obj"), BoxObj(Eigen::Vector3d(0.04, 0.04, 0.06)));
+    WriteText(out / (id + ".jsonl"), lines);
+    world["objects"].push_back({{"id", id}, {"mesh", id + ".obj"}, {"poses", id + ".jsonl"}});
+    for (const char* link : {"hand", "forearm"}) {
+      world["avatars"][h]["ignore"].push_back({{"link", link + side}, {"entity", id}});
+    }
+    g.holder.push_back(h);
+  }
+  if (o.objects > num_held) {
+    // Thrown from beyond one corner of the group to beyond the opposite one,
+    // 1.1 m then 0.8 m above the floor, in 0.7 s from 30% of the clip,
+    // spinning at 12 rad/s.
+    const double reach = 0.5 * (cols - 1) * o.spacing + 0.4;
+    const Eigen::Vector3d p0(kCentre.x() - reach, kFloor + 1.1, kCentre.y() - reach);
+    const Eigen::Vector3d p1(kCentre.x() + reach, kFloor + 0.8, kCentre.y() + reach);
+    const double flight_s = std::min(0.7, 0.6 * o.seconds), g_y = -9.81;
+    const Eigen::Vector3d v = (p1 - p0) / flight_s - 0.5 * flight_s * Eigen::Vector3d(0, g_y, 0);
+    const Eigen::Vector3d axis = Eigen::Vector3d(0.3, 1.0, 0.2).normalized();
+    const int64_t start = kUtime0 + std::llround(0.3 * o.seconds * 1e6);
+    std::string lines;
+    for (int k = 0; k / kThrownRate <= flight_s; ++k) {
+      const double t = k / kThrownRate;
+      const Eigen::Vector3d p = p0 + t * v + 0.5 * t * t * Eigen::Vector3d(0, g_y, 0);
+      const Eigen::Quaterniond q(Eigen::AngleAxisd(12.0 * t, axis));
+      lines += ObjectPoseLine(start + std::llround(t * 1e6), p, q);
+    }
+    const std::string id = "thrown";
+    WriteText(out / (id + ".obj"), BoxObj(Eigen::Vector3d(0.06, 0.06, 0.06)));
+    WriteText(out / (id + ".jsonl"), lines);
+    world["objects"].push_back({{"id", id}, {"mesh", id + ".obj"}, {"poses", id + ".jsonl"}});
+    g.holder.push_back(-1);
+  }
+  world["env"] = {fs::absolute(bench::DataFile(data + "/env/" + kRoom)).string()};
+  g.path = (out / "world.json").string();
+  WriteText(g.path, world.dump(1) + '\n');
+  return g;
+}
+
+// What the whole answers found (counted outside the timed part).
+struct Tally {
+  int64_t entries = 0, culled = 0, avatar_contacts = 0, held_contacts = 0, thrown_contacts = 0;
+  int64_t records_with_contact = 0, env_contacts = 0;
+  std::set<std::pair<int, int>> avatar_pairs;  // (min, max) with a shared contact.
+};
+
+void PrintLine(const char* name, size_t n, const bench::Stats& s) {
+  std::printf("| %s | %zu | %.1f | %.1f | %.1f |\n", name, n, s.median, s.p99, s.max);
+}
+
+void PrintTarget(const char* what, double value, double target) {
+  std::printf("%s: %.2f (target <= %g): %s\n", what, value, target,
+              value <= target ? "met" : "missed");
+}
+
+void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
+  const world::LoadedWorld w = world::LoadWorldFile(g.path);
+  const world::WorldAnswerer answerer(w, QueryOptions());
+  const int n_avatars = static_cast<int>(w.world.avatars.size());
+  const int n_objects = static_cast<int>(w.world.objects.size());
+  // The other entities of avatar a's record: (b, -1) avatars, (-1, o) objects.
+  std::vector<world::OtherAnswer> answers(n_avatars + n_objects);
+  std::vector<char> answered(answers.size());
+  const auto answer_all = [&](int a, size_t r) {
+    QueryResult env = answerer.AnswerEnvironment(a, r);
+    const double t_env = bench::ThreadCpuSeconds();
+    int64_t t_from, t_to;
+    for (int e = 0; e < n_avatars + n_objects; ++e) {
+      answered[e] = e != a && answerer.AnswerEntity(a, r, e < n_avatars ? e : -1,
+                                                    e < n_avatars ? -1 : e - n_avatars, &answers[e],
+                                                    &t_from, &t_to);
+    }
+    return std::make_pair(env.contact, t_env);
+  };
+  for (int a = 0; a < n_avatars; ++a) {
+    int done = 0;
+    for (size_t r = 0; r < w.world.avatars[a].records.size() && done < o.warmup; ++r) {
+      if (!w.world.avatars[a].records[r].valid) continue;
+      answer_all(a, r);
+      ++done;
+    }
+  }
+  std::vector<double> env_us, whole_us;
+  // The whole answer's times by record kind: every other entity cleared by
+  // the broad phase; link work but no shared contact; a shared contact.
+  std::vector<double> by_kind[3];
+  Tally tally;
+  for (int a = 0; a < n_avatars; ++a) {
+    for (size_t r = 0; r < w.world.avatars[a].records.size(); ++r) {
+      if (!w.world.avatars[a].records[r].valid) continue;
+      const double t0 = bench::ThreadCpuSeconds();
+      const auto [env_contact, t_env] = answer_all(a, r);
+      const double t1 = bench::ThreadCpuSeconds();
+      env_us.push_back(1e6 * (t_env - t0));
+      whole_us.push_back(1e6 * (t1 - t0));
+      tally.env_contacts += env_contact;
+      bool any = false, link_work = false;
+      for (int e = 0; e < n_avatars + n_objects; ++e) {
+        if (!answered[e]) continue;
+        ++tally.entries;
+        tally.culled += answers[e].culled_by_box;
+        link_work = link_work || !answers[e].culled_by_box;
+        if (!answers[e].contact) continue;
+        any = true;
+        if (e < n_avatars) {
+          ++tally.avatar_contacts;
+          tally.avatar_pairs.insert({std::min(a, e), std::max(a, e)});
+        } else {
+          ++(g.holder[e - n_avatars] >= 0 ? tally.held_contacts : tally.thrown_contacts);
+        }
+      }
+      tally.records_with_contact += any;
+      by_kind[any ? 2 : link_work ? 1 : 0].push_back(whole_us.back());
+    }
+  }
+  const bench::Stats env = bench::Summarise(env_us), whole = bench::Summarise(whole_us);
+  const int64_t pairs = static_cast<int64_t>(n_avatars) * (n_avatars - 1) / 2;
+  std::printf(
+      "world %s: %d avatars (90/72/60 Hz), %d objects (%d held, %d thrown), %d static "
+      "triangles\n",
+      g.path.c_str(), n_avatars, n_objects,
+      static_cast<int>(
+          std::count_if(g.holder.begin(), g.holder.end(), [](int h) { return h >= 0; })),
+      static_cast<int>(std::count(g.holder.begin(), g.holder.end(), -1)),
+      static_cast<int>(w.env.num_triangles()));
+  std::printf(
+      "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID), one thread, CPU backend; the "
+      "first %d valid records of each avatar answered once untimed first; every valid "
+      "record timed, none dropped\n\n",
+      o.warmup);
+  std::printf("| answer | records | median us | p99 us | max us |\n|---|---|---|---|---|\n");
+  PrintLine("env-only", env_us.size(), env);
+  PrintLine("whole", whole_us.size(), whole);
+  PrintLine("whole: all others cleared by the broad phase", by_kind[0].size(),
+            bench::Summarise(by_kind[0]));
+  PrintLine("whole: link work, no shared contact", by_kind[1].size(), bench::Summarise(by_kind[1]));
+  PrintLine("whole: a shared contact", by_kind[2].size(), bench::Summarise(by_kind[2]));
+  std::printf("\n");
+  PrintTarget("whole median / env-only median", env.median > 0 ? whole.median / env.median : 0, 2);
+  PrintTarget("whole p99 / whole median", whole.median > 0 ? whole.p99 / whole.median : 0, 5);
+  std::printf("avatar pairs with a shared contact: %zu of %lld (%.1f%%)\n",
+              tally.avatar_pairs.size(), static_cast<long long>(pairs),
+              pairs ? 100.0 * tally.avatar_pairs.size() / pairs : 0.0);
+  std::printf("records with a shared contact: %lld of %zu (%.1f%%)\n",
+              static_cast<long long>(tally.records_with_contact), whole_us.size(),
+              whole_us.empty() ? 0.0 : 100.0 * tally.records_with_contact / whole_us.size());
+  std::printf("records with an environment contact: %lld\n",
+              static_cast<long long>(tally.env_contacts));
+  std::printf("entity entries: %lld (cleared by the broad phase %lld, link work %lld)\n",
+              static_cast<long long>(tally.entries), static_cast<long long>(tally.culled),
+              static_cast<long long>(tally.entries - tally.culled));
+  std::printf("entity contacts: avatar %lld, held object %lld, thrown object %lld\n",
+              static_cast<long long>(tally.avatar_contacts),
+              static_cast<long long>(tally.held_contacts),
+              static_cast<long long>(tally.thrown_contacts));
+}
+
+}  // namespace
+
+int RunWorldBenchCommand(const WorldBenchOptions& o) {
+  try {
+    if (o.avatars < 2 || o.objects < 0 || !(o.seconds > 0.1) || !(o.spacing > 0) || o.warmup < 0) {
+      throw InputError(
+          "world-bench: needs --avatars >= 2, --objects >= 0, --seconds > 0.1, "
+          "--spacing > 0 and --warmup >= 0");
+    }
+    const std::string data = o.data_dir.empty() ? SWEPTCCD_DATA_DIR : o.data_dir;
+    const GeneratedWorld g = Generate(o, data);
+    std::fprintf(stderr, "world-bench: wrote %s\n", g.path.c_str());
+    if (!o.generate_only) Bench(o, g);
+    return 0;
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::fprintf(stderr, "error: world-bench: %s\n", e.what());
+    return 2;
+  }
+}
+
+}  // namespace sweptccd

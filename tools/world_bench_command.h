@@ -1,0 +1,34 @@
+#pragma once
+// `sweptccd world-bench`: the shared-world benchmark of issue 12. Writes a
+// world file from real data (avatars from CMU and boxing mocap in a tight
+// grid on the breakfast room's floor, objects held in a hand and one thrown
+// through the group), then answers every avatar record single-threaded and
+// prints a table: the environment-only part beside the whole answer (every
+// other entity through the broad phase), on the thread CPU clock.
+
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace sweptccd {
+
+struct WorldBenchOptions {
+  std::string out_dir;   // The world file and everything it names go here.
+  std::string data_dir;  // Folder with env/ and mocap/; empty: the project's data/.
+  int avatars = 16;
+  int objects = 4;       // The last is thrown, the others held (>= 0).
+  double seconds = 3.0;  // Clip length per avatar.
+  double spacing = 0.8;  // Metres between neighbouring grid cells.
+  int warmup = 10;       // Records per avatar answered untimed first.
+  bool generate_only = false;
+};
+
+void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* options);
+
+/// Returns 0 when done, 2 with a one-line message on stderr for bad options
+/// or unreadable data.
+int RunWorldBenchCommand(const WorldBenchOptions& options);
+
+}  // namespace sweptccd
