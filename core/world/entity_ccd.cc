@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <queue>
+#include <unordered_map>
 #include <utility>
 
 #include "core/errors.h"
@@ -46,10 +48,8 @@ class AvatarTarget : public OtherTarget {
     WidenS(&s0, &s1);
     Aabb box = Aabb::Empty();
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      Eigen::Vector3d a, b;
-      double g;
-      m.SweptCapsule(j, s0, s1, &a, &b, &g);
-      box.Grow(Aabb::OfCapsule(a, b, e_.skeleton.link(j).radius + g));
+      const SweptLink x = Swept(m, piece.k, s0, s1, j);
+      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
     }
     return box;
   }
@@ -62,12 +62,18 @@ class AvatarTarget : public OtherTarget {
     WidenS(&s0, &s1);
     const double tol = tolerance();
     size_t kept = 0;
+    // A box test first: B's capsule box (kept with its swept capsule) apart
+    // from A's capsule box grown by A's share of the reach means the
+    // segments are farther apart than the reach. The 1 nm and relative 1e-9
+    // cover the boxes' rounding (ulps of metre coordinates are ~1e-15 m).
+    const double grow_a = (radius_a + growth_a + tol) * (1 + 1e-9) + 1e-9;
+    const Aabb box_a = Aabb::OfCapsule(a, b, grow_a);
     for (int j : *cands) {
-      Eigen::Vector3d pa, pb, c1, c2;
-      double g;
-      m.SweptCapsule(j, s0, s1, &pa, &pb, &g);
-      const double reach = radius_a + growth_a + e_.skeleton.link(j).radius + g + tol;
-      const double d2 = SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2);
+      Eigen::Vector3d c1, c2;
+      const SweptLink x = Swept(m, piece.k, s0, s1, j);
+      if (!box_a.Overlaps(x.box)) continue;
+      const double reach = radius_a + growth_a + e_.skeleton.link(j).radius + x.g + tol;
+      const double d2 = SegmentSegmentDistanceSquared(a, b, x.a, x.b, &c1, &c2);
       if (d2 <= reach * reach * (1 + 1e-9)) (*cands)[kept++] = j;
     }
     cands->resize(kept);
@@ -110,11 +116,55 @@ class AvatarTarget : public OtherTarget {
     return it->second;
   }
 
+  // B's swept capsule of link j over [s0, s1] of its interval k, as
+  // PairMotion::SweptCapsule computes it. Every link of A asks for the same
+  // intervals (time slicing halves the same pieces), so each is computed
+  // once and kept: the same bits, a fraction of the work. The memo is
+  // emptied when it holds kMaxSweptKeys intervals (items come in time order,
+  // so the intervals asked again are the recent ones).
+  struct SweptLink {
+    Eigen::Vector3d a, b;
+    double g = 0;
+    Aabb box;  // Of the capsule (a, b) with the link's radius + g.
+    bool computed = false;
+  };
+  struct SweptKey {
+    int k;
+    double s0, s1;
+    bool operator==(const SweptKey& o) const {  // Bit-exact (-0.0 is not 0.0).
+      return k == o.k && std::memcmp(&s0, &o.s0, sizeof s0) == 0 &&
+             std::memcmp(&s1, &o.s1, sizeof s1) == 0;
+    }
+  };
+  struct SweptKeyHash {
+    size_t operator()(const SweptKey& x) const {
+      uint64_t u0, u1;
+      std::memcpy(&u0, &x.s0, sizeof u0);
+      std::memcpy(&u1, &x.s1, sizeof u1);
+      return std::hash<uint64_t>()(u0 * 0x9E3779B97F4A7C15ull ^ (u1 + static_cast<uint64_t>(x.k)));
+    }
+  };
+  static constexpr size_t kMaxSweptKeys = 1024;
+
+  SweptLink Swept(const PairMotion& m, int k, double s0, double s1, int j) const {
+    if (swept_.size() >= kMaxSweptKeys) swept_.clear();
+    std::vector<SweptLink>& links = swept_[SweptKey{k, s0, s1}];
+    if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
+    SweptLink& x = links[static_cast<size_t>(j)];
+    if (!x.computed) {
+      m.SweptCapsule(j, s0, s1, &x.a, &x.b, &x.g);
+      x.box = Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g);
+      x.computed = true;
+    }
+    return x;
+  }
+
   const World& world_;
   int a_, b_;
   const AvatarEntity& e_;
   double tol_ = 0;
   mutable std::map<int, PairMotion> motions_;
+  mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
 };
 
 // A tracked object: one candidate (0); its triangles come from its BVH, in
