@@ -85,9 +85,13 @@ class AvatarTarget : public OtherTarget {
     const PairMotion& m = MotionOf(piece.k);
     const double s = piece.SE(tau);
     bool have = false;
+    // Boxes first, as in Cull: apart, the separation is over `search`.
+    const Aabb box_a =
+        Aabb::OfCapsule(a, b, (radius_a + std::max(search, 0.0)) * (1 + 1e-9) + 1e-9);
     for (int j : cands) {
-      Eigen::Vector3d pa, pb, c1, c2;
-      m.SegmentAt(j, s, &pa, &pb);
+      Eigen::Vector3d c1, c2;
+      const auto [pa, pb] = Segment(m, piece.k, s, j);
+      if (!box_a.Overlaps(Aabb::OfCapsule(pa, pb, e_.skeleton.link(j).radius))) continue;
       const double d = std::sqrt(SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2));
       const double sep = d - radius_a - e_.skeleton.link(j).radius;
       if (sep > search || (have && sep >= out->separation)) continue;
@@ -146,6 +150,26 @@ class AvatarTarget : public OtherTarget {
   };
   static constexpr size_t kMaxSweptKeys = 1024;
 
+  // B's segment of link j at s of its interval k, as PairMotion::SegmentAt
+  // computes it, kept like the swept capsules (every link of A asks for B's
+  // links at the same instants).
+  struct SegmentLink {
+    Eigen::Vector3d a, b;
+    bool computed = false;
+  };
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> Segment(const PairMotion& m, int k, double s,
+                                                      int j) const {
+    if (segments_.size() >= kMaxSweptKeys) segments_.clear();
+    std::vector<SegmentLink>& links = segments_[SweptKey{k, s, s}];
+    if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
+    SegmentLink& x = links[static_cast<size_t>(j)];
+    if (!x.computed) {
+      m.SegmentAt(j, s, &x.a, &x.b);
+      x.computed = true;
+    }
+    return {x.a, x.b};
+  }
+
   SweptLink Swept(const PairMotion& m, int k, double s0, double s1, int j) const {
     if (swept_.size() >= kMaxSweptKeys) swept_.clear();
     std::vector<SweptLink>& links = swept_[SweptKey{k, s0, s1}];
@@ -165,6 +189,7 @@ class AvatarTarget : public OtherTarget {
   double tol_ = 0;
   mutable std::map<int, PairMotion> motions_;
   mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
+  mutable std::unordered_map<SweptKey, std::vector<SegmentLink>, SweptKeyHash> segments_;
 };
 
 // A tracked object: one candidate (0); its triangles come from its BVH, in
