@@ -293,7 +293,8 @@ int main(int argc, char** argv) {
   }
   const Stats compute = Summarise(collector.shared_compute_us);
   std::printf(
-      "shared entries' compute_us (the daemon's entity query): median %.1f, p99 %.1f, "
+      "shared entries' compute_us (AnswerSharedJob in the daemon, wall time): median %.1f, p99 "
+      "%.1f, "
       "max %.1f\n",
       compute.median, compute.p99, compute.max);
   const int64_t client_pairs = static_cast<int64_t>(clients) * (clients - 1) / 2;
