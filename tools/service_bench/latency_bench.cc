@@ -292,11 +292,12 @@ int main(int argc, char** argv) {
     missing += (clients - 1) - (it == collector.shared_per_pair.end() ? 0 : it->second);
   }
   const Stats compute = Summarise(collector.shared_compute_us);
+  double compute_sum_us = 0;
+  for (double v : collector.shared_compute_us) compute_sum_us += v;
   std::printf(
-      "shared entries' compute_us (AnswerSharedJob in the daemon, wall time): median %.1f, p99 "
-      "%.1f, "
-      "max %.1f\n",
-      compute.median, compute.p99, compute.max);
+      "shared entries' compute_us (AnswerSharedJob in the daemon, wall time): median %.1f, "
+      "mean %.1f, p99 %.1f, max %.1f\n",
+      compute.median, compute.n ? compute_sum_us / compute.n : 0.0, compute.p99, compute.max);
   const int64_t client_pairs = static_cast<int64_t>(clients) * (clients - 1) / 2;
   std::printf(
       "shared entries: %lld received, %lld expected for the covered answered pairs, %lld dropped, "
