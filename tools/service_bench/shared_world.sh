@@ -28,6 +28,8 @@ rate=90
 "$build/bin/sweptccd" keygen --out "$work/room.key"
 placement=(--room -1.35 -0.67 -1.9 --grid 4 0.8 --stagger)
 
+daemon=
+trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 run() {  # run LABEL SHARED(true|false): one daemon, one bench run.
   {
     echo "lcm_url: \"$url\""
@@ -41,7 +43,7 @@ run() {  # run LABEL SHARED(true|false): one daemon, one bench run.
     for c in $(seq 0 $((clients - 1))); do echo "  - {id: client$c, skeleton: skeleton.json}"; done
   } > "$work/sweptccd_$2.yaml"
   "$build/bin/sweptccd-service" --config "$work/sweptccd_$2.yaml" 2> "$work/daemon_$2.log" &
-  local daemon=$!
+  daemon=$!
   wait_for "$work/daemon_$2.log" ready
   sleep 0.5
   timeout $((seconds + 30)) "$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" \
@@ -49,6 +51,7 @@ run() {  # run LABEL SHARED(true|false): one daemon, one bench run.
     > "$work/bench_$2.out"
   kill -TERM $daemon
   wait $daemon || true
+  daemon=
 }
 
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
