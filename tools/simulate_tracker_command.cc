@@ -172,12 +172,90 @@ int64_t WallClockUtime() {
       .count();
 }
 
-// The per-client state of the late mechanism.
+// The per-client state of the late mechanism and of its own rate and phase.
 struct ClientState {
   std::string id;
   Eigen::Vector3d offset_W{0, 0, 0};
   std::optional<tracker_pose_t> held;  // A late sample waiting for the next one.
+  double rate_hz = 0;      // > 0: plays at its own rate (--client-rate); 0: every sample.
+  double phase_us = 0;     // --client-phase-us.
+  int64_t ticks_done = 0;  // Its ticks before this one are served.
+  int64_t seq = 0;         // Its next seq (own rate: one per sent sample).
+
+  // Whether the sample at `utime` is the one the client sends at its next
+  // tick (the first sample at or after the tick); advances past it.
+  bool Takes(int64_t utime, int64_t first_utime) {
+    if (rate_hz <= 0) return true;
+    const double period_us = 1e6 / rate_hz;
+    const double since = static_cast<double>(utime - first_utime) - phase_us;
+    if (since < ticks_done * period_us) return false;
+    ticks_done = static_cast<int64_t>(std::floor(since / period_us)) + 1;
+    return true;
+  }
 };
+
+// "ID=VALUE" of --client-rate / --client-phase-us for a known client id; the
+// value a finite number. Throws InputError naming the flag.
+std::pair<std::string, double> ParseClientValue(const std::string& flag, const std::string& spec,
+                                                const std::string& unit,
+                                                const std::vector<ClientState>& clients) {
+  const size_t eq = spec.find('=');
+  const std::string id = eq == std::string::npos ? spec : spec.substr(0, eq);
+  const bool known =
+      std::any_of(clients.begin(), clients.end(), [&](const ClientState& c) { return c.id == id; });
+  double v = std::nan("");
+  if (eq != std::string::npos) {
+    try {
+      size_t used = 0;
+      v = std::stod(spec.substr(eq + 1), &used);
+      if (used != spec.size() - eq - 1) v = std::nan("");
+    } catch (const std::exception&) {
+    }
+  }
+  if (!known || !std::isfinite(v)) {
+    throw InputError("simulate-tracker: " + flag + " '" + EscapeForDisplay(spec) +
+                     "': use ID=" + unit +
+                     " with ID one of the clients (--client, --clients) and " + unit + " a number");
+  }
+  return {id, v};
+}
+
+// Applies --client-rate and --client-phase-us. Throws InputError.
+void SetClientRates(const SimulateTrackerCommandOptions& o, std::vector<ClientState>* clients) {
+  auto find = [&](const std::string& id) -> ClientState& {
+    return *std::find_if(clients->begin(), clients->end(),
+                         [&](const ClientState& c) { return c.id == id; });
+  };
+  std::set<std::string> seen;
+  for (const std::string& spec : o.client_rates) {
+    const auto [id, hz] = ParseClientValue("--client-rate", spec, "HZ", *clients);
+    if (!seen.insert(id).second) {
+      throw InputError("simulate-tracker: --client-rate: client '" + id + "' given twice");
+    }
+    if (!(hz > 0 && hz <= 10000)) {
+      throw InputError("simulate-tracker: --client-rate '" + EscapeForDisplay(spec) +
+                       "': the rate must be in (0, 10000] Hz");
+    }
+    find(id).rate_hz = hz;
+  }
+  seen.clear();
+  for (const std::string& spec : o.client_phases) {
+    const auto [id, us] = ParseClientValue("--client-phase-us", spec, "US", *clients);
+    if (!seen.insert(id).second) {
+      throw InputError("simulate-tracker: --client-phase-us: client '" + id + "' given twice");
+    }
+    ClientState& c = find(id);
+    if (c.rate_hz <= 0) {
+      throw InputError("simulate-tracker: --client-phase-us '" + EscapeForDisplay(spec) +
+                       "' needs --client-rate " + id + "=HZ");
+    }
+    if (!(us >= 0 && us < 1e6 / c.rate_hz)) {
+      throw InputError("simulate-tracker: --client-phase-us '" + EscapeForDisplay(spec) +
+                       "': the phase must be in [0, 1e6 / HZ) microseconds");
+    }
+    c.phase_us = us;
+  }
+}
 
 // The seeded random choices and what they did.
 struct RoundCounters {
@@ -246,6 +324,12 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
   app->add_option("--object", o->objects,
                   "ID=POSES.jsonl: a tracked object's pose lines (SPEC 8), sent as object_pose_t "
                   "on SWEPTCCD_OBJECT_POSE by utime among the avatars' samples; repeatable");
+  app->add_option("--client-rate", o->client_rates,
+                  "ID=HZ: client ID plays at HZ, taking at each of its ticks the first sample at "
+                  "or after it (a subset of the stream, as is); repeatable");
+  app->add_option("--client-phase-us", o->client_phases,
+                  "ID=US: client ID's ticks start US microseconds after the first sample "
+                  "(needs --client-rate ID=HZ; 0 <= US < 1e6/HZ); repeatable");
   app->add_option("--session", o->session,
                   "Stream session, >= 0 (default: the wall clock in microseconds at start, so a "
                   "restarted tracker starts a new stream)");
@@ -305,10 +389,15 @@ struct StreamShape {
 };
 
 // Publishes one sample for every client (drop, late hold, then the held one).
+// `stream_utime`: the sample's utime before rebasing (the clients' ticks).
 void SendRound(const SimulateTrackerCommandOptions& o, const Pose& sample, int64_t utime,
-               int64_t session, int64_t seq, std::vector<ClientState>* clients, RoundCounters* counters,
+               int64_t stream_utime, int64_t first_utime, int64_t session, int64_t seq,
+               std::vector<ClientState>* clients, RoundCounters* counters,
                const std::function<void(const tracker_pose_t&)>& publish) {
   for (ClientState& c : *clients) {
+    if (!c.Takes(stream_utime, first_utime)) continue;
+    // Own rate: consecutive seq over the samples it sends; else the stream's.
+    const int64_t client_seq = c.rate_hz > 0 ? o.seq_start + c.seq++ : seq;
     const bool drop = o.drop_p > 0 && counters->unit(counters->rng) < o.drop_p;
     const bool hold = o.late_p > 0 && counters->unit(counters->rng) < o.late_p;
     if (drop) {
@@ -319,7 +408,7 @@ void SendRound(const SimulateTrackerCommandOptions& o, const Pose& sample, int64
     m.utime = utime;
     m.client_id = c.id;
     m.session = session;
-    m.seq = seq;
+    m.seq = client_seq;
     m.num_links = static_cast<int32_t>(sample.links.size());
     for (const LinkPose& l : sample.links) {
       const Eigen::Vector3d p_W = l.p + c.offset_W;
@@ -502,9 +591,8 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       }
       ++rounds;
       if (loop == 0) publish_objects_until(utime, rebase_us);
-      SendRound(o, *sample, utime + rebase_us, session, o.seq_start + loop * shape.n + k,
-                &clients,
-                &counters, publish);
+      SendRound(o, *sample, utime + rebase_us, utime, shape.first_utime, session,
+                o.seq_start + loop * shape.n + k, &clients, &counters, publish);
     }
     if (loop == 0) {
       if (shape.n == 0 && !stopped) {
@@ -565,6 +653,7 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
       throw InputError("simulate-tracker: --join needs --skeleton (or --bvh) to join with");
     }
     clients = MakeClients(o);
+    SetClientRates(o, &clients);
     source->Rewind();  // A pose file that cannot be opened is refused before LCM starts.
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());

@@ -12,6 +12,8 @@
 //              keep utime increasing; with rebase_utime the first sample's
 //              utime is replaced by the wall clock at start (same spacing);
 //   positions  the sample's positions + offset + i * spacing.
+// A client with its own rate and phase (--client-rate, --client-phase-us)
+// sends only the samples its ticks select (below), each with its own seq.
 // Sample k of every client is due at (utime_k - utime_0) / speed after the
 // start (or k / rate / speed with --rate for a pose file), plus a uniform
 // random delay in [0, jitter_us]. A dropped sample is never sent; a late
@@ -77,6 +79,14 @@ struct SimulateTrackerCommandOptions {
   /// (first pass only; --utime-start and --rebase-utime apply), signed with
   /// --key, with the avatars' session.
   std::vector<std::string> objects;
+  /// --client-rate ID=HZ and --client-phase-us ID=US, repeated: client ID
+  /// plays at its own rate and phase. Its ticks are at first_utime + US +
+  /// m * 1e6 / HZ (m = 0, 1, ...; over the looped utimes); at each tick it
+  /// sends the first sample of the stream at or after the tick that it has
+  /// not sent yet, as is (utime, pose, due time): what it sends is a subset
+  /// of the stream, at most one sample a tick (so at most the stream's own
+  /// rate). A phase needs a rate, 0 <= US < 1e6 / HZ; HZ in (0, 10000].
+  std::vector<std::string> client_rates, client_phases;
 };
 
 void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* options);

@@ -5,7 +5,9 @@
 # (90 Hz and 60 Hz, different phases) and a tracked object (30 Hz); every
 # shared entry equal to `sweptccd world` on the same samples, except entries
 # ended by the timeout and pairs merged by latest-wins; an object pose for an
-# unknown object is one clear rejection and disturbs nothing.
+# unknown object is one clear rejection and disturbs nothing; then
+# `simulate-tracker` plays one stream for both avatars at their own rates and
+# phases (--client-rate, --client-phase-us), checked the same way.
 #   e2e_shared_world.sh SWEPTCCD SERVICE SHARED_WORLD_TOOL SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
@@ -34,7 +36,8 @@ YAML
 "$service" --config "$work/sweptccd.yaml" 2> "$work/daemon.log" &
 daemon=$!
 monitor=
-trap 'kill -KILL $daemon $monitor 2>/dev/null || true' EXIT
+listener=
+trap 'kill -KILL $daemon $monitor $listener 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready
 # `sweptccd monitor` shows the shared entries (verified with the service key).
 "$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json --all --timeout 60 \
@@ -64,6 +67,23 @@ grep -q '"type":"shared_contact".*"entity":"bob".*"entity_kind":"client"' "$work
 # The only rejection of the whole run: the unknown object.
 [ "$(grep -c '"type":"reject"' "$work/monitor.out")" = 1 ]
 grep -q '"type":"reject".*"client":"ghost".*unknown_object' "$work/monitor.out"
+# simulate-tracker's own rates and phases (--client-rate, --client-phase-us):
+# one 360 Hz stream played for alice at 90 Hz and for bob at 60 Hz 5 ms
+# later (and 0.25 m away), in new sessions; every shared entry equal to
+# `sweptccd world` on the samples it sends (shared_world_tool computes them
+# from the stream: DIR/sim_world.json), and no rejection.
+"$sweptccd" world --world "$work/sim_world.json" --output "$work/sim_offline.jsonl"
+"$tool" --key "$work/room.key" listen "$url" "$work" "$work/sim_offline.jsonl" \
+  > "$work/listen.out" &
+listener=$!
+wait_for "$work/listen.out" listening
+"$sweptccd" simulate-tracker --lcm-url "$url" --key "$work/room.key" --poses "$work/stream.jsonl" \
+  --client alice --client bob --spacing 0.25 0.05 0 --client-rate alice=90 --client-rate bob=60 \
+  --client-phase-us bob=5000 > "$work/simulate_rates.out"
+sent=$(($(grep -c . "$work/sim_alice.jsonl") + $(grep -c . "$work/sim_bob.jsonl")))
+grep -q "^simulate-tracker: sent $sent, " "$work/simulate_rates.out"
+wait $listener || { cat "$work/listen.out"; exit 1; }
+cat "$work/listen.out"
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"

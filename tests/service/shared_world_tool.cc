@@ -4,7 +4,15 @@
 //     Writes a world (SPEC 8): DIR/arm.json (a two-link arm), DIR/alice.jsonl
 //     (90 Hz), DIR/bob.jsonl (60 Hz, 5 ms later), DIR/cube.obj and
 //     DIR/cup.jsonl (a tracked cube at 30 Hz, 12 ms later), DIR/floor.obj
-//     (far below) and DIR/world.json naming them.
+//     (far below) and DIR/world.json naming them; and for `listen`
+//     DIR/stream.jsonl (360 Hz, 20 s later), DIR/sim_alice.jsonl,
+//     DIR/sim_bob.jsonl and DIR/sim_world.json.
+//   shared_world_tool --key FILE listen URL DIR OFFLINE.jsonl
+//     The checks of `play` while `sweptccd simulate-tracker` plays
+//     DIR/stream.jsonl for alice (--client-rate alice=90) and bob
+//     (--client-rate bob=60 --client-phase-us bob=5000, --spacing 0.25 0.05
+//     0): against `sweptccd world` on DIR/sim_world.json (what `write`
+//     computes it sends), and no rejection at all.
 //   shared_world_tool --key FILE play URL DIR OFFLINE.jsonl
 //     Publishes every sample of DIR/world.json in utime order at real-time
 //     pace (tracker_pose_t for the avatars, object_pose_t for the cup, signed
@@ -15,12 +23,13 @@
 //     ended by the timeout, equals `sweptccd world`'s entry (OFFLINE.jsonl)
 //     bit for bit; every such pair has exactly its offline entries; the only
 //     rejection is one unknown_object for "ghost". Exit 0 when all hold.
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <Eigen/Geometry>
+#include <functional>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -53,6 +62,31 @@ void WriteText(const std::string& path, const std::string& text) {
   }
 }
 
+// Which samples of a stream one client sends at its own rate and phase: the
+// rule of simulate-tracker (ClientState::Takes in
+// tools/simulate_tracker_command.cc), written again: ticks at the first
+// utime + phase + m / rate; at each, the first sample at or after it.
+class Ticks {
+ public:
+  Ticks(double rate_hz, double phase_us) : period_us_(1e6 / rate_hz), phase_us_(phase_us) {}
+  bool Takes(int64_t utime) {
+    if (!first_) first_ = utime;
+    const double since = static_cast<double>(utime - *first_) - phase_us_;
+    if (since < next_ * period_us_) return false;
+    next_ = static_cast<int64_t>(std::floor(since / period_us_)) + 1;
+    return true;
+  }
+
+ private:
+  double period_us_, phase_us_;
+  std::optional<int64_t> first_;
+  int64_t next_ = 0;
+};
+
+// Files that also get a sample at a utime, each with the offset its positions get.
+using ArmFilter =
+    std::function<std::vector<std::pair<std::string, Eigen::Vector3d>>(int64_t utime)>;
+
 int Write(const std::string& dir) {
   WriteText(dir + "/arm.json", R"({"name": "arm", "links": [
     {"name": "upper", "parent": null, "a": [0, 0, 0], "b": [0, 0.3, 0], "radius": 0.05},
@@ -69,8 +103,10 @@ int Write(const std::string& dir) {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n(0, 1);
   const int64_t start = 1'000'000, end = 2'500'000;
-  auto arm = [&](const std::string& file, Eigen::Vector3d center, int64_t phase, int64_t period) {
+  auto arm = [&](const std::string& file, Eigen::Vector3d center, int64_t phase, int64_t period,
+                 int64_t shift = 0, ArmFilter keep = nullptr) {
     std::string text;
+    std::map<std::string, std::string> kept;  // Per keep() file.
     Eigen::Vector3d p = center;
     double angle = 0;
     for (int64_t t = start + phase; t <= end; t += period) {
@@ -78,15 +114,23 @@ int Write(const std::string& dir) {
       angle += 0.15 * n(rng);
       const Eigen::Quaterniond q(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
       const Eigen::Vector3d c = p + q * Eigen::Vector3d(0, 0.3, 0);
-      char line[512];
-      std::snprintf(line, sizeof line,
-                    "{\"utime\": %lld, \"links\": [[%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, "
-                    "%.17g], [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]]}\n",
-                    static_cast<long long>(t), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z(),
-                    c.x(), c.y(), c.z(), q.w(), q.x(), q.y(), q.z());
-      text += line;
+      auto line = [&](const Eigen::Vector3d& d) {
+        char out[512];
+        std::snprintf(out, sizeof out,
+                      "{\"utime\": %lld, \"links\": [[%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, "
+                      "%.17g], [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]]}\n",
+                      static_cast<long long>(t + shift), p.x() + d.x(), p.y() + d.y(),
+                      p.z() + d.z(), q.w(), q.x(), q.y(), q.z(), c.x() + d.x(), c.y() + d.y(),
+                      c.z() + d.z(), q.w(), q.x(), q.y(), q.z());
+        return std::string(out);
+      };
+      text += line(Eigen::Vector3d::Zero());
+      if (keep) {
+        for (const auto& [name, d] : keep(t + shift)) kept[name] += line(d);
+      }
     }
     WriteText(dir + "/" + file, text);
+    for (const auto& [name, lines] : kept) WriteText(dir + "/" + name, lines);
   };
   arm("alice.jsonl", {0, 0, 0}, 0, 11'111);
   arm("bob.jsonl", {0.25, 0.05, 0}, 5'000, 16'667);
@@ -102,6 +146,22 @@ int Write(const std::string& dir) {
     cup += line;
   }
   WriteText(dir + "/cup.jsonl", cup);
+  // simulate-tracker's own rates and phases: one 360 Hz stream, 20 s later
+  // (DIR/stream.jsonl), and what it sends of it for alice (--client-rate
+  // alice=90) and bob (--client-rate bob=60 --client-phase-us bob=5000,
+  // moved by --spacing 0.25 0.05 0), as DIR/sim_alice.jsonl and
+  // DIR/sim_bob.jsonl, named by DIR/sim_world.json.
+  Ticks alice_ticks(90, 0), bob_ticks(60, 5000);
+  arm("stream.jsonl", {0, 0, 0}, 0, 2'778, 20'000'000, [&](int64_t t) {
+    std::vector<std::pair<std::string, Eigen::Vector3d>> to;
+    if (alice_ticks.Takes(t)) to.push_back({"sim_alice.jsonl", Eigen::Vector3d::Zero()});
+    if (bob_ticks.Takes(t)) to.push_back({"sim_bob.jsonl", Eigen::Vector3d(0.25, 0.05, 0)});
+    return to;
+  });
+  WriteText(dir + "/sim_world.json", R"({
+  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "sim_alice.jsonl"},
+              {"id": "bob", "skeleton": "arm.json", "poses": "sim_bob.jsonl"}],
+  "env": ["floor.obj"]})");
   WriteText(dir + "/world.json", R"({
   "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "alice.jsonl"},
               {"id": "bob", "skeleton": "arm.json", "poses": "bob.jsonl"}],
@@ -181,25 +241,44 @@ std::string Diff(const shared_contact_t& s, const json& o) {
   return d;
 }
 
+// Offline entries by (avatar, utime0, utime1) -> entity -> entry.
+using Offline = std::map<std::tuple<std::string, int64_t, int64_t>, std::map<std::string, json>>;
+
+Offline LoadOffline(const std::string& offline_path) {
+  Offline offline;
+  std::ifstream in(offline_path);
+  std::string line;
+  while (std::getline(in, line)) {
+    const json r = json::parse(line);
+    auto& e = offline[{r["avatar"].get<std::string>(), r["utime0"].get<int64_t>(),
+                       r["utime1"].get<int64_t>()}];
+    for (const json& o : r["others"]) e[o["entity"].get<std::string>()] = o;
+  }
+  return offline;
+}
+
+void Subscribe(lcm::LCM& lcm, Receiver* rx) {
+  lcm.subscribe(kContactChannel, &Receiver::OnContact, rx);
+  lcm.subscribe(kSharedContactChannel, &Receiver::OnShared, rx);
+  lcm.subscribe(kRejectChannel, &Receiver::OnReject, rx);
+}
+
+// What a run must show: each avatar's last seq answered; the one ghost
+// rejection (or none); at least so many entries compared and contacts.
+struct Expect {
+  std::map<std::string, int64_t> last_seq;
+  bool ghost = true;
+  int min_compared = 200, min_contacts = 10;
+};
+
+int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& expect);
+
 int Play(const std::string& url, const std::string& dir, const std::string& offline_path) {
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
   Receiver rx;
-  lcm.subscribe(kContactChannel, &Receiver::OnContact, &rx);
-  lcm.subscribe(kSharedContactChannel, &Receiver::OnShared, &rx);
-  lcm.subscribe(kRejectChannel, &Receiver::OnReject, &rx);
-  // Offline entries by (avatar, utime0, utime1) -> entity -> entry.
-  std::map<std::tuple<std::string, int64_t, int64_t>, std::map<std::string, json>> offline;
-  {
-    std::ifstream in(offline_path);
-    std::string line;
-    while (std::getline(in, line)) {
-      const json r = json::parse(line);
-      auto& e = offline[{r["avatar"].get<std::string>(), r["utime0"].get<int64_t>(),
-                         r["utime1"].get<int64_t>()}];
-      for (const json& o : r["others"]) e[o["entity"].get<std::string>()] = o;
-    }
-  }
+  Subscribe(lcm, &rx);
+  const Offline offline = LoadOffline(offline_path);
   // The raw lines of the files `write` made: the daemon normalises what it
   // receives exactly as `sweptccd world` normalises what it reads.
   struct Sample {
@@ -261,7 +340,35 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
   ghost.seq = 1;
   ghost.orientation[0] = 1;
   Send(lcm, kObjectPoseChannel, ghost);
+  Expect expect;
+  expect.last_seq = last_seq;
+  return Check(lcm, rx, offline, expect);
+}
 
+// Listens while `sweptccd simulate-tracker` plays DIR/stream.jsonl for alice
+// and bob at their own rates and phases; the samples it sends are
+// DIR/sim_alice.jsonl and DIR/sim_bob.jsonl (seq 0, 1, ... in each).
+int Listen(const std::string& url, const std::string& dir, const std::string& offline_path) {
+  lcm::LCM lcm(url);
+  if (!lcm.good()) return 2;
+  Receiver rx;
+  Subscribe(lcm, &rx);
+  const Offline offline = LoadOffline(offline_path);
+  Expect expect;
+  expect.ghost = false;
+  for (const std::string id : {"alice", "bob"}) {
+    std::ifstream in(dir + "/sim_" + id + ".jsonl");
+    std::string line;
+    int64_t lines = 0;
+    while (std::getline(in, line)) ++lines;
+    expect.last_seq[id] = lines - 1;
+  }
+  std::printf("shared_world_tool: listening\n");
+  std::fflush(stdout);
+  return Check(lcm, rx, offline, expect);
+}
+
+int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& expect) {
   // Until every pair's last pose is answered and each answered pair not
   // merged by latest-wins has all its offline entries (bounded).
   auto expected_keys = [&] {
@@ -279,13 +386,13 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
     for (const contact_event_t& c : rx.contacts) {
       answered[c.client_id] = std::max(answered[c.client_id], c.seq1);
     }
-    if (answered != last_seq) return false;
+    if (answered != expect.last_seq) return false;
     std::set<std::tuple<std::string, int64_t, std::string>> got;
     for (const shared_contact_t& s : rx.shared) got.insert({s.client_id, s.pair, s.entity});
     for (const auto& k : expected_keys()) {
       if (!got.count(k)) return false;
     }
-    return !rx.rejections.empty();
+    return !expect.ghost || !rx.rejections.empty();
   };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (!done() && std::chrono::steady_clock::now() < deadline) lcm.handleTimeout(50);
@@ -341,8 +448,12 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
       ++failures;
     }
   }
-  if (rx.rejections.size() != 1 || rx.rejections[0].reason != "unknown_object" ||
-      rx.rejections[0].client_id != "ghost") {
+  if (!expect.ghost && !rx.rejections.empty()) {
+    std::printf("FAIL: %zu rejections, expected none\n", rx.rejections.size());
+    ++failures;
+  } else if (expect.ghost &&
+             (rx.rejections.size() != 1 || rx.rejections[0].reason != "unknown_object" ||
+              rx.rejections[0].client_id != "ghost")) {
     std::printf("FAIL: expected exactly one unknown_object rejection for 'ghost', got %zu\n",
                 rx.rejections.size());
     for (const rejection_t& r : rx.rejections) {
@@ -355,14 +466,14 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
     ++failures;
   }
   // The run must compare something real: most entries, some contacts.
-  if (compared < 200 || contacts < 10) {
+  if (compared < expect.min_compared || contacts < expect.min_contacts) {
     std::printf("FAIL: only %d entries compared (%d contacts)\n", compared, contacts);
     ++failures;
   }
-  std::printf("shared_world_tool play: %zu pairs, %zu shared entries: %d equal to sweptccd world "
-              "(%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
-              rx.contacts.size(), rx.shared.size(), compared, contacts, cut, merged, waited,
-              failures);
+  std::printf(
+      "shared_world_tool: %zu pairs, %zu shared entries: %d equal to sweptccd world "
+      "(%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
+      rx.contacts.size(), rx.shared.size(), compared, contacts, cut, merged, waited, failures);
   return failures == 0 ? 0 : 1;
 }
 
@@ -377,10 +488,13 @@ int main(int argc, char** argv) {
   try {
     if (args.size() == 2 && args[0] == "write") return Write(args[1]);
     if (args.size() == 4 && args[0] == "play") return Play(args[1], args[2], args[3]);
+    if (args.size() == 4 && args[0] == "listen") return Listen(args[1], args[2], args[3]);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "shared_world_tool: %s\n", e.what());
     return 2;
   }
-  std::fprintf(stderr, "usage: shared_world_tool write DIR | [--key FILE] play URL DIR OFFLINE\n");
+  std::fprintf(
+      stderr,
+      "usage: shared_world_tool write DIR | [--key FILE] (play | listen) URL DIR OFFLINE\n");
   return 2;
 }
