@@ -22,15 +22,6 @@ void Put3(const Eigen::Vector3d& v, double out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = v[k];
 }
 
-// As `sweptccd world` prints them (world_query.cc): s rounded so that it
-// never narrows the certified bracket; t inside the window.
-double SOf(double tau, double dur, bool up) {
-  double s = tau / dur;
-  const long double back = static_cast<long double>(s) * dur;
-  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
-  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
-  return std::clamp(s, 0.0, 1.0);
-}
 
 entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
   entity_contact_t out;
@@ -105,16 +96,14 @@ shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryO
     if (ans.contact) {
       const world::OtherBracket& b = ans.bracket;
       const double dur = static_cast<double>(u1 - u0);
-      const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
+      const world::PrintedBracket p = world::PrintBracket(b, u0, u1, job.t_from, job.t_to);
       m.result = shared_contact_t::RESULT_CONTACT;
       m.initially_colliding = b.initially_colliding;
       m.undecided = b.undecided;
-      m.s_lo = b.initially_colliding ? static_cast<double>(job.t_from - u0) / dur : s_lo;
-      m.s_hi = s_hi;
-      m.t_lo = b.initially_colliding
-                   ? static_cast<double>(job.t_from)
-                   : std::max(BracketTimeLo(u0, u1, s_lo), static_cast<double>(job.t_from));
-      m.t_hi = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(job.t_to));
+      m.s_lo = p.s_lo;
+      m.s_hi = p.s_hi;
+      m.t_lo = p.t_lo;
+      m.t_hi = p.t_hi;
       if (b.has_witness) m.contacts.push_back(ContactOf(b.witness, dur));
       m.num_contacts = static_cast<int32_t>(m.contacts.size());
     }

@@ -10,6 +10,7 @@
 
 #include "core/errors.h"
 #include "core/geometry/distance.h"
+#include "core/query/ccd_query.h"
 
 namespace sweptccd::world {
 namespace {
@@ -401,6 +402,35 @@ std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, 
 }
 std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale) {
   return std::make_unique<ObjectTarget>(world, a, o, scale);
+}
+
+namespace {
+
+// s of tau in the pair, rounded down (lo) or up (hi) so that the printed
+// normalised time never narrows the certified bracket.
+double RoundedS(double tau, double dur, bool up) {
+  double s = tau / dur;
+  const long double back = static_cast<long double>(s) * dur;
+  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
+  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
+  return std::clamp(s, 0.0, 1.0);
+}
+
+}  // namespace
+
+PrintedBracket PrintBracket(const OtherBracket& b, int64_t utime0, int64_t utime1, int64_t t_from,
+                            int64_t t_to) {
+  const double dur = static_cast<double>(utime1 - utime0);
+  PrintedBracket p;
+  const double s_lo = RoundedS(b.tau_lo, dur, false);
+  p.s_lo = b.initially_colliding ? static_cast<double>(t_from - utime0) / dur : s_lo;
+  p.s_hi = RoundedS(b.tau_hi, dur, true);
+  // Inside the window (the rounding of s must not move a bracket end out).
+  p.t_lo = b.initially_colliding
+               ? static_cast<double>(t_from)
+               : std::max(BracketTimeLo(utime0, utime1, s_lo), static_cast<double>(t_from));
+  p.t_hi = std::min(BracketTimeHi(utime0, utime1, p.s_hi), static_cast<double>(t_to));
+  return p;
 }
 
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,

@@ -53,6 +53,15 @@ struct OtherBracket {
   OtherContact witness;
 };
 
+/// A bracket as `sweptccd world` prints it and the daemon publishes it: s
+/// rounded so that it never narrows the certified bracket (s_lo down, s_hi
+/// up), t inside the window [t_from, t_to] (its ends are exact integers).
+struct PrintedBracket {
+  double s_lo = 0, s_hi = 0, t_lo = 0, t_hi = 0;
+};
+PrintedBracket PrintBracket(const OtherBracket& b, int64_t utime0, int64_t utime1, int64_t t_from,
+                            int64_t t_to);
+
 struct OtherAnswer {
   bool contact = false;
   OtherBracket bracket;             // When contact: the earliest bracket.

@@ -14,15 +14,6 @@ using ojson = nlohmann::ordered_json;
 
 ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()}); }
 
-// s of tau in the pair, rounded down (lo) or up (hi) so that the printed
-// normalised time never narrows the certified bracket.
-double SOf(double tau, double dur, bool up) {
-  double s = tau / dur;
-  const long double back = static_cast<long double>(s) * dur;
-  if (!up && back > tau) s = std::nextafter(s, -HUGE_VAL);
-  if (up && back < tau) s = std::nextafter(s, HUGE_VAL);
-  return std::clamp(s, 0.0, 1.0);
-}
 
 ojson ContactJson(const OtherContact& c, double dur) {
   ojson j;
@@ -39,18 +30,13 @@ ojson ContactJson(const OtherContact& c, double dur) {
 
 void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, int64_t t_to,
                    ojson* j) {
-  const double dur = static_cast<double>(u1 - u0);
-  const double s_lo = SOf(b.tau_lo, dur, false), s_hi = SOf(b.tau_hi, dur, true);
+  const PrintedBracket p = PrintBracket(b, u0, u1, t_from, t_to);
   (*j)["initially_colliding"] = b.initially_colliding;
   (*j)["undecided"] = b.undecided;
-  (*j)["s_lo"] = b.initially_colliding ? static_cast<double>(t_from - u0) / dur : s_lo;
-  (*j)["s_hi"] = s_hi;
-  // Inside the window (its ends are exact integers; the rounding of s must
-  // not move a bracket end out of it).
-  (*j)["t_lo"] = b.initially_colliding
-                     ? static_cast<double>(t_from)
-                     : std::max(BracketTimeLo(u0, u1, s_lo), static_cast<double>(t_from));
-  (*j)["t_hi"] = std::min(BracketTimeHi(u0, u1, s_hi), static_cast<double>(t_to));
+  (*j)["s_lo"] = p.s_lo;
+  (*j)["s_hi"] = p.s_hi;
+  (*j)["t_lo"] = p.t_lo;
+  (*j)["t_hi"] = p.t_hi;
 }
 
 // Every link of the skeleton over the pair, padded by `pad` metres.
