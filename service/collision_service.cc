@@ -106,8 +106,9 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     if (options_.prepare_engine) options_.prepare_engine(clients_.back()->engine.get());
   }
   if (!options_.shared_world && !options_.objects.empty()) {
-    throw InputError("collision service: tracked objects need the shared world; set "
-                     "shared_world: true, or remove the objects");
+    throw InputError(
+        "collision service: tracked objects need the shared world; set "
+        "shared_world: true, or remove the objects");
   }
   if (options_.shared_world) {
     SharedWorldOptions so;
@@ -132,8 +133,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
                          "' names two entities; give every client and object its own id");
       }
       if (!o.mesh || o.mesh->num_objects() != 1) {
-        throw InputError("collision service: object '" + o.object_id +
-                         "' needs exactly one mesh");
+        throw InputError("collision service: object '" + o.object_id + "' needs exactly one mesh");
       }
       shared_->AddObject(o.object_id, o.mesh, now);
     }
@@ -264,8 +264,7 @@ void CollisionService::OnObjectPose(const object_pose_t& pose) {
     if (rejection && !attributed) ++rejected_unattributed_;
   }
   if (rejection) {
-    Reject(IsValidClientId(pose.object_id) ? pose.object_id : "", pose.seq, *rejection,
-           attributed);
+    Reject(IsValidClientId(pose.object_id) ? pose.object_id : "", pose.seq, *rejection, attributed);
   }
 }
 
@@ -586,7 +585,9 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
     }
     if (shared_ && shared_->Has(id) && !client_index_.count(id)) {
       out = {join_reply_t::REASON_ID_IN_USE,
-             "id '" + id + "' is a tracked object of this daemon; pick another id", 0, {}};
+             "id '" + id + "' is a tracked object of this daemon; pick another id",
+             0,
+             {}};
       return false;
     }
     const auto it = client_index_.find(id);

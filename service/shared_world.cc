@@ -22,7 +22,6 @@ void Put3(const Eigen::Vector3d& v, double out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = v[k];
 }
 
-
 entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
   entity_contact_t out;
   out.link = c.link;
@@ -47,8 +46,8 @@ shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryO
   m.utime0 = job.pose0.utime;
   m.utime1 = job.pose1.utime;
   m.entity = job.entity;
-  m.entity_kind = job.entity_is_object ? shared_contact_t::KIND_OBJECT
-                                       : shared_contact_t::KIND_AVATAR;
+  m.entity_kind =
+      job.entity_is_object ? shared_contact_t::KIND_OBJECT : shared_contact_t::KIND_AVATAR;
   m.t_from = job.t_from;
   m.t_to = job.t_to;
   m.result = shared_contact_t::RESULT_FREE;
@@ -113,15 +112,15 @@ shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryO
     m.contacts.clear();
     m.num_contacts = 0;
   }
-  m.compute_us =
-      std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+  m.compute_us = std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
   return m;
 }
 
 SharedWorld::SharedWorld(SharedWorldOptions options) : options_(options) {
   if (options_.silence_timeout_us < 1 || options_.max_history < 2 || options_.max_pending < 1) {
-    throw InputError("shared world: silence_timeout_us must be >= 1, max_history >= 2 and "
-                     "max_pending >= 1");
+    throw InputError(
+        "shared world: silence_timeout_us must be >= 1, max_history >= 2 and "
+        "max_pending >= 1");
   }
 }
 
@@ -153,10 +152,11 @@ void SharedWorld::AddObject(const std::string& id, std::shared_ptr<const Environ
 
 void SharedWorld::RemoveAvatar(const std::string& id, Time now, std::vector<SharedJob>* due) {
   if (!Has(id)) return;
-  Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
-  pending_.erase(std::remove_if(pending_.begin(), pending_.end(),
-                                [&](const Entry& x) { return x.a == id; }),
-                 pending_.end());
+  Settle(
+      id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+  pending_.erase(
+      std::remove_if(pending_.begin(), pending_.end(), [&](const Entry& x) { return x.a == id; }),
+      pending_.end());
   entities_.erase(id);
   order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
 }
@@ -179,14 +179,15 @@ void SharedWorld::Append(Entity* e, Time now) {
   }
 }
 
-void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const Pose& pose,
-                                 Time now, std::vector<SharedJob>* due) {
+void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const Pose& pose, Time now,
+                                 std::vector<SharedJob>* due) {
   const auto it = entities_.find(id);
   if (it == entities_.end()) return;
   Entity& e = it->second;
   if (e.has_stream && session != e.session) {
     // A new stream: what waited for the old one ends at its last sample.
-    Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+    Settle(
+        id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
     e.avatar_samples.clear();
     e.evicted = false;
   }
@@ -196,7 +197,8 @@ void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const P
   SWEPTCCD_CHECK(e.avatar_samples.empty() || pose.utime > e.avatar_samples.back().utime);
   e.avatar_samples.push_back(pose);
   Append(&e, now);
-  Settle(id, [&](const Entry& x) { return Covered(e, x); }, /*cut=*/false, now, due);
+  Settle(
+      id, [&](const Entry& x) { return Covered(e, x); }, /*cut=*/false, now, due);
 }
 
 std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
@@ -216,13 +218,12 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
   world::RigidSample x;
   const std::string problem = world::MakeRigidSample(msg.utime, v, &x);
   if (!problem.empty()) {
-    const char* code = problem.find("finite") != std::string::npos
-                           ? rejection_code::kNonFinite
-                           : problem.find("position") != std::string::npos
-                                 ? rejection_code::kPositionOutOfRange
-                                 : rejection_code::kZeroQuaternion;
-    return Rejection{code, "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) +
-                               ": " + problem + "; send a finite pose with a unit quaternion"};
+    const char* code = problem.find("finite") != std::string::npos ? rejection_code::kNonFinite
+                       : problem.find("position") != std::string::npos
+                           ? rejection_code::kPositionOutOfRange
+                           : rejection_code::kZeroQuaternion;
+    return Rejection{code, "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) + ": " +
+                               problem + "; send a finite pose with a unit quaternion"};
   }
   const bool new_stream = !e.has_stream || msg.session > e.session;
   if (!new_stream) {
@@ -253,7 +254,8 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
     }
   }
   if (new_stream && e.has_stream) {
-    Settle(msg.object_id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+    Settle(
+        msg.object_id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
     e.object_samples.clear();
     e.evicted = false;
   }
@@ -262,7 +264,8 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
   e.last_seq = msg.seq;
   e.object_samples.push_back(x);
   Append(&e, now);
-  Settle(msg.object_id, [&](const Entry& y) { return Covered(e, y); }, /*cut=*/false, now, due);
+  Settle(
+      msg.object_id, [&](const Entry& y) { return Covered(e, y); }, /*cut=*/false, now, due);
   return std::nullopt;
 }
 
@@ -361,7 +364,8 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     pending_.push_back(std::move(entry));
     const Entity& e = entities_.at(other);
     if (Covered(e, pending_.back())) {
-      Settle(other, [&](const Entry& x) { return &x == &pending_.back(); }, false, now, due);
+      Settle(
+          other, [&](const Entry& x) { return &x == &pending_.back(); }, false, now, due);
     }
   }
   // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
@@ -370,7 +374,8 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     const Entry& oldest = pending_.front();
     const std::string e = oldest.e;
     const Entry* p = &oldest;
-    Settle(e, [&](const Entry& x) { return &x == p; }, /*cut=*/true, now, due);
+    Settle(
+        e, [&](const Entry& x) { return &x == p; }, /*cut=*/true, now, due);
   }
 }
 
@@ -379,14 +384,16 @@ void SharedWorld::CutSilent(Time now, std::vector<SharedJob>* due) {
   for (const std::string& id : order_) {
     const Entity& e = entities_.at(id);
     const bool silent = now - e.last_heard >= timeout;
-    Settle(id, [&](const Entry& x) { return silent || now - x.created >= timeout; },
-           /*cut=*/true, now, due);
+    Settle(
+        id, [&](const Entry& x) { return silent || now - x.created >= timeout; },
+        /*cut=*/true, now, due);
   }
 }
 
 void SharedWorld::CutAll(Time now, std::vector<SharedJob>* due) {
   for (const std::string& id : order_) {
-    Settle(id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
+    Settle(
+        id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
   }
 }
 

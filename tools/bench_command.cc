@@ -6,8 +6,8 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -222,7 +222,7 @@ struct Row {
   Stats bullet_us;
   int bullet_misses = 0;  // Pairs where we found contact and Bullet's sweep saw none.
   double bullet_build_s = 0;
-  Stats fcl_ccd_us;       // --fcl-ccd only.
+  Stats fcl_ccd_us;        // --fcl-ccd only.
   int fcl_ccd_misses = 0;  // Pairs where we found contact and FCL's continuous query saw none.
 };
 
@@ -266,8 +266,8 @@ std::string FclCcdTable(const std::vector<Row>& rows) {
   std::snprintf(buf, sizeof(buf),
                 "\nFCL continuousCollide (linear motion, naive solver, %d steps) per link, "
                 "same pairs:\n%-22s %-18s %5s %9s %9s %9s %9s %9s %6s\n",
-                FclPeer::kFclCcdSteps, "scene", "clip", "pairs", "ours_med", "fccd_med",
-                "ours_p99", "fccd_p99", "fccd/ours", "fmiss");
+                FclPeer::kFclCcdSteps, "scene", "clip", "pairs", "ours_med", "fccd_med", "ours_p99",
+                "fccd_p99", "fccd/ours", "fmiss");
   out << buf;
   for (const Row& r : rows) {
     std::snprintf(buf, sizeof(buf), "%-22s %-18s %5d %9.1f %9.1f %9.1f %9.1f %9.2f %6d\n",

@@ -236,18 +236,23 @@ size_t ChoosePair(const RenderCommandOptions& o, RenderInputs* in) {
                    std::to_string(pairs.size()) + " pairs)");
 }
 
-// --out: the contact picture. Returns its sidecar description.
-json WriteContactPicture(const RenderCommandOptions& o, RenderInputs* in) {
-  const size_t chosen = ChoosePair(o, in);
-  gpu::GlContext context(gpu::GlContextOptions{});
-  spdlog::info("render: {}", context.info().Summary());
-  gpu::SceneRenderer renderer(&context);
+// --width/--height within what the renderer allows.
+void CheckPictureSize(const RenderCommandOptions& o, gpu::SceneRenderer& renderer) {
   const int max_size = renderer.MaxSize();
   if (o.width > max_size || o.height > max_size) {
     throw InputError("sweptccd render: " + std::to_string(o.width) + "x" +
                      std::to_string(o.height) + " is larger than the renderer allows (" +
                      std::to_string(max_size) + ")");
   }
+}
+
+// --out: the contact picture. Returns its sidecar description.
+json WriteContactPicture(const RenderCommandOptions& o, RenderInputs* in) {
+  const size_t chosen = ChoosePair(o, in);
+  gpu::GlContext context(gpu::GlContextOptions{});
+  spdlog::info("render: {}", context.info().Summary());
+  gpu::SceneRenderer renderer(&context);
+  CheckPictureSize(o, renderer);
   gpu::ContactPictureOptions po;
   po.width = o.width;
   po.height = o.height;
@@ -354,12 +359,7 @@ json WriteEntityPicture(const RenderCommandOptions& o) {
   gpu::GlContext context(gpu::GlContextOptions{});
   spdlog::info("render: {}", context.info().Summary());
   gpu::SceneRenderer renderer(&context);
-  const int max_size = renderer.MaxSize();
-  if (o.width > max_size || o.height > max_size) {
-    throw InputError("sweptccd render: " + std::to_string(o.width) + "x" +
-                     std::to_string(o.height) + " is larger than the renderer allows (" +
-                     std::to_string(max_size) + ")");
-  }
+  CheckPictureSize(o, renderer);
   gpu::EntityPictureOptions po;
   po.width = o.width;
   po.height = o.height;

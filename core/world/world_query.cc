@@ -14,7 +14,6 @@ using ojson = nlohmann::ordered_json;
 
 ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()}); }
 
-
 ojson ContactJson(const OtherContact& c, double dur) {
   ojson j;
   j["link"] = c.link;

@@ -41,8 +41,10 @@ double Percentile(std::vector<double> v, double p) {
 int main(int argc, char** argv) {
   using namespace sweptccd;
   if (argc != 9) {
-    std::fprintf(stderr, "usage: %s URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S "
-                         "SECONDS join|stream|listen\n", argv[0]);
+    std::fprintf(stderr,
+                 "usage: %s URL SKELETON.json POSES.jsonl ROOM_KEY JOINS_HZ LIFETIME_S "
+                 "SECONDS join|stream|listen\n",
+                 argv[0]);
     return 2;
   }
   try {
@@ -69,8 +71,8 @@ int main(int argc, char** argv) {
     const bool stream = mode == "stream";
 
     struct Live {
-      std::unique_ptr<LiveClient> client;              // join, stream.
-      std::unique_ptr<DaemonConnection> listener;      // listen.
+      std::unique_ptr<LiveClient> client;          // join, stream.
+      std::unique_ptr<DaemonConnection> listener;  // listen.
       Clock::time_point leave_at;
       int64_t seq = 0;
     };
@@ -90,8 +92,8 @@ int main(int argc, char** argv) {
         if (live.front().client) live.front().client->Leave();
         live.pop_front();
       }
-      const auto life = std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(lifetime_s));
+      const auto life =
+          std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(lifetime_s));
       if (now >= next_join && mode == "listen") {
         next_join += join_period;
         DaemonConnection::Options o;
