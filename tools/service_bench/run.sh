@@ -5,7 +5,12 @@
 # RUNS="CLIENTS:HZ ..." changes the runs (default "1:90 8:90 32:90"; issue 11's
 # throughput targets: RUNS="1:90 32:90 64:120"). The walk is imported at each
 # rate. "merged" = consecutive pairs (poses - clients) not answered, the
-# pairs latest-wins merged (or lost).
+# pairs latest-wins merged (or lost). After the table, one line per run says
+# where they went: the daemon's own counts (its last status_t per client, as
+# `sweptccd monitor` shows it: poses received, pairs answered, pairs merged
+# by latest-wins, rejected) and the namespace's UDP receive-buffer drops
+# (/proc/net/snmp RcvbufErrors: datagrams the kernel dropped on any socket,
+# the daemon's or the bench's) and send drops (SndbufErrors).
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
 enter_private_netns "$@"
@@ -19,6 +24,8 @@ rm -f "$work/room.key"
 "$build/bin/sweptccd" keygen --out "$work/room.key"
 echo "| clients | Hz | poses sent | events | median us | p99 us | max us | merged |"
 echo "|---:|---:|---:|---:|---:|---:|---:|---:|"
+udp_drops() { awk '$1 == "Udp:" && $2 ~ /^[0-9]+$/ { print $6, $7 }' /proc/net/snmp; }
+where=()
 for run in ${RUNS:-1:90 8:90 32:90}; do
   n=${run%%:*} hz=${run#*:}
   import_walk "$build/bin/sweptccd" . "$hz" "$work" >/dev/null
@@ -28,9 +35,25 @@ for run in ${RUNS:-1:90 8:90 32:90}; do
     --room-key "$work/room.key" --log-level warn "${args[@]}" 2> "$work/daemon_$n.log" &
   daemon=$!
   sleep 1
+  timeout 30 "$build/bin/sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --json \
+    --timeout 14 > "$work/monitor_$n.jsonl" 2>/dev/null &
+  monitor=$!
+  read -r rcv0 snd0 < <(udp_drops)
   line=$("$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" "$n" "$hz" 10 "$work/room.key")
   read -r sent events < <(awk -F'|' '{ gsub(/ /, ""); print $4, $5 }' <<< "$line")
   echo "$line $(awk -v s="$sent" -v e="$events" -v n="$n" 'BEGIN { printf "%.2f%% |", 100 * (s - n - e) / (s - n) }')"
+  sleep 1.5  # A status period, so the monitor has the daemon's last counts.
+  read -r rcv1 snd1 < <(udp_drops)
   kill -TERM $daemon
   wait $daemon
+  wait $monitor || true
+  where+=("$n clients at $hz Hz: daemon $(grep '^{"type":"status","client":' "$work/monitor_$n.jsonl" \
+    | awk -F'[:,]' '{ for (i = 1; i < NF; ++i) { if ($i == "\"client\"") c = $(i + 1);
+        if ($i == "\"poses_received\"") p[c] = $(i + 1); if ($i == "\"pairs_answered\"") a[c] = $(i + 1);
+        if ($i == "\"pairs_skipped\"") k[c] = $(i + 1); if ($i == "\"rejected\"") r[c] = $(i + 1) } }
+      END { for (c in p) { P += p[c]; A += a[c]; K += k[c]; R += r[c] }
+        printf "%d poses received, %d pairs answered, %d merged by latest-wins, %d rejected", P, A, K, R }');" \
+    "kernel: UDP RcvbufErrors $((rcv1 - rcv0)), SndbufErrors $((snd1 - snd0))")
 done
+echo
+for w in "${where[@]}"; do echo "$w"; done
