@@ -92,11 +92,17 @@ DaemonConnection::DaemonConnection(Options options) : options_(std::move(options
   handlers_ = std::make_unique<Handlers>();
   handlers_->self = this;
   const ClientChannels& ch = options_.channels;
-  lcm_->subscribe(ch.contact, &Handlers::Contact, handlers_.get());
-  lcm_->subscribe(ch.reject, &Handlers::Rejection, handlers_.get());
-  lcm_->subscribe(ch.status, &Handlers::Status, handlers_.get());
-  lcm_->subscribe(ch.join_reply, &Handlers::JoinReply, handlers_.get());
-  lcm_->subscribe(ch.shared_contact, &Handlers::SharedContact, handlers_.get());
+  // Every client's events come on one channel: a burst per tick
+  // (kLcmQueueCapacity says why LCM's default of 30 loses its tail).
+  for (lcm::Subscription* s :
+       {lcm_->subscribe(ch.contact, &Handlers::Contact, handlers_.get()),
+        lcm_->subscribe(ch.reject, &Handlers::Rejection, handlers_.get()),
+        lcm_->subscribe(ch.status, &Handlers::Status, handlers_.get()),
+        lcm_->subscribe(ch.join_reply, &Handlers::JoinReply, handlers_.get()),
+        lcm_->subscribe(ch.shared_contact, &Handlers::SharedContact, handlers_.get())}) {
+    if (s == nullptr) throw InputError("cannot subscribe to the daemon's channels");
+    s->setQueueCapacity(kLcmQueueCapacity);
+  }
 }
 
 DaemonConnection::~DaemonConnection() { Stop(); }

@@ -15,4 +15,13 @@ inline constexpr char kLeaveChannel[] = "SWEPTCCD_LEAVE";            // leave_t,
 inline constexpr char kObjectPoseChannel[] = "SWEPTCCD_OBJECT_POSE";  // object_pose_t, in.
 inline constexpr char kSharedContactChannel[] = "SWEPTCCD_SHARED_CONTACT";  // shared_contact_t, out.
 
+/// Messages LCM may hold per subscription before the handler takes them.
+/// LCM's default is 30, and it drops what comes beyond: one 120 Hz tick of 64
+/// clients is a burst of 64 poses (and, at every subscriber, 64 contact
+/// events), so with 30 the tail of every burst was lost before any check
+/// (docs/BENCHMARKS.md, "Service throughput"). 1024 raw datagrams of at most
+/// 64 KiB each bound what one subscription holds to 64 MiB (the unit's
+/// MemoryMax is 4G).
+inline constexpr int kLcmQueueCapacity = 1024;
+
 }  // namespace sweptccd

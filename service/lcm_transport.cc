@@ -241,6 +241,8 @@ void LcmTransport::Subscribe(CollisionService* service) {
   if (impl_->object_subscription == nullptr) {
     throw InputError("LCM transport: cannot subscribe to channel " + impl_->channels.object_pose);
   }
+  impl_->subscription->setQueueCapacity(kLcmQueueCapacity);
+  impl_->object_subscription->setQueueCapacity(kLcmQueueCapacity);
 }
 
 void LcmTransport::SubscribeLive(LiveSessionHandler* handler) {

@@ -220,9 +220,11 @@ int main(int argc, char** argv) {
     }
   }
   Collector collector;
-  lcm.subscribe(sweptccd::kContactChannel, &Collector::On, &collector);
+  lcm.subscribe(sweptccd::kContactChannel, &Collector::On, &collector)
+      ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
   if (options.shared) {
-    lcm.subscribe(sweptccd::kSharedContactChannel, &Collector::OnShared, &collector);
+    lcm.subscribe(sweptccd::kSharedContactChannel, &Collector::OnShared, &collector)
+        ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
   }
   const auto period = std::chrono::duration<double>(1.0 / rate);
   const int ticks = static_cast<int>(seconds * rate);
