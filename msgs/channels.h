@@ -19,9 +19,11 @@ inline constexpr char kSharedContactChannel[] = "SWEPTCCD_SHARED_CONTACT";  // s
 /// LCM's default is 30, and it drops what comes beyond: one 120 Hz tick of 64
 /// clients is a burst of 64 poses (and, at every subscriber, 64 contact
 /// events), so with 30 the tail of every burst was lost before any check
-/// (docs/BENCHMARKS.md, "Service throughput"). 1024 raw datagrams of at most
-/// 64 KiB each bound what one subscription holds to 64 MiB (the unit's
-/// MemoryMax is 4G).
+/// (docs/BENCHMARKS.md, "Service throughput"). Held: at most 1024 messages,
+/// each one datagram (under 64 KiB: 64 MiB in all) or a message LCM
+/// reassembled from fragments (its reassembly store is 16 MiB); the handlers
+/// refuse an oversized message by its byte count before decoding, so the
+/// queue only grows while they fall behind.
 inline constexpr int kLcmQueueCapacity = 1024;
 
 }  // namespace sweptccd
