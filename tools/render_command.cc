@@ -364,7 +364,7 @@ json WriteEntityPicture(const RenderCommandOptions& o) {
   po.width = o.width;
   po.height = o.height;
   po.fov_deg = o.fov_deg;
-  po.up_axis = o.up.empty() ? gpu::GuessUpAxis(loaded.env) : o.up[0] - 'x';
+  po.up_axis = UpAxis(o.up, loaded.env);
   po.eye = PointFlag(o.eye);
   po.target = PointFlag(o.target);
   gpu::EntityPicture picture = gpu::DrawEntityPicture(po, w, a, chosen, b, obj, answer, &renderer);
