@@ -145,6 +145,22 @@ def text_parsers():
           '{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"},'
           ' {"link": 2, "object": "*"}]}')
     write("fuzz_filter", "bad_index.json", '{"ignore": [{"link": -1, "object": 99}]}')
+    # World files (SPEC 8), loaded beside the files world_fuzzer.cc writes.
+    write("fuzz_world", "avatar_object_env.json",
+          '{"avatars": [{"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl",'
+          ' "ignore": [{"link": "bar", "entity": "cup"}, {"link": "bar", "object": "floor.obj"}]},'
+          ' {"id": "bob", "skeleton": "bar.json", "poses": "alice.jsonl", "motion": "independent"}],'
+          ' "objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}], "env": ["floor.obj"]}')
+    write("fuzz_world", "objects_only.json",
+          '{"objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}], "env": []}')
+    write("fuzz_world", "duplicate_id.json",
+          '{"avatars": [{"id": "cup", "skeleton": "bar.json", "poses": "alice.jsonl"}],'
+          ' "objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}]}')
+    write("fuzz_world", "missing_mesh_and_escape.json",
+          '{"objects": [{"id": "a\\u001b[31m", "mesh": "../../../../etc/none.obj", "poses": "cup.jsonl"}]}')
+    write("fuzz_world", "object_pose_lines.json",
+          '{"utime": 1, "pose": [0, 0, 0, 0, 0, 0, 0]}\n{"utime": -5, "pose": [1e308, 0, 0, 1, 0, 0, 0]}\n'
+          '{"utime": 9223372036854775808, "pose": [0, 0, 0, 1, 0, 0]}\n')
     write("fuzz_config", "deploy_sweptccd.yaml", (ROOT / "deploy" / "sweptccd.yaml").read_bytes())
     write("fuzz_config", "minimal.yaml",
           "environment: [room.ply]\nclients:\n  - {id: alice, skeleton: a.json, ignore: ['foot_l:0']}\n")
@@ -317,11 +333,10 @@ def messages(m):
 
 
 def main():
-    # Reproducers the fuzzer found (crash_*) are kept; everything else is
-    # written again.
-    for old in CORPUS.glob("*/*"):
-        if not old.name.startswith("crash_"):
-            old.unlink()
+    # Every seed below is written again; files this script does not write
+    # (reproducers a fuzzer found: crash_*, and the PLY ones named in
+    # core/geometry/mesh_precheck.cc and tests/core/geometry/mesh_test.cc) are
+    # kept. A seed renamed here leaves its old file: delete it by hand.
     meshes()
     text_parsers()
     with tempfile.TemporaryDirectory() as tmp:

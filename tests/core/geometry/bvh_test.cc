@@ -35,6 +35,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "tests/common/brute_force.h"
+#include "tests/common/test_scale.h"
 
 namespace sweptccd {
 namespace {
@@ -448,7 +449,7 @@ TEST(BvhTest, RandomSoupsStructureAndNoMissedTriangle) {
     const Aabb box = bvh.bounds();
     const double scale = std::max(1e-3, std::min(2.0, (box.hi - box.lo).maxCoeff()));
     size_t within = 0;
-    const int capsules = soup.mesh.num_triangles() > 1000 ? 250 : 400;
+    const int capsules = testing::ScaledCount(soup.mesh.num_triangles() > 1000 ? 250 : 400);
     for (int k = 0; k < capsules; ++k) {
       const Capsule cap = RandomCapsule(rng, bvh, box, scale);
       within += CheckCapsule(bvh, cap, soup.name + " capsule " + std::to_string(k));
@@ -524,7 +525,7 @@ TEST_P(RealMeshBvhTest, StructureAndNoMissedTriangle) {
   const double scale = size > 3 ? 0.3 : 0.1 * size;
   std::mt19937_64 rng(4242);
   size_t within = 0;
-  for (int k = 0; k < GetParam().capsules; ++k) {
+  for (int k = 0; k < testing::ScaledCount(GetParam().capsules); ++k) {
     const Capsule cap = RandomCapsule(rng, bvh, box, scale);
     within += CheckCapsule(bvh, cap, std::string(GetParam().file) + " capsule " + std::to_string(k));
   }
@@ -607,7 +608,7 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
     }
     const CcdEngine engine(skel, env, filter);
     int found = 0, not_found = 0;
-    for (int trial = 0; trial < 60; ++trial) {
+    for (int trial = 0; trial < testing::ScaledCount(60); ++trial) {
       const Pose p0 = RandomPose(rng, skel.num_links(), box, 0);
       const Pose p1 = RandomPose(rng, skel.num_links(), box, 33333);
       const MotionModel model = trial % 2 ? MotionModel::kIndependent : MotionModel::kArticulated;
@@ -656,8 +657,9 @@ TEST(BvhTest, SeparationMatchesBruteForceOverAllTriangles) {
     }
     std::printf("Separation variant %d: %d found, %d beyond the search radius\n", variant, found,
                 not_found);
-    EXPECT_GT(found, 50);
-    EXPECT_GT(not_found, 20);
+    // A scaled run (tests/common/test_scale.h): the minimums scaled alike.
+    EXPECT_GT(found, testing::ScaledMinimum(50));
+    EXPECT_GT(not_found, testing::ScaledMinimum(20));
   }
 }
 
@@ -731,7 +733,8 @@ TEST(BvhTest, QueryNeverCullsATouchingLink) {
     QueryOptions per_link;
     per_link.per_link = true;
     QueryOptions first;
-    for (size_t k = 1; k + 1 < clip.poses.size() && k < 36; ++k) {
+    const size_t stride = static_cast<size_t>(testing::ScaledStride());  // 1 in the full run.
+    for (size_t k = 1; k + 1 < clip.poses.size() && k < 36; k += stride) {
       const Pose& p0 = clip.poses[k];
       const Pose& p1 = clip.poses[k + 1];
       const PairMotion motion(skel, p0, p1, MotionModel::kArticulated);
@@ -778,8 +781,8 @@ TEST(BvhTest, QueryNeverCullsATouchingLink) {
   std::printf("culling: %d pairs, %d contact, %d touching links, %d culled links\n", pairs,
               contact_pairs, total_touching, total_culled);
   // The scene exercises both sides: links that touch and links that are culled.
-  EXPECT_GT(total_touching, 10);
-  EXPECT_GT(total_culled, 50);
+  EXPECT_GT(total_touching, testing::ScaledMinimum(10));
+  EXPECT_GT(total_culled, testing::ScaledMinimum(50));
 }
 
 }  // namespace

@@ -66,6 +66,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "tests/common/random.h"
+#include "tests/common/test_scale.h"
 
 namespace sweptccd {
 namespace {
@@ -485,11 +486,13 @@ class Suite {
       // otherwise pass unnoticed).
       EXPECT_GT(cull_round_trips_, 0) << name_ << ": the backend under test never ran";
     }
-    EXPECT_GE(queries_, min_queries) << name_;
+    // A scaled run (tests/common/test_scale.h) runs a prefix of the seeds:
+    // its minimum and its undecided allowance are the full run's, scaled.
+    EXPECT_GE(queries_, static_cast<int64_t>(min_queries * testing::TestScale())) << name_;
     EXPECT_EQ(failures_, 0) << name_ << ": " << failures_ << " of " << queries_
                             << " queries failed (the first ones are printed above)";
     if (limit_undecided) {
-      EXPECT_LE(undecided_, static_cast<int64_t>(0.005 * queries_))
+      EXPECT_LE(undecided_, static_cast<int64_t>(0.005 * queries_ / testing::TestScale()))
           << name_ << ": too many undecided answers";
     }
   }
@@ -847,6 +850,7 @@ Outcome Suite::Run(const SceneUnderTest& sut, const QuerySpec& q, uint64_t seed,
 // Generators.
 
 using testing::Rng;
+using testing::ScaledCount;
 
 Eigen::Vector3f F(const Vec3& v) {
   return Eigen::Vector3f(static_cast<float>(v.x()), static_cast<float>(v.y()),
@@ -1028,7 +1032,7 @@ QuerySpec RandomMotion(Rng& rng, const Rig& rig, const SceneUnderTest& sut, doub
 
 TEST(CcdRandomTest, RandomSkeletonsAndTriangleSoups) {
   Suite suite("random skeletons and soups");
-  for (int scene_i = 0; scene_i < 180; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(180); ++scene_i) {
     const uint64_t seed = 0xA110000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(16), 1 + rng.I(8), 0.1);
@@ -1058,7 +1062,7 @@ TEST(CcdRandomTest, RandomSkeletonsAndTriangleSoups) {
 
 TEST(CcdRandomTest, ArmSwingsThroughObstacle) {
   Suite suite("arm swings through an obstacle");
-  for (int i = 0; i < 800; ++i) {
+  for (int i = 0; i < ScaledCount(800); ++i) {
     const uint64_t seed = 0xA2A0000 + i;
     Rng rng(seed);
     const double arm = rng.U(0.5, 0.9), radius = rng.U(0.02, 0.06);
@@ -1146,7 +1150,7 @@ TEST(CcdRandomTest, ArmSwingsThroughObstacle) {
 
 TEST(CcdRandomTest, FastTranslationThroughThinWall) {
   Suite suite("fast translation through a thin wall");
-  for (int i = 0; i < 800; ++i) {
+  for (int i = 0; i < ScaledCount(800); ++i) {
     const uint64_t seed = 0xA3A0000 + i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(3), 2, 0.3, 0.02, 0.15, 0.002, 0.05);
@@ -1390,7 +1394,7 @@ GrazeCase EdgeGraze(Rng& rng, double g) {
 
 TEST(CcdRandomTest, GrazingContact) {
   Suite suite("grazing contact");
-  for (int i = 0; i < 1200; ++i) {
+  for (int i = 0; i < ScaledCount(1200); ++i) {
     const uint64_t seed = 0xA4A0000 + i;
     Rng rng(seed);
     const double g = RandomGap(rng);
@@ -1518,7 +1522,7 @@ GrazeCase ChainTangentToPlane(Rng& rng, double g) {
 
 TEST(CcdRandomTest, DeepChainTangentToPlane) {
   Suite suite("deep chain tangent to a plane");
-  for (int i = 0; i < 600; ++i) {
+  for (int i = 0; i < ScaledCount(600); ++i) {
     const uint64_t seed = 0xA4B0000 + i;
     Rng rng(seed);
     const double g = RandomGap(rng);
@@ -1534,7 +1538,7 @@ TEST(CcdRandomTest, DeepChainTangentToPlane) {
 
 TEST(CcdRandomTest, InitiallyColliding) {
   Suite suite("initially colliding");
-  for (int scene_i = 0; scene_i < 60; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(60); ++scene_i) {
     const uint64_t seed = 0xA5A0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(8), 1 + rng.I(4), 0.2);
@@ -1630,7 +1634,7 @@ void AddDegenerateSoup(Rng& rng, TriangleMesh* mesh, int count, double half) {
 TEST(CcdRandomTest, DegenerateTriangles) {
   Suite suite("degenerate triangles");
   // Random motions through soups of zero-area triangles.
-  for (int scene_i = 0; scene_i < 25; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(25); ++scene_i) {
     const uint64_t seed = 0xA6A0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(4), 3, 0.2);
@@ -1647,7 +1651,7 @@ TEST(CcdRandomTest, DegenerateTriangles) {
     }
   }
   // Grazing a point, a segment-like or a repeated-vertex triangle at known gaps.
-  for (int i = 0; i < 300; ++i) {
+  for (int i = 0; i < ScaledCount(300); ++i) {
     const uint64_t seed = 0xA6B0000 + i;
     Rng rng(seed);
     const VertexKind kind = i % 3 == 0   ? VertexKind::kPoint
@@ -1668,7 +1672,7 @@ TEST(CcdRandomTest, DegenerateTriangles) {
 
 TEST(CcdRandomTest, ZeroLengthLinks) {
   Suite suite("zero-length links");
-  for (int scene_i = 0; scene_i < 30; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(30); ++scene_i) {
     const uint64_t seed = 0xA7A0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(10), 1 + rng.I(6), scene_i % 3 == 0 ? 0.5 : 1.0);
@@ -1754,7 +1758,7 @@ bool SameResult(const QueryResult& a, const QueryResult& b, std::string* why) {
 TEST(CcdRandomTest, RotationsNear180Degrees) {
   Suite suite("rotations near 180 degrees");
   int flips = 0, flip_failures = 0;
-  for (int scene_i = 0; scene_i < 40; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(40); ++scene_i) {
     const uint64_t seed = 0xA8A0000 + scene_i;
     Rng rng(seed);
     const int n = 1 + rng.I(4);
@@ -1921,7 +1925,7 @@ TEST(CcdRandomTest, Humanoid16LinksArticulated) {
   Suite suite("16-link humanoid");
   const Humanoid hum = MakeHumanoid();
   ASSERT_EQ(hum.rig.skeleton.num_links(), 16);
-  for (int scene_i = 0; scene_i < 40; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(40); ++scene_i) {
     const uint64_t seed = 0xA9A0000 + scene_i;
     Rng rng(seed);
     Scene scene;
@@ -1997,7 +2001,7 @@ TriangleMesh GridMesh(int rows, int cols, VertexAt vertex) {
 
 TEST(CcdRandomTest, DenseMeshes) {
   Suite suite("dense meshes");
-  for (int scene_i = 0; scene_i < 10; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(10); ++scene_i) {
     const uint64_t seed = 0xADA0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(6), 1 + rng.I(4), 0.15);
@@ -2037,7 +2041,7 @@ TEST(CcdRandomTest, DenseMeshes) {
 
 TEST(CcdRandomTest, CollisionFilters) {
   Suite suite("collision filters");
-  for (int scene_i = 0; scene_i < 30; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(30); ++scene_i) {
     const uint64_t seed = 0xAAA0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 2 + rng.I(9), 1 + rng.I(5), 0.1);
@@ -2068,7 +2072,7 @@ TEST(CcdRandomTest, CollisionFilters) {
 
 TEST(CcdRandomTest, SameAnswerTwice) {
   int compared = 0;
-  for (int scene_i = 0; scene_i < 10; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(10); ++scene_i) {
     const uint64_t seed = 0xABA0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(16), 1 + rng.I(8), 0.1);
@@ -2098,7 +2102,7 @@ TEST(CcdRandomTest, SameAnswerTwice) {
 TEST(CcdRandomTest, SmallWorkLimitIsUndecidedButKeepsG1) {
   Suite suite("small max_intervals");
   int touching = 0, undecided_touching = 0;
-  for (int scene_i = 0; scene_i < 20; ++scene_i) {
+  for (int scene_i = 0; scene_i < ScaledCount(20); ++scene_i) {
     const uint64_t seed = 0xACA0000 + scene_i;
     Rng rng(seed);
     const Rig rig = RandomRig(rng, 1 + rng.I(10), 1 + rng.I(6), 0.1);
@@ -2127,7 +2131,7 @@ TEST(CcdRandomTest, SmallWorkLimitIsUndecidedButKeepsG1) {
   }
   std::printf("[small max_intervals] %d queries touch, %d answered contact+undecided\n", touching,
               undecided_touching);
-  EXPECT_GT(touching, 50);
+  EXPECT_GT(touching, testing::ScaledMinimum(50));
   suite.Finish(200, /*limit_undecided=*/false);
 }
 

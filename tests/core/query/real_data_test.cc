@@ -27,6 +27,7 @@
 
 #include "core/geometry/bvh.h"
 #include "core/query/ccd_query.h"
+#include "tests/common/test_scale.h"
 #include "tests/core/query/backend_under_test.h"
 #include "core/scene/collision_filter.h"
 #include "core/geometry/distance.h"
@@ -193,7 +194,10 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
   // Each pair forwards, then backwards in time (the later pose first, same
   // utimes): contact that ends within a pair then begins within one, which
   // gives more brackets with s_lo > 0.
+  // A scaled run (tests/common/test_scale.h): every stride-th pair.
+  const size_t stride = static_cast<size_t>(testing::ScaledStride());
   for (size_t step = 0; step < 2 * pairs && first + step / 2 + 1 < clip.poses.size(); ++step) {
+    if ((step / 2) % stride != 0) continue;
     const size_t k = first + step / 2;
     const bool reversed = step % 2 == 1;
     Pose p0 = clip.poses[reversed ? k + 1 : k];
@@ -372,10 +376,12 @@ void Report(const char* scene, const Tally& t) {
                 static_cast<long long>(t.cull_cleared));
     EXPECT_GT(t.cull_round_trips, 0) << scene << ": the backend under test never ran";
   }
-  EXPECT_GT(t.onset, 40) << scene << " produced too few contacts that begin inside a pair";
+  // The minimum counts of a scaled run are the full run's over its stride.
+  EXPECT_GT(t.onset, testing::ScaledMinimum(40))
+      << scene << " produced too few contacts that begin inside a pair";
   EXPECT_GT(t.contact, 0) << scene << " produced no contact pair";
   EXPECT_GT(t.free_pairs, 0) << scene << " produced no free pair";
-  EXPECT_GE(t.pairs, 300);
+  EXPECT_GE(t.pairs, 300 / testing::ScaledStride());
 }
 
 // --- Scenes ---------------------------------------------------------------
