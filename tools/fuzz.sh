@@ -10,11 +10,20 @@
 #   tools/fuzz.sh [TARGET...]        (default: every target below)
 # Environment: FUZZ_SECONDS (per target, default 30), JOBS (build, default 2),
 # FUZZ_SEED (libFuzzer's -seed, default 1: a run is reproducible up to where
-# its time cap cuts it; set FUZZ_SEED=0 for a random seed when hunting).
+# its time cap cuts it; set FUZZ_SEED=0 for a random seed when hunting),
+# FUZZ_PLAIN=1: a hunt, not CI: builds into build-fuzz-plain without ASan and
+# UBSan (coverage only) and runs under glibc's heap checks
+# (libc_malloc_debug.so with glibc.malloc.check=3, perturb=165), which catch
+# heap damage inside libraries that are not instrumented (assimp's mesh
+# parsing, docs/SECURITY.md) at the next free, where ASan sees it late or
+# not at all. Replay a finding under valgrind to see the faulty write.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 src=$PWD
 build=build-fuzz
+plain=${FUZZ_PLAIN:-0}
+plain_flag=OFF
+if [ "$plain" = 1 ]; then build=build-fuzz-plain plain_flag=ON; fi
 seconds=${FUZZ_SECONDS:-30}
 seed=${FUZZ_SEED:-1}
 jobs=${JOBS:-2}
@@ -41,7 +50,8 @@ if [ $# -gt 0 ]; then targets=("$@") build_targets=("$@"); fi
 launcher=()
 if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache); fi
 CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DSWEPTCCD_FUZZ=ON -DSWEPTCCD_BUILD_TESTS=OFF "${launcher[@]}" >/dev/null
+  -DSWEPTCCD_FUZZ=ON -DSWEPTCCD_FUZZ_PLAIN="$plain_flag" -DSWEPTCCD_BUILD_TESTS=OFF \
+  "${launcher[@]}" >/dev/null
 cmake --build "$build" -j"$jobs" --target "${build_targets[@]}"
 if [ $# = 0 ] && [ "$decoders_checked" != 1 ]; then
   echo "fuzz.sh: NOT RUN until msgs/ decodes with DecodeChecked: ${decoders[*]}" >&2
@@ -54,6 +64,12 @@ pending=tests/fuzz/pending_fixes.txt
 export ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:allocator_may_return_null=0"
 export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 export LSAN_OPTIONS="suppressions=$src/tools/lsan_suppressions.txt:print_suppressions=0"
+# Plain: glibc >= 2.34 checks the heap only with its debug malloc preloaded.
+run_env=()
+if [ "$plain" = 1 ]; then
+  run_env=(env LD_PRELOAD=libc_malloc_debug.so.0
+           GLIBC_TUNABLES=glibc.malloc.check=3:glibc.malloc.perturb=165)
+fi
 failed=()
 for t in "${targets[@]}"; do
   work=$build/corpus-run/$t
@@ -74,7 +90,7 @@ for t in "${targets[@]}"; do
   # -malloc_limit_mb: no input of at most 64 KiB (the largest seed) may ask
   # for one block of 512 MiB; that is an amplification bug (the decoders'
   # counts, a mesh header's element count), not a big input.
-  "$build/bin/$t" -seed="$seed" -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 \
+  "${run_env[@]}" "$build/bin/$t" -seed="$seed" -max_total_time="$seconds" -rss_limit_mb=2048 -malloc_limit_mb=512 -timeout=10 \
     -close_fd_mask=1 -print_final_stats=1 -artifact_prefix="$artifacts/" "$work" \
     > "$build/$t.log" 2>&1 || status=$?
   grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb)' "$build/$t.log" | tr '\n' ' ' || true
