@@ -1,0 +1,61 @@
+#include "core/avatar/motion_memo.h"
+
+#include <cstring>
+
+namespace sweptccd {
+
+MotionMemo::MotionMemo(const PairMotion& motion, size_t max_times)
+    : motion_(motion), max_times_(max_times > 0 ? max_times : 1) {}
+
+std::vector<MotionMemo::Slot>& MotionMemo::SlotsAt(double s) {
+  uint64_t key;
+  std::memcpy(&key, &s, sizeof key);
+  auto it = times_.find(key);
+  if (it != times_.end()) return it->second;
+  if (times_.size() >= max_times_) times_.clear();
+  std::vector<Slot>& slots = times_[key];
+  slots.resize(static_cast<size_t>(motion_.num_links()));
+  return slots;
+}
+
+void MotionMemo::ComposePose(std::vector<Slot>* slots, int link, double s) {
+  // Up to the first ancestor already composed (or the chain's top), then
+  // down: each step is PoseAt's, from the parent's pose as PoseAt has it.
+  chain_.clear();
+  for (int k = link; k >= 0 && !(*slots)[static_cast<size_t>(k)].have_pose;
+       k = motion_.motion_parent(k)) {
+    chain_.push_back(k);
+  }
+  for (size_t i = chain_.size(); i-- > 0;) {
+    const int k = chain_[i];
+    const int parent = motion_.motion_parent(k);
+    Slot& slot = (*slots)[static_cast<size_t>(k)];
+    slot.pose = motion_.PoseFromParent(
+        k, s, parent >= 0 ? (*slots)[static_cast<size_t>(parent)].pose : LinkPose());
+    slot.have_pose = true;
+  }
+}
+
+void MotionMemo::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) {
+  std::vector<Slot>& slots = SlotsAt(s);
+  Slot& slot = slots[static_cast<size_t>(link)];
+  if (!slot.have_segment) {
+    if (!slot.have_pose) ComposePose(&slots, link, s);
+    motion_.SegmentOfPose(link, slot.pose, &slot.a, &slot.b);
+    slot.have_segment = true;
+  }
+  *p_WA = slot.a;
+  *p_WB = slot.b;
+}
+
+void MotionMemo::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
+                              Eigen::Vector3d* p_WB, double* growth) {
+  // The same segments, in the same order, as PairMotion::SweptCapsule.
+  Eigen::Vector3d a0, b0, a1, b1, am, bm;
+  SegmentAt(link, s0, &a0, &b0);
+  SegmentAt(link, s1, &a1, &b1);
+  SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
+  motion_.SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
+}
+
+}  // namespace sweptccd
