@@ -97,11 +97,13 @@ class AvatarTarget : public OtherTarget {
     // Boxes first, as in Cull: apart, the separation is over `search`.
     const Aabb box_a =
         Aabb::OfCapsule(a, b, (radius_a + std::max(search, 0.0)) * (1 + 1e-9) + 1e-9);
+    std::vector<InstantLink>& links = InstantLinks(piece.k, s);
     for (int j : cands) {
       Eigen::Vector3d c1, c2;
-      Eigen::Vector3d pa, pb;
-      m.SegmentAt(j, s, &pa, &pb);  // B's links at s share the memo's poses.
-      if (!box_a.Overlaps(Aabb::OfCapsule(pa, pb, e_.skeleton.link(j).radius))) continue;
+      const InstantLink& x = InstantOf(m, s, j, &links);
+      const Eigen::Vector3d& pa = x.a;
+      const Eigen::Vector3d& pb = x.b;
+      if (!box_a.Overlaps(x.box)) continue;
       const double d = std::sqrt(SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2));
       const double sep = d - radius_a - e_.skeleton.link(j).radius;
       if (sep > search || (have && sep >= out->separation)) continue;
@@ -165,6 +167,32 @@ class AvatarTarget : public OtherTarget {
   };
   static constexpr size_t kMaxSweptKeys = 1024;
 
+  // B's segment of link j at s of its interval k, as PairMotion::SegmentAt
+  // computes it, with its capsule's box, kept like the swept capsules: every
+  // link of A asks for B's links at the same instants (the window's start
+  // for all of them).
+  struct InstantLink {
+    Eigen::Vector3d a, b;
+    Aabb box;  // Of the capsule (a, b) with the link's radius.
+    bool computed = false;
+  };
+  std::vector<InstantLink>& InstantLinks(int k, double s) const {
+    if (instants_.size() >= kMaxSweptKeys) instants_.clear();
+    std::vector<InstantLink>& links = instants_[SweptKey{k, s, s}];
+    if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
+    return links;
+  }
+  const InstantLink& InstantOf(MotionMemo& m, double s, int j,
+                               std::vector<InstantLink>* links) const {
+    InstantLink& x = (*links)[static_cast<size_t>(j)];
+    if (!x.computed) {
+      m.SegmentAt(j, s, &x.a, &x.b);
+      x.box = Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius);
+      x.computed = true;
+    }
+    return x;
+  }
+
   // The memo's entry of the interval [s0, s1] of B's interval k: one look-up
   // per Cull or PieceBox, not one per candidate.
   std::vector<SweptLink>& SweptLinks(int k, double s0, double s1) const {
@@ -192,6 +220,7 @@ class AvatarTarget : public OtherTarget {
   mutable std::map<int, PairMotion> motions_;
   mutable std::map<int, MotionMemo> memos_;  // Over motions_ (same keys).
   mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
+  mutable std::unordered_map<SweptKey, std::vector<InstantLink>, SweptKeyHash> instants_;
 };
 
 // A tracked object: one candidate (0); its triangles come from its BVH, in
