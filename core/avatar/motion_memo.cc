@@ -7,40 +7,50 @@ namespace sweptccd {
 MotionMemo::MotionMemo(const PairMotion& motion, size_t max_times)
     : motion_(motion), max_times_(max_times > 0 ? max_times : 1) {}
 
-std::vector<MotionMemo::Slot>& MotionMemo::SlotsAt(double s) {
+MotionMemo::Slot* MotionMemo::SlotsAt(double s) {
   uint64_t key;
   std::memcpy(&key, &s, sizeof key);
+  const size_t n = static_cast<size_t>(motion_.num_links());
   auto it = times_.find(key);
-  if (it != times_.end()) return it->second;
-  if (times_.size() >= max_times_) times_.clear();
-  std::vector<Slot>& slots = times_[key];
-  slots.resize(static_cast<size_t>(motion_.num_links()));
-  return slots;
+  if (it != times_.end()) return slots_.data() + it->second * n;
+  if (times_.size() >= max_times_) {
+    times_.clear();
+    blocks_used_ = 0;
+  }
+  const size_t block = blocks_used_++;
+  if (slots_.size() < (block + 1) * n) {
+    slots_.resize((block + 1) * n);
+  } else {
+    for (size_t i = block * n; i < (block + 1) * n; ++i) {
+      slots_[i].have_pose = false;
+      slots_[i].have_segment = false;
+    }
+  }
+  times_.emplace(key, block);
+  return slots_.data() + block * n;
 }
 
-void MotionMemo::ComposePose(std::vector<Slot>* slots, int link, double s) {
+void MotionMemo::ComposePose(Slot* slots, int link, double s) {
   // Up to the first ancestor already composed (or the chain's top), then
   // down: each step is PoseAt's, from the parent's pose as PoseAt has it.
   chain_.clear();
-  for (int k = link; k >= 0 && !(*slots)[static_cast<size_t>(k)].have_pose;
-       k = motion_.motion_parent(k)) {
+  for (int k = link; k >= 0 && !slots[k].have_pose; k = motion_.motion_parent(k)) {
     chain_.push_back(k);
   }
   for (size_t i = chain_.size(); i-- > 0;) {
     const int k = chain_[i];
     const int parent = motion_.motion_parent(k);
-    Slot& slot = (*slots)[static_cast<size_t>(k)];
-    slot.pose = motion_.PoseFromParent(
-        k, s, parent >= 0 ? (*slots)[static_cast<size_t>(parent)].pose : LinkPose());
+    Slot& slot = slots[k];
+    slot.pose = motion_.PoseFromParent(k, s, parent >= 0 ? slots[parent].pose : LinkPose());
     slot.have_pose = true;
   }
 }
 
 void MotionMemo::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) {
-  std::vector<Slot>& slots = SlotsAt(s);
-  Slot& slot = slots[static_cast<size_t>(link)];
+  Slot* slots = SlotsAt(s);
+  Slot& slot = slots[link];
   if (!slot.have_segment) {
-    if (!slot.have_pose) ComposePose(&slots, link, s);
+    if (!slot.have_pose) ComposePose(slots, link, s);
     motion_.SegmentOfPose(link, slot.pose, &slot.a, &slot.b);
     slot.have_segment = true;
   }

@@ -38,14 +38,19 @@ class MotionMemo {
     bool have_pose = false;
     bool have_segment = false;
   };
-  // The slots of every link at s (created empty on first use).
-  std::vector<Slot>& SlotsAt(double s);
+  // The slots of every link at s (num_links() of them, created empty on
+  // first use); valid until the next call.
+  Slot* SlotsAt(double s);
   // Fills slots[link].pose, and that of each ancestor not yet there.
-  void ComposePose(std::vector<Slot>* slots, int link, double s);
+  void ComposePose(Slot* slots, int link, double s);
 
   const PairMotion& motion_;
   size_t max_times_;
-  std::unordered_map<uint64_t, std::vector<Slot>> times_;
+  // Time -> its block of num_links() slots in slots_. Blocks are reused
+  // after the memo is emptied (no allocation per time once warm).
+  std::unordered_map<uint64_t, size_t> times_;
+  std::vector<Slot> slots_;
+  size_t blocks_used_ = 0;
   std::vector<int> chain_;  // Scratch of ComposePose.
 };
 
