@@ -160,22 +160,35 @@ Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) cons
   return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
 }
 
+LinkPose PairMotion::Compose(const LinkMotion& m, double s, const LinkPose& X_WP) const {
+  const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
+  const Eigen::Quaterniond r = LocalRotation(m, s);
+  LinkPose out;
+  if (m.parent < 0) {
+    out.p = c;
+    out.q = r;
+  } else {
+    out.q = (X_WP.q * r).normalized();
+    out.p = X_WP.p + X_WP.q * c;
+  }
+  return out;
+}
+
 void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
   X_WL->resize(links_.size());
   for (int i : order_) {
     const LinkMotion& m = links_[i];
-    const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
-    const Eigen::Quaterniond r = LocalRotation(m, s);
-    LinkPose& out = (*X_WL)[i];
-    if (m.parent < 0) {
-      out.p = c;
-      out.q = r;
-    } else {
-      const LinkPose& k = (*X_WL)[m.parent];
-      out.q = (k.q * r).normalized();
-      out.p = k.p + k.q * c;
-    }
+    (*X_WL)[i] = Compose(m, s, m.parent < 0 ? LinkPose() : (*X_WL)[m.parent]);
   }
+}
+
+LinkPose PairMotion::PoseFromParent(int link, double s, const LinkPose& X_WP) const {
+  if (!poses_at_ends_[0].empty()) {  // PoseAt's look-ups (the same bits).
+    if (s == 0.0) return poses_at_ends_[0][link];
+    if (s == 0.5) return poses_at_ends_[1][link];
+    if (s == 1.0) return poses_at_ends_[2][link];
+  }
+  return Compose(links_[link], s, X_WP);
 }
 
 LinkPose PairMotion::PoseAt(int link, double s) const {
@@ -194,27 +207,19 @@ LinkPose PairMotion::PoseAt(int link, double s) const {
   if (links_[chain[start]].parent >= 0) {
     out = PoseAt(links_[chain[start]].parent, s);  // Deeper than 64: the rest first.
   }
-  for (int j = start; j >= 0; --j) {
-    const LinkMotion& m = links_[chain[j]];
-    const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
-    const Eigen::Quaterniond r = LocalRotation(m, s);
-    if (m.parent < 0) {
-      out.p = c;
-      out.q = r;
-    } else {
-      const LinkPose k = out;  // The parent's pose.
-      out.q = (k.q * r).normalized();
-      out.p = k.p + k.q * c;
-    }
-  }
+  for (int j = start; j >= 0; --j) out = Compose(links_[chain[j]], s, out);  // From the parent's.
   return out;
 }
 
 void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const {
-  const LinkPose X = PoseAt(link, s);
-  const Eigen::Matrix3d R = X.q.toRotationMatrix();
-  *p_WA = X.p + R * links_[link].a_L;
-  *p_WB = X.p + R * links_[link].b_L;
+  SegmentOfPose(link, PoseAt(link, s), p_WA, p_WB);
+}
+
+void PairMotion::SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
+                               Eigen::Vector3d* p_WB) const {
+  const Eigen::Matrix3d R = X_WL.q.toRotationMatrix();
+  *p_WA = X_WL.p + R * links_[link].a_L;
+  *p_WB = X_WL.p + R * links_[link].b_L;
 }
 
 double PairMotion::SweepRadius(int link, double s0, double s1) const {
@@ -237,9 +242,20 @@ void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eige
                                       const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
                                       const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
                                       Eigen::Vector3d* p_WB, double* growth) const {
+  Eigen::Vector3d am, bm;
+  SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
+  SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
+}
+
+void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
+                                          const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
+                                          const Eigen::Vector3d& a1, const Eigen::Vector3d& b1,
+                                          const Eigen::Vector3d& am, const Eigen::Vector3d& bm,
+                                          Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                                          double* growth) const {
   const LinkMotion& m = links_[link];
-  const double mid = 0.5 * (s0 + s1);
-  SegmentAt(link, mid, p_WA, p_WB);
+  *p_WA = am;
+  *p_WB = bm;
   const double first_order = SweepRadius(link, s0, s1);
   // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
   const Interval w(m.angular_bound);

@@ -50,6 +50,19 @@ class PairMotion {
   /// World segment (A, B) of a link at s.
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
 
+  /// The link PoseAt composes `link`'s pose from (its parent with
+  /// `articulated`), or -1 when the link moves on its own.
+  int motion_parent(int link) const { return links_[link].parent; }
+  /// The pose of `link` at s given its motion parent's pose X_WP at s (as
+  /// PoseAt returns it; ignored when motion_parent(link) < 0): the same
+  /// operations in the same order as PoseAt, so the same bits. Lets a caller
+  /// that needs many links at one s compose each ancestor once.
+  LinkPose PoseFromParent(int link, double s, const LinkPose& X_WP) const;
+  /// World segment (A, B) of a link at pose X_WL (as PoseAt returns it): the
+  /// same bits as SegmentAt.
+  void SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
+                     Eigen::Vector3d* p_WB) const;
+
   /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
   double origin_speed_bound(int link) const { return links_[link].speed_bound; }
   /// Upper bound on the angular speed of the link frame (radians per unit s).
@@ -77,6 +90,14 @@ class PairMotion {
                             const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
                             Eigen::Vector3d* p_WB, double* growth) const;
 
+  /// As SweptCapsuleFromEnds, given also the segment at the midpoint
+  /// (s0 + s1) / 2 (am, bm) as SegmentAt computes it: the same bits.
+  void SweptCapsuleFromSegments(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                                const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                                const Eigen::Vector3d& b1, const Eigen::Vector3d& am,
+                                const Eigen::Vector3d& bm, Eigen::Vector3d* p_WA,
+                                Eigen::Vector3d* p_WB, double* growth) const;
+
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link
@@ -100,6 +121,9 @@ class PairMotion {
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
+  // One composition step of PosesAt and PoseAt: the pose of the link moving
+  // by m at s, given its parent's pose (unused for a link on its own).
+  LinkPose Compose(const LinkMotion& m, double s, const LinkPose& X_WP) const;
 
   MotionModel model_;
   std::vector<LinkMotion> links_;

@@ -4,12 +4,13 @@
 #include <cmath>
 #include <cstring>
 #include <map>
-#include <queue>
 #include <unordered_map>
 #include <utility>
 
+#include "core/avatar/motion_memo.h"
 #include "core/errors.h"
 #include "core/geometry/distance.h"
+#include "core/geometry/segment_gap.h"
 #include "core/query/ccd_query.h"
 
 namespace sweptccd::world {
@@ -44,12 +45,13 @@ class AvatarTarget : public OtherTarget {
   }
 
   Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
-    const PairMotion& m = MotionOf(piece.k);
+    MotionMemo& m = MemoOf(piece.k);
     double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
     WidenS(&s0, &s1);
     Aabb box = Aabb::Empty();
+    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      const SweptLink x = Swept(m, piece.k, s0, s1, j);
+      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
       box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
     }
     return box;
@@ -58,7 +60,7 @@ class AvatarTarget : public OtherTarget {
   void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
             const Eigen::Vector3d& b, double radius_a, double growth_a,
             std::vector<int>* cands) const override {
-    const PairMotion& m = MotionOf(piece.k);
+    MotionMemo& m = MemoOf(piece.k);
     double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
     WidenS(&s0, &s1);
     const double tol = tolerance();
@@ -69,11 +71,17 @@ class AvatarTarget : public OtherTarget {
     // cover the boxes' rounding (ulps of metre coordinates are ~1e-15 m).
     const double grow_a = (radius_a + growth_a + tol) * (1 + 1e-9) + 1e-9;
     const Aabb box_a = Aabb::OfCapsule(a, b, grow_a);
+    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
     for (int j : *cands) {
       Eigen::Vector3d c1, c2;
-      const SweptLink x = Swept(m, piece.k, s0, s1, j);
+      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
       if (!box_a.Overlaps(x.box)) continue;
       const double reach = radius_a + growth_a + e_.skeleton.link(j).radius + x.g + tol;
+      // Then a gap on two axes, a lower bound on the distance: past the
+      // reach by more than tol (far above the few ulps that the gap and the
+      // exact distance below are each off by), the exact test would drop j
+      // too. Only what it drops is dropped, so the descent is unchanged.
+      if (SegmentGapLowerBound(a, b, x.a, x.b) > reach * (1 + 1e-9) + tol) continue;
       const double d2 = SegmentSegmentDistanceSquared(a, b, x.a, x.b, &c1, &c2);
       if (d2 <= reach * reach * (1 + 1e-9)) (*cands)[kept++] = j;
     }
@@ -83,16 +91,19 @@ class AvatarTarget : public OtherTarget {
   bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
                const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
                double search, OtherContact* out) const override {
-    const PairMotion& m = MotionOf(piece.k);
+    MotionMemo& m = MemoOf(piece.k);
     const double s = piece.SE(tau);
     bool have = false;
     // Boxes first, as in Cull: apart, the separation is over `search`.
     const Aabb box_a =
         Aabb::OfCapsule(a, b, (radius_a + std::max(search, 0.0)) * (1 + 1e-9) + 1e-9);
+    std::vector<InstantLink>& links = InstantLinks(piece.k, s);
     for (int j : cands) {
       Eigen::Vector3d c1, c2;
-      const auto [pa, pb] = Segment(m, piece.k, s, j);
-      if (!box_a.Overlaps(Aabb::OfCapsule(pa, pb, e_.skeleton.link(j).radius))) continue;
+      const InstantLink& x = InstantOf(m, s, j, &links);
+      const Eigen::Vector3d& pa = x.a;
+      const Eigen::Vector3d& pb = x.b;
+      if (!box_a.Overlaps(x.box)) continue;
       const double d = std::sqrt(SegmentSegmentDistanceSquared(a, b, pa, pb, &c1, &c2));
       const double sep = d - radius_a - e_.skeleton.link(j).radius;
       if (sep > search || (have && sep >= out->separation)) continue;
@@ -112,11 +123,16 @@ class AvatarTarget : public OtherTarget {
   double tolerance() const override { return tol_; }
 
  private:
-  const PairMotion& MotionOf(int k) const {
-    auto it = motions_.find(k);
-    if (it == motions_.end()) {
+  // B's motion over its interval k, with its memo of poses and segments
+  // (B's links at one instant share their ancestors' poses).
+  MotionMemo& MemoOf(int k) const {
+    auto it = memos_.find(k);
+    if (it == memos_.end()) {
       const int k1 = std::min<int>(k + 1, static_cast<int>(e_.used.size()) - 1);
-      it = motions_.emplace(k, PairMotion(e_.skeleton, e_.used[k], e_.used[k1], e_.motion)).first;
+      const PairMotion& m =
+          motions_.emplace(k, PairMotion(e_.skeleton, e_.used[k], e_.used[k1], e_.motion))
+              .first->second;
+      it = memos_.emplace(k, MotionMemo(m)).first;
     }
     return it->second;
   }
@@ -152,30 +168,43 @@ class AvatarTarget : public OtherTarget {
   static constexpr size_t kMaxSweptKeys = 1024;
 
   // B's segment of link j at s of its interval k, as PairMotion::SegmentAt
-  // computes it, kept like the swept capsules (every link of A asks for B's
-  // links at the same instants).
-  struct SegmentLink {
+  // computes it, with its capsule's box, kept like the swept capsules: every
+  // link of A asks for B's links at the same instants (the window's start
+  // for all of them).
+  struct InstantLink {
     Eigen::Vector3d a, b;
+    Aabb box;  // Of the capsule (a, b) with the link's radius.
     bool computed = false;
   };
-  std::pair<Eigen::Vector3d, Eigen::Vector3d> Segment(const PairMotion& m, int k, double s,
-                                                      int j) const {
-    if (segments_.size() >= kMaxSweptKeys) segments_.clear();
-    std::vector<SegmentLink>& links = segments_[SweptKey{k, s, s}];
+  std::vector<InstantLink>& InstantLinks(int k, double s) const {
+    if (instants_.size() >= kMaxSweptKeys) instants_.clear();
+    std::vector<InstantLink>& links = instants_[SweptKey{k, s, s}];
     if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
-    SegmentLink& x = links[static_cast<size_t>(j)];
+    return links;
+  }
+  const InstantLink& InstantOf(MotionMemo& m, double s, int j,
+                               std::vector<InstantLink>* links) const {
+    InstantLink& x = (*links)[static_cast<size_t>(j)];
     if (!x.computed) {
       m.SegmentAt(j, s, &x.a, &x.b);
+      x.box = Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius);
       x.computed = true;
     }
-    return {x.a, x.b};
+    return x;
   }
 
-  SweptLink Swept(const PairMotion& m, int k, double s0, double s1, int j) const {
+  // The memo's entry of the interval [s0, s1] of B's interval k: one look-up
+  // per Cull or PieceBox, not one per candidate.
+  std::vector<SweptLink>& SweptLinks(int k, double s0, double s1) const {
     if (swept_.size() >= kMaxSweptKeys) swept_.clear();
     std::vector<SweptLink>& links = swept_[SweptKey{k, s0, s1}];
     if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
-    SweptLink& x = links[static_cast<size_t>(j)];
+    return links;
+  }
+  // B's swept capsule of link j in `links` (SweptLinks(k, s0, s1)).
+  const SweptLink& SweptOf(MotionMemo& m, double s0, double s1, int j,
+                           std::vector<SweptLink>* links) const {
+    SweptLink& x = (*links)[static_cast<size_t>(j)];
     if (!x.computed) {
       m.SweptCapsule(j, s0, s1, &x.a, &x.b, &x.g);
       x.box = Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g);
@@ -189,8 +218,9 @@ class AvatarTarget : public OtherTarget {
   const AvatarEntity& e_;
   double tol_ = 0;
   mutable std::map<int, PairMotion> motions_;
+  mutable std::map<int, MotionMemo> memos_;  // Over motions_ (same keys).
   mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
-  mutable std::unordered_map<SweptKey, std::vector<SegmentLink>, SweptKeyHash> segments_;
+  mutable std::unordered_map<SweptKey, std::vector<InstantLink>, SweptKeyHash> instants_;
 };
 
 // A tracked object: one candidate (0); its triangles come from its BVH, in
@@ -450,6 +480,9 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
   std::vector<std::vector<int>> roots(num_links);
   for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+  // A's segments and swept capsules: every link of A is halved over the same
+  // intervals, so the poses of their common ancestors are composed once.
+  MotionMemo memo_a(motion_a);
 
   std::vector<bool> done(num_links, false);
   std::vector<OtherBracket> brackets;  // In chronological order.
@@ -463,7 +496,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
   for (int l = 0; l < num_links && searching(); ++l) {
     if (roots[l].empty()) continue;
     Eigen::Vector3d a, b;
-    motion_a.SegmentAt(l, s_of(tau_from), &a, &b);
+    memo_a.SegmentAt(l, s_of(tau_from), &a, &b);
     OtherContact c;
     if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, roots[l], 0.0,
                        &c) &&
@@ -488,7 +521,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       if (roots[l].empty()) continue;
       Eigen::Vector3d a, b;
       double g;
-      motion_a.SweptCapsule(l, s0, s1, &a, &b, &g);
+      memo_a.SweptCapsule(l, s0, s1, &a, &b, &g);
       box_a.Grow(Aabb::OfCapsule(a, b, skeleton_a.link(l).radius + g + tol));
     }
     bool overlaps = false;
@@ -498,27 +531,33 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
     if (!overlaps) std::fill(done.begin(), done.end(), true);
   }
 
-  std::priority_queue<Item, std::vector<Item>, Later> queue;
+  // A binary heap under Later, as std::priority_queue keeps it (the same
+  // push_heap / pop_heap, so the same order), whose top is moved out, not
+  // copied with its candidates.
+  std::vector<Item> queue;
+  auto push = [&](Item&& item) {
+    queue.push_back(std::move(item));
+    std::push_heap(queue.begin(), queue.end(), Later());
+  };
   for (int l = 0; l < num_links; ++l) {
     if (done[l] || roots[l].empty()) continue;
     for (int p = 0; p < static_cast<int>(pieces.size()); ++p) {
-      queue.push(Item{pieces[p].tau0, pieces[p].tau1, l, p, roots[l]});
+      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, roots[l]});
     }
   }
-  std::vector<bool> undecided(num_links, false);
   while (!queue.empty() && searching()) {
-    Item item = queue.top();
-    queue.pop();
+    std::pop_heap(queue.begin(), queue.end(), Later());
+    Item item = std::move(queue.back());
+    queue.pop_back();
     if (done[item.link]) continue;
     if (++answer.intervals > options.max_intervals) {
       // Out of work: every open link undecided from its earliest item.
       std::vector<double> earliest(num_links, HUGE_VAL);
       earliest[item.link] = item.tau0;
-      while (!queue.empty()) {
-        const Item& t = queue.top();
+      for (const Item& t : queue) {
         if (!done[t.link]) earliest[t.link] = std::min(earliest[t.link], t.tau0);
-        queue.pop();
       }
+      queue.clear();
       std::vector<int> order;
       for (int l = 0; l < num_links; ++l) {
         if (earliest[l] != HUGE_VAL) order.push_back(l);
@@ -542,7 +581,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
     WidenS(&s0, &s1);
     Eigen::Vector3d a, b;
     double g;
-    motion_a.SweptCapsule(item.link, s0, s1, &a, &b, &g);
+    memo_a.SweptCapsule(item.link, s0, s1, &a, &b, &g);
     target.Cull(piece, item.tau0, item.tau1, a, b, r_a + tol, g, &item.cands);
     if (item.cands.empty()) continue;  // Certified free over the item.
     if (item.tau1 - item.tau0 <= eps_us) {
@@ -551,7 +590,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       const double mid = 0.5 * (item.tau0 + item.tau1);
       for (double tau : {item.tau0, mid, item.tau1}) {
         Eigen::Vector3d sa, sb;
-        motion_a.SegmentAt(item.link, s_of(tau), &sa, &sb);
+        memo_a.SegmentAt(item.link, s_of(tau), &sa, &sb);
         if (target.Nearest(piece, tau, item.link, sa, sb, r_a, item.cands, options.delta_m, &c) &&
             (!have || c.separation < best.separation)) {
           best = c;
@@ -579,8 +618,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       close(br);
       continue;
     }
-    queue.push(Item{item.tau0, mid, item.link, item.piece, item.cands});
-    queue.push(Item{mid, item.tau1, item.link, item.piece, std::move(item.cands)});
+    push(Item{item.tau0, mid, item.link, item.piece, item.cands});
+    push(Item{mid, item.tau1, item.link, item.piece, std::move(item.cands)});
   }
 
   if (!brackets.empty()) {

@@ -142,7 +142,7 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
     return true;
   }
   const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
-  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
+  const PairMotion& motion = RecordMotion(a, r);
   // The rounding slack from the window's samples only (WindowScale): what a
   // live service holding only those answers with too.
   const std::unique_ptr<OtherTarget> target =
@@ -152,11 +152,19 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   return true;
 }
 
+const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
+  if (!motion_ || motion_a_ != a || motion_r_ != r) {
+    const AvatarEntity& A = w_.world.avatars[a];
+    const PairOutcome& rec = A.records[r];
+    motion_.emplace(A.skeleton, rec.pose0, rec.pose1, A.motion);
+    motion_a_ = a;
+    motion_r_ = r;
+  }
+  return *motion_;
+}
+
 Aabb WorldAnswerer::PairBox(int a, size_t r) const {
-  const AvatarEntity& A = w_.world.avatars[a];
-  const PairOutcome& rec = A.records[r];
-  const PairMotion motion(A.skeleton, rec.pose0, rec.pose1, A.motion);
-  return MotionBox(A.skeleton, motion, BoxPad(avatar_scale_[a]));
+  return MotionBox(w_.world.avatars[a].skeleton, RecordMotion(a, r), BoxPad(avatar_scale_[a]));
 }
 
 QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {

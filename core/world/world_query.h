@@ -5,6 +5,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,6 +55,12 @@ class WorldAnswerer {
   mutable int box_a_ = -1;
   mutable size_t box_r_ = 0;
   mutable Aabb box_;
+  // The motion of the last record asked for: PairBox and every entity of
+  // the record use it (a construction composes every link three times).
+  const PairMotion& RecordMotion(int a, size_t r) const;
+  mutable int motion_a_ = -1;
+  mutable size_t motion_r_ = 0;
+  mutable std::optional<PairMotion> motion_;
 };
 
 }  // namespace sweptccd::world
