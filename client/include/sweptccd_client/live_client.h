@@ -56,7 +56,7 @@ struct ClientChannels {
   std::string join_reply = kJoinReplyChannel;
   std::string leave = kLeaveChannel;
   std::string object_pose = kObjectPoseChannel;        // Tracked objects' samples (in).
-  std::string shared_contact = kSharedContactChannel;  // Shared-world entries (out).
+  std::string shared_contact = kSharedContactChannel;  // Shared-world entries, by pair (out).
 };
 
 /// Receives and checks what the daemon publishes.
