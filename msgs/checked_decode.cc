@@ -11,6 +11,10 @@ constexpr size_t kContactRecord = 104;    // contact_record_t: 2 int32, int64, 1
 constexpr size_t kEntityContact = 104;    // entity_contact_t: 2 int32, int64, 11 doubles.
 constexpr size_t kLinkBracket = 4 + 32 + 3 + kContactRecord;  // link_bracket_t.
 constexpr size_t kMinString = 5;          // int32 length + the NUL.
+constexpr size_t kEntityLinkBracket = 4 + 32 + 3 + kEntityContact;  // entity_link_bracket_t.
+// shared_entry_t with empty strings and no contacts nor links.
+constexpr size_t kMinSharedEntry = kMinString + 1 + 2 * 8 + 1 + kMinString + 2 + 4 * 8 + 4 + 4 +
+                                   8 + 1 + 8;
 
 // A cursor over untrusted bytes. The first failure sticks: later reads do
 // nothing and return zeros, so a walker reads as a plain list of fields.
@@ -175,6 +179,9 @@ std::string CheckWire(const status_t*, const void* data, size_t size, const Wire
   r.Fixed("queue_depth", 4);
   r.Fixed("dropped_total, rejected_unattributed, rejections_suppressed", 3 * 8);
   r.Fixed("instance, live_joined, live_left, live_expired", 4 * 8);
+  r.Fixed("shared_messages..shared_overflowed", 5 * 8);
+  r.Fixed("shared_pending, shared_ready", 2 * 4);
+  r.Fixed("object_poses_received..object_poses_rate_limited", 3 * 8);
   r.Fixed("mac", kMac);
   return r.Finish();
 }
@@ -249,15 +256,21 @@ std::string CheckWire(const shared_contact_t*, const void* data, size_t size,
   r.Fingerprint(shared_contact_t::getHash());
   r.Fixed("utime", 8);
   r.String("client_id", limits.max_id_bytes);
-  r.Fixed("seq0..utime1", 5 * 8);
-  r.String("entity", limits.max_id_bytes);
-  r.Fixed("entity_kind..t_to", 1 + 2 * 8);
-  r.Fixed("result", 1);
-  r.String("error", limits.max_text_bytes);
-  r.Fixed("initially_colliding..t_hi", 2 + 4 * 8);
-  const int32_t contacts = r.Count("num_contacts", limits.max_contacts, kEntityContact);
-  r.Fixed("contacts", static_cast<size_t>(contacts) * kEntityContact);
-  r.Fixed("waited_us..compute_us", 8 + 1 + 8 + 8);
+  r.Fixed("seq0..receive_utime", 6 * 8);
+  const int32_t n = r.Count("num_entries", limits.max_shared_entries, kMinSharedEntry);
+  for (int32_t i = 0; i < n && !r.failed(); ++i) {
+    r.String("entries[].entity", limits.max_id_bytes);
+    r.Fixed("entries[].entity_kind..t_to", 1 + 2 * 8);
+    r.Fixed("entries[].result", 1);
+    r.String("entries[].error", limits.max_text_bytes);
+    r.Fixed("entries[].initially_colliding..t_hi", 2 + 4 * 8);
+    const int32_t contacts =
+        r.Count("entries[].num_contacts", limits.max_contacts, kEntityContact);
+    r.Fixed("entries[].contacts", static_cast<size_t>(contacts) * kEntityContact);
+    const int32_t links = r.Count("entries[].num_links", limits.max_links, kEntityLinkBracket);
+    r.Fixed("entries[].links", static_cast<size_t>(links) * kEntityLinkBracket);
+    r.Fixed("entries[].waited_us..compute_us", 8 + 1 + 8);
+  }
   r.Fixed("mac", kMac);
   return r.Finish();
 }

@@ -37,6 +37,7 @@ struct WireLimits {
                                        // then refuses more with a reply).
   int32_t max_ignore_rules = 256;      // Filter rules in one join_request_t.
   int32_t max_sealed_key_bytes = 128;  // join_reply_t.sealed_key.
+  int32_t max_shared_entries = shared_contact_t::MAX_ENTRIES;  // Entries in one shared_contact_t.
 };
 
 /// The message, or a one-line problem naming the field, the value and the

@@ -45,6 +45,13 @@ void CheckRateOptions(const ServiceOptions& o) {
                      " / pose_burst " + std::to_string(o.pose_burst) +
                      "; use a rate in (0, 1e6] Hz and a burst of 1 or more");
   }
+  if (!(o.max_object_pose_rate_hz > 0 && o.max_object_pose_rate_hz <= 1e6) ||
+      o.object_pose_burst < 1) {
+    throw InputError("collision service: max_object_pose_rate_hz " +
+                     std::to_string(o.max_object_pose_rate_hz) + " / object_pose_burst " +
+                     std::to_string(o.object_pose_burst) +
+                     "; use a rate in (0, 1e6] Hz and a burst of 1 or more");
+  }
   if (!(o.rejection_rate_hz > 0 && o.rejection_rate_hz <= 1e6) || o.rejection_burst < 1 ||
       o.rejection_max_keys < 1) {
     throw InputError("collision service: rejection_rate_hz, rejection_burst and "
@@ -119,6 +126,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     entity_options_.eps_s = options_.query.eps_s;
     entity_options_.delta_m = options_.query.delta_m;
     entity_options_.max_intervals = options_.query.max_intervals;
+    entity_options_.per_link = options_.query.per_link;
     const SteadyClock::time_point now = SteadyClock::now();
     for (const auto& c : clients_) {
       shared_->AddAvatar(c->config.client_id, c->config.skeleton, c->config.motion, now);
@@ -136,6 +144,9 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
         throw InputError("collision service: object '" + o.object_id + "' needs exactly one mesh");
       }
       shared_->AddObject(o.object_id, o.mesh, now);
+      object_inputs_.emplace(
+          o.object_id,
+          ObjectInput{TokenBucket(options_.max_object_pose_rate_hz, options_.object_pose_burst), 0});
     }
   }
   instance_ = NowUtime();
@@ -221,15 +232,30 @@ std::optional<Rejection> CollisionService::AdmitLocked(const std::shared_ptr<Cli
 
 void CollisionService::QueueSharedLocked(std::vector<SharedJob>* due) {
   if (due->empty()) return;
-  for (SharedJob& job : *due) shared_ready_.push_back(std::move(job));
+  const size_t max_entries = static_cast<size_t>(shared_contact_t::MAX_ENTRIES);
+  for (SharedJob& job : *due) {
+    PairKey key{job.client_id, job.pair, job.seq0, job.seq1, job.pose1.utime};
+    auto open = shared_open_.find(key);
+    if (open == shared_open_.end()) {
+      shared_ready_.push_back(SharedBatch{key, {}});
+      open = shared_open_.emplace(std::move(key), std::prev(shared_ready_.end())).first;
+    }
+    std::vector<SharedJob>& jobs = open->second->jobs;
+    jobs.push_back(std::move(job));
+    ++shared_ready_entries_;
+    if (jobs.size() >= max_entries) shared_open_.erase(open);  // Full: the next opens another.
+  }
   due->clear();
   // Bounded: when the workers cannot keep up, the oldest due entries are
   // dropped unanswered and counted (shared_dropped, the log), never queued
   // without bound.
   int64_t dropped = 0;
-  while (static_cast<int>(shared_ready_.size()) > options_.shared_max_pending) {
-    shared_ready_.pop_front();
+  while (static_cast<int>(shared_ready_entries_) > options_.shared_max_pending) {
+    SharedBatch& oldest = shared_ready_.front();
+    oldest.jobs.erase(oldest.jobs.begin());
+    --shared_ready_entries_;
     ++dropped;
+    if (oldest.jobs.empty()) TakeSharedBatchLocked();
   }
   if (dropped > 0) {
     if (shared_dropped_ == 0 || (shared_dropped_ + dropped) / 1000 != shared_dropped_ / 1000) {
@@ -239,6 +265,45 @@ void CollisionService::QueueSharedLocked(std::vector<SharedJob>* due) {
     shared_dropped_ += dropped;
   }
   work_cv_.notify_all();
+}
+
+CollisionService::SharedBatch CollisionService::TakeSharedBatchLocked() {
+  SWEPTCCD_CHECK(!shared_ready_.empty());
+  const auto open = shared_open_.find(shared_ready_.front().key);
+  if (open != shared_open_.end() && open->second == shared_ready_.begin()) {
+    shared_open_.erase(open);
+  }
+  SharedBatch batch = std::move(shared_ready_.front());
+  shared_ready_.pop_front();
+  shared_ready_entries_ -= batch.jobs.size();
+  return batch;
+}
+
+size_t CollisionService::AnswerSharedBatch(const SharedBatch& batch) {
+  // Environment parts go first: once a batch has taken kSharedSlice and one
+  // waits, what is answered goes out now and the rest goes back to the
+  // queue. (Not after every entry: under load an environment part is nearly
+  // always waiting, and batches would shrink to one entry a message again.)
+  constexpr auto kSharedSlice = std::chrono::microseconds(500);
+  const SteadyClock::time_point start = SteadyClock::now();
+  shared_contact_t msg = SharedMessageOf(batch.jobs.front());
+  msg.entries.reserve(batch.jobs.size());
+  for (const SharedJob& job : batch.jobs) {
+    if (!msg.entries.empty() && SteadyClock::now() - start >= kSharedSlice) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!ready_.empty()) break;
+    }
+    msg.entries.push_back(AnswerSharedJob(job, entity_options_));
+    const shared_entry_t& entry = msg.entries.back();
+    if (entry.result == shared_entry_t::RESULT_INVALID) {
+      spdlog::error("client '{}' pair {} against '{}': {}", job.client_id, job.pair, job.entity,
+                    EscapeForDisplay(entry.error, 1024));
+    }
+  }
+  msg.num_entries = static_cast<int32_t>(msg.entries.size());
+  msg.utime = NowUtime();
+  SafePublish([&] { publisher_->PublishSharedContact(msg); }, "shared contact");
+  return msg.entries.size();
 }
 
 void CollisionService::OnObjectPose(const object_pose_t& pose) {
@@ -251,10 +316,21 @@ void CollisionService::OnObjectPose(const object_pose_t& pose) {
       ++ignored_after_stop_;
       return;
     }
+    ++object_poses_received_;
+    const auto input = object_inputs_.find(pose.object_id);
     if (!shared_) {
       rejection = Rejection{rejection_code::kUnknownObject,
                             "this daemon runs without the shared world (shared_world: false); "
                             "object poses are not taken"};
+    } else if (input != object_inputs_.end() && !input->second.bucket.TryTake(NowUtime())) {
+      // Shed before anything is read of it (as a client's poses, AdmitLocked).
+      ++input->second.rate_limited;
+      ++object_poses_rate_limited_;
+      rejection = Rejection{rejection_code::kRateLimited,
+                            "object '" + pose.object_id + "' sends faster than "
+                            "max_object_pose_rate_hz " +
+                                std::to_string(options_.max_object_pose_rate_hz) +
+                                "; pose shed unread; lower the tracker's rate"};
     } else {
       std::vector<SharedJob> due;
       rejection = shared_->OnObjectPose(pose, options_.max_utime_jump_us, receive_time, &due);
@@ -262,6 +338,7 @@ void CollisionService::OnObjectPose(const object_pose_t& pose) {
     }
     attributed = rejection && rejection->reason != rejection_code::kUnknownObject;
     if (rejection && !attributed) ++rejected_unattributed_;
+    if (rejection && rejection->reason != rejection_code::kRateLimited) ++object_poses_rejected_;
   }
   if (rejection) {
     Reject(IsValidClientId(pose.object_id) ? pose.object_id : "", pose.seq, *rejection, attributed);
@@ -405,21 +482,26 @@ void CollisionService::WorkerLoop() {
     });
     if (ready_.empty() && shared_ready_.empty()) break;  // Stopping, nothing left anywhere.
     if (ready_.empty()) {
-      // A shared entry: environment parts go first (their latency never
-      // waits for the shared world).
-      SharedJob job = std::move(shared_ready_.front());
-      shared_ready_.pop_front();
+      // A batch of shared entries (one pair's): environment parts go first
+      // (their latency never waits for the shared world).
+      SharedBatch batch = TakeSharedBatchLocked();
       ++in_flight_;
       lock.unlock();
-      shared_contact_t event = AnswerSharedJob(job, entity_options_);
-      if (event.result == shared_contact_t::RESULT_INVALID) {
-        spdlog::error("client '{}' pair {} against '{}': {}", job.client_id, job.pair, job.entity,
-                      EscapeForDisplay(event.error, 1024));
-      }
-      event.utime = NowUtime();
-      SafePublish([&] { publisher_->PublishSharedContact(event); }, "shared contact");
+      const size_t answered = AnswerSharedBatch(batch);
+      int64_t by_timeout = 0;
+      for (size_t i = 0; i < answered; ++i) by_timeout += batch.jobs[i].ended_by_timeout;
       lock.lock();
-      ++shared_published_;
+      if (answered < batch.jobs.size()) {
+        // Interrupted for an environment part: the rest is next, as a batch
+        // of its own (entries due later for this pair start another).
+        batch.jobs.erase(batch.jobs.begin(), batch.jobs.begin() + static_cast<ptrdiff_t>(answered));
+        shared_ready_entries_ += batch.jobs.size();
+        shared_ready_.push_front(std::move(batch));
+        work_cv_.notify_one();
+      }
+      shared_published_ += static_cast<int64_t>(answered);
+      shared_by_timeout_ += by_timeout;
+      ++shared_messages_;
       --in_flight_;
       if (IdleLocked()) {
         idle_cv_.notify_all();
@@ -532,6 +614,16 @@ status_t CollisionService::Status() const {
   s.dropped_total = dropped;
   s.rejected_unattributed = rejected_unattributed_;
   s.rejections_suppressed = rejection_throttle_.suppressed_total();
+  s.shared_messages = shared_messages_;
+  s.shared_entries = shared_published_;
+  s.shared_by_timeout = shared_by_timeout_;
+  s.shared_dropped = shared_dropped_;
+  s.shared_overflowed = shared_ ? shared_->entries_overflowed() : 0;
+  s.shared_pending = shared_ ? static_cast<int32_t>(shared_->pending()) : 0;
+  s.shared_ready = static_cast<int32_t>(shared_ready_entries_);
+  s.object_poses_received = object_poses_received_;
+  s.object_poses_rejected = object_poses_rejected_;
+  s.object_poses_rate_limited = object_poses_rate_limited_;
   return s;
 }
 
@@ -686,6 +778,11 @@ std::vector<std::string> CollisionService::ExpireSilent(SteadyClock::time_point 
 int64_t CollisionService::shared_published() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return shared_published_;
+}
+
+int64_t CollisionService::shared_published_messages() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return shared_messages_;
 }
 
 int64_t CollisionService::shared_dropped() const {

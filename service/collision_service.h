@@ -9,7 +9,9 @@
 #include <deque>
 #include <functional>
 #include <array>
+#include <list>
 #include <map>
+#include <tuple>
 #include <optional>
 #include <set>
 #include <memory>
@@ -112,6 +114,11 @@ struct ServiceOptions {
   std::vector<TrackedObjectConfig> objects;
   int shared_max_history = 4096;  // Samples kept per entity.
   int shared_max_pending = 4096;  // (pair, entity) entries waiting, in all.
+  /// Input rate limit per tracked object (object_pose_t), as the per-client
+  /// one: a token bucket per configured object checked first in
+  /// OnObjectPose, before any validation or geometry: > 0 Hz, burst >= 1.
+  double max_object_pose_rate_hz = 240;
+  int object_pose_burst = 16;
 };
 
 /// Owns the client sessions and the worker pool.
@@ -148,7 +155,9 @@ class CollisionService {
 
   /// A tracked object's pose (bytes, id rule and mac checked by the
   /// transport): used, or refused with one rejection (unknown_object for an
-  /// id that is no configured object; nothing else is touched).
+  /// id that is no configured object; nothing else is touched). The
+  /// object's rate limit comes first: a pose over it is shed unread
+  /// (rate_limited, counted in status_t.object_poses_rate_limited).
   void OnObjectPose(const object_pose_t& pose);
 
   /// A pose refused by the transport before decoding (bad_client_id,
@@ -191,8 +200,10 @@ class CollisionService {
   /// Publishes Status() through the publisher.
   void PublishStatus();
 
-  /// Shared-world entries published, and (pair, entity) entries waiting.
+  /// Shared-world entries published (in shared_published_messages()
+  /// messages), and (pair, entity) entries waiting.
   int64_t shared_published() const;
+  int64_t shared_published_messages() const;
   size_t shared_pending() const;
   /// Due shared entries dropped unanswered because more than
   /// shared_max_pending waited for a worker (the workers were behind).
@@ -225,8 +236,25 @@ class CollisionService {
   };
 
   void WorkerLoop();
-  // Under mutex_: hands due shared-world entries to the workers.
+  // Due shared entries of one pair not yet taken by a worker: answered
+  // together and published as one shared_contact_t (at most
+  // shared_contact_t::MAX_ENTRIES entries).
+  using PairKey = std::tuple<std::string, int64_t, int64_t, int64_t, int64_t>;
+  struct SharedBatch {
+    PairKey key;  // client_id, pair, seq0, seq1, utime1.
+    std::vector<SharedJob> jobs;
+  };
+  // Under mutex_: hands due shared-world entries to the workers, each into
+  // the open batch of its pair (a new one at the back when there is none or
+  // it is full).
   void QueueSharedLocked(std::vector<SharedJob>* due);
+  // Under mutex_: takes the oldest batch off the ready list.
+  SharedBatch TakeSharedBatchLocked();
+  // Off the lock: answers a batch and publishes its one message. Stops
+  // early (after 500 us and one entry at least) when an environment part is
+  // waiting;
+  // returns how many entries, from the front, were answered and published.
+  size_t AnswerSharedBatch(const SharedBatch& batch);
   // Whether nothing is ready or in flight (under mutex_).
   bool IdleLocked() const { return ready_.empty() && shared_ready_.empty() && in_flight_ == 0; }
   // Under mutex_: removes a client from the maps and the order.
@@ -258,10 +286,22 @@ class CollisionService {
   std::condition_variable idle_cv_;  // WaitUntilIdle waits for quiescence.
   std::deque<std::shared_ptr<Client>> ready_;  // Clients with a pending pair, none in flight.
   std::unique_ptr<SharedWorld> shared_;        // Null when options_.shared_world is off.
-  std::deque<SharedJob> shared_ready_;         // Due shared entries, oldest first.
+  std::list<SharedBatch> shared_ready_;        // Due shared entries by pair, oldest first.
+  std::map<PairKey, std::list<SharedBatch>::iterator> shared_open_;  // Not full, not taken.
+  size_t shared_ready_entries_ = 0;            // Entries in shared_ready_.
   world::EntityQueryOptions entity_options_;
-  int64_t shared_published_ = 0;
+  int64_t shared_published_ = 0;               // Entries.
+  int64_t shared_messages_ = 0;                // shared_contact_t published.
+  int64_t shared_by_timeout_ = 0;              // Entries published ended_by_timeout.
   int64_t shared_dropped_ = 0;
+  struct ObjectInput {
+    TokenBucket bucket;
+    int64_t rate_limited = 0;
+  };
+  std::map<std::string, ObjectInput> object_inputs_;  // Configured objects (fixed keys).
+  int64_t object_poses_received_ = 0;     // Decoded and verified, including refused ones.
+  int64_t object_poses_rejected_ = 0;     // Refused (not counting rate_limited).
+  int64_t object_poses_rate_limited_ = 0;
   int64_t last_session_ = 0;     // Sessions handed out are strictly increasing.
   int64_t live_joined_ = 0, live_left_ = 0, live_expired_ = 0;
   int64_t instance_ = 0;         // status_t.instance.

@@ -135,7 +135,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   CheckKeys(root,
             {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
              "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
-             "max_links", "max_pose_rate_hz", "max_live_clients", "silence_timeout_ms",
+             "max_links", "max_pose_rate_hz", "max_object_pose_rate_hz", "max_live_clients",
+             "silence_timeout_ms",
              "shared_world", "objects"},
             source);
   const std::string at = source + ": ";
@@ -191,6 +192,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   }
   if (root["max_pose_rate_hz"]) {
     c.max_pose_rate_hz = Get<double>(root["max_pose_rate_hz"], at + "max_pose_rate_hz");
+  }
+  if (root["max_object_pose_rate_hz"]) {
+    c.max_object_pose_rate_hz =
+        Get<double>(root["max_object_pose_rate_hz"], at + "max_object_pose_rate_hz");
   }
   if (root["log_level"]) c.log_level = Get<std::string>(root["log_level"], at + "log_level");
   if (root["security"]) c.security = ParseSecurity(root["security"], at, base_dir);
@@ -306,6 +311,9 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
   if (!(c.max_pose_rate_hz > 0 && c.max_pose_rate_hz <= 1e6)) {
     throw InputError("configuration: max_pose_rate_hz must be in (0, 1e6] Hz");
+  }
+  if (!(c.max_object_pose_rate_hz > 0 && c.max_object_pose_rate_hz <= 1e6)) {
+    throw InputError("configuration: max_object_pose_rate_hz must be in (0, 1e6] Hz");
   }
   if (c.max_mesh_bytes == 0) throw InputError("configuration: max_mesh_bytes must be >= 1 byte");
   if (c.max_links < 1) {

@@ -50,6 +50,7 @@ struct ServiceConfig {
   int workers = 2;
   double status_period_s = 1.0;
   double max_pose_rate_hz = 240;  // Input rate limit per client, Hz, in (0, 1e6].
+  double max_object_pose_rate_hz = 240;  // Input rate limit per tracked object, Hz, (0, 1e6].
   std::string log_level = "info";
   uint64_t max_mesh_bytes = kDefaultMaxMeshBytes;  // Cap on each mesh file, before and after gunzip.
   int max_links = kDefaultMaxLinks;                // Cap on each client's skeleton.

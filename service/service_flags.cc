@@ -68,6 +68,10 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--max-pose-rate", f->max_pose_rate_hz,
                   "Input rate limit per client, Hz (poses beyond it are shed and counted)")
       ->check(CLI::Range(0.001, 1e6));
+  app->add_option("--max-object-pose-rate", f->max_object_pose_rate_hz,
+                  "Input rate limit per tracked object, Hz (object poses beyond it are shed "
+                  "and counted)")
+      ->check(CLI::Range(0.001, 1e6));
   app->add_option("--max-live-clients", f->max_live_clients,
                   "Live clients (joined over LCM) at most at once; 0 refuses joins")
       ->check(CLI::Range(0, 4096));
@@ -110,6 +114,9 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
   if (flags.require_hardware) config->require_hardware = true;
   if (flags.status_period_s >= 0) config->status_period_s = flags.status_period_s;
   if (flags.max_pose_rate_hz >= 0) config->max_pose_rate_hz = flags.max_pose_rate_hz;
+  if (flags.max_object_pose_rate_hz >= 0) {
+    config->max_object_pose_rate_hz = flags.max_object_pose_rate_hz;
+  }
   SetIfGiven(flags.log_level, &config->log_level);
   SetIfGiven(flags.security_mode, &config->security.mode);
   SetIfGiven(flags.room_key, &config->security.room_key);

@@ -25,6 +25,7 @@ struct ServiceFlags {
   std::vector<std::string> ignore_flags;  // ID=LINK:OBJECT.
   std::string pose_channel, contact_channel, reject_channel, status_channel;
   double eps_s = -1, delta_m = -1, status_period_s = -1, max_pose_rate_hz = -1;
+  double max_object_pose_rate_hz = -1;
   int workers = 0;
   int max_live_clients = -1;           // -1: not given.
   int64_t silence_timeout_ms = -1;     // -1: not given.

@@ -35,25 +35,35 @@ entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
   return out;
 }
 
+entity_link_bracket_t LinkBracketOf(const world::OtherBracket& b, const SharedJob& job,
+                                    double dur) {
+  const world::PrintedBracket p =
+      world::PrintBracket(b, job.pose0.utime, job.pose1.utime, job.t_from, job.t_to);
+  entity_link_bracket_t out{};
+  out.link = b.link;
+  out.s_lo = p.s_lo;
+  out.s_hi = p.s_hi;
+  out.t_lo = p.t_lo;
+  out.t_hi = p.t_hi;
+  out.initially_colliding = b.initially_colliding;
+  out.undecided = b.undecided;
+  out.has_witness = b.has_witness;
+  if (b.has_witness) out.witness = ContactOf(b.witness, dur);
+  return out;
+}
+
 }  // namespace
 
-shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
-  shared_contact_t m{};
-  m.client_id = job.client_id;
-  m.seq0 = job.seq0;
-  m.seq1 = job.seq1;
-  m.pair = job.pair;
-  m.utime0 = job.pose0.utime;
-  m.utime1 = job.pose1.utime;
+shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+  shared_entry_t m{};
   m.entity = job.entity;
   m.entity_kind =
-      job.entity_is_object ? shared_contact_t::KIND_OBJECT : shared_contact_t::KIND_AVATAR;
+      job.entity_is_object ? shared_entry_t::KIND_OBJECT : shared_entry_t::KIND_AVATAR;
   m.t_from = job.t_from;
   m.t_to = job.t_to;
-  m.result = shared_contact_t::RESULT_FREE;
+  m.result = shared_entry_t::RESULT_FREE;
   m.waited_us = job.waited_us;
   m.ended_by_timeout = job.ended_by_timeout;
-  m.receive_utime = job.receive_utime;
   const auto start = SteadyClock::now();
   try {
     // A two-entity world: A (its pair) and E (the slice of its history the
@@ -92,11 +102,11 @@ shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryO
             : world::MakeAvatarTarget(w, 0, 1, world::WindowScale(w.avatars[1], pieces));
     const world::OtherAnswer ans =
         world::AnswerOther(w.avatars[0].skeleton, motion, u0, u1, pieces, *target, options);
+    const double dur = static_cast<double>(u1 - u0);
     if (ans.contact) {
       const world::OtherBracket& b = ans.bracket;
-      const double dur = static_cast<double>(u1 - u0);
       const world::PrintedBracket p = world::PrintBracket(b, u0, u1, job.t_from, job.t_to);
-      m.result = shared_contact_t::RESULT_CONTACT;
+      m.result = shared_entry_t::RESULT_CONTACT;
       m.initially_colliding = b.initially_colliding;
       m.undecided = b.undecided;
       m.s_lo = p.s_lo;
@@ -106,13 +116,36 @@ shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryO
       if (b.has_witness) m.contacts.push_back(ContactOf(b.witness, dur));
       m.num_contacts = static_cast<int32_t>(m.contacts.size());
     }
+    if (options.per_link) {
+      for (const world::OtherBracket& b : ans.links) m.links.push_back(LinkBracketOf(b, job, dur));
+      m.num_links = static_cast<int32_t>(m.links.size());
+    }
   } catch (const std::exception& e) {
-    m.result = shared_contact_t::RESULT_INVALID;
+    m = shared_entry_t{};
+    m.entity = job.entity;
+    m.entity_kind =
+        job.entity_is_object ? shared_entry_t::KIND_OBJECT : shared_entry_t::KIND_AVATAR;
+    m.t_from = job.t_from;
+    m.t_to = job.t_to;
+    m.waited_us = job.waited_us;
+    m.ended_by_timeout = job.ended_by_timeout;
+    m.result = shared_entry_t::RESULT_INVALID;
     m.error = std::string("query failed: ") + e.what();
-    m.contacts.clear();
-    m.num_contacts = 0;
   }
   m.compute_us = std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+  return m;
+}
+
+shared_contact_t SharedMessageOf(const SharedJob& job) {
+  shared_contact_t m{};
+  m.client_id = job.client_id;
+  m.seq0 = job.seq0;
+  m.seq1 = job.seq1;
+  m.pair = job.pair;
+  m.utime0 = job.pose0.utime;
+  m.utime1 = job.pose1.utime;
+  m.receive_utime = job.receive_utime;
+  m.num_entries = 0;
   return m;
 }
 
@@ -374,6 +407,7 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     const Entry& oldest = pending_.front();
     const std::string e = oldest.e;
     const Entry* p = &oldest;
+    ++entries_overflowed_;
     Settle(
         e, [&](const Entry& x) { return &x == p; }, /*cut=*/true, now, due);
   }

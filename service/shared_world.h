@@ -73,10 +73,15 @@ struct SharedJob {
 };
 
 /// Answers one due entry (AnswerOther of core/world over the job's slice,
-/// WindowScale for its slack): the shared_contact_t, utime and mac unset.
-/// Pure and deterministic; any thread. Never throws (a failure is
-/// RESULT_INVALID with `error`).
-shared_contact_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options);
+/// WindowScale for its slack): one entry of a shared_contact_t, with
+/// per-link brackets when options.per_link. Pure and deterministic (but for
+/// compute_us); any thread. Never throws (a failure is RESULT_INVALID with
+/// `error`).
+shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options);
+
+/// The message that carries the entries of `job`'s pair: the pair's fields
+/// set, no entries yet, utime and mac unset. Any thread.
+shared_contact_t SharedMessageOf(const SharedJob& job);
 
 class SharedWorld {
  public:
@@ -127,7 +132,11 @@ class SharedWorld {
   void CutAll(Time now, std::vector<SharedJob>* due);
 
   size_t pending() const { return pending_.size(); }
+  /// Entries made ended_by_timeout (silence, a new stream, a removed
+  /// avatar, the history cut, stopping), and of those the ones cut early
+  /// because more than max_pending waited.
   int64_t entries_cut() const { return entries_cut_; }
+  int64_t entries_overflowed() const { return entries_overflowed_; }
   int64_t history_size(const std::string& id) const;
 
  private:
@@ -173,6 +182,7 @@ class SharedWorld {
   std::vector<std::string> order_;  // Registration order (avatars and objects).
   std::deque<Entry> pending_;       // Oldest first.
   int64_t entries_cut_ = 0;
+  int64_t entries_overflowed_ = 0;
 };
 
 }  // namespace sweptccd

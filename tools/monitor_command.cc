@@ -271,27 +271,37 @@ class Monitor {
     }
   }
 
-  // A shared-world entry: the pair of one client against another client or
-  // a tracked object (docs/SERVICE.md "Shared world"). Free ones with --all.
-  void Shared(const shared_contact_t& s) {
-    const bool contact = s.result == shared_contact_t::RESULT_CONTACT;
-    const bool invalid = s.result == shared_contact_t::RESULT_INVALID;
+  // A shared-world message: the pair of one client against other clients
+  // and tracked objects (docs/SERVICE.md "Shared world"), one line per
+  // entry. Free entries with --all.
+  void Shared(const shared_contact_t& m) {
+    ++shared_messages_;
+    const size_t n = std::min(m.entries.size(), static_cast<size_t>(std::max(0, m.num_entries)));
+    for (size_t i = 0; i < n; ++i) SharedEntry(m, m.entries[i], i, n);
+  }
+
+  void SharedEntry(const shared_contact_t& m, const shared_entry_t& s, size_t index, size_t n) {
+    const bool contact = s.result == shared_entry_t::RESULT_CONTACT;
+    const bool invalid = s.result == shared_entry_t::RESULT_INVALID;
     ++shared_total_;
     if (contact) ++shared_contact_total_;
     if (!contact && !invalid && !o_.all) return;
-    const char* kind = s.entity_kind == shared_contact_t::KIND_OBJECT ? "object" : "client";
+    const char* kind = s.entity_kind == shared_entry_t::KIND_OBJECT ? "object" : "client";
     if (o_.json) {
       json j{{"type", contact ? "shared_contact" : invalid ? "shared_invalid" : "shared_free"},
-             {"client", s.client_id},
-             {"pair", s.pair},
-             {"seq0", s.seq0},
-             {"seq1", s.seq1},
+             {"client", m.client_id},
+             {"pair", m.pair},
+             {"seq0", m.seq0},
+             {"seq1", m.seq1},
              {"entity", s.entity},
              {"entity_kind", kind},
              {"window", {s.t_from, s.t_to}},
              {"waited_us", s.waited_us},
              {"ended_by_timeout", static_cast<bool>(s.ended_by_timeout)},
-             {"compute_us", s.compute_us}};
+             {"compute_us", s.compute_us},
+             {"entry", index},
+             {"entries_in_message", n},
+             {"utime", m.utime}};
       if (contact) {
         j["t_lo"] = s.t_lo;
         j["t_hi"] = s.t_hi;
@@ -307,13 +317,25 @@ class Monitor {
         }
         j["contacts"] = contacts;
       }
+      if (!s.links.empty()) {
+        json links = json::array();
+        for (const entity_link_bracket_t& b : s.links) {
+          links.push_back({{"link", b.link},
+                           {"link_name", LinkName(b.link)},
+                           {"t_lo", b.t_lo},
+                           {"t_hi", b.t_hi},
+                           {"initially_colliding", static_cast<bool>(b.initially_colliding)},
+                           {"undecided", static_cast<bool>(b.undecided)}});
+        }
+        j["links"] = links;
+      }
       if (invalid) j["error"] = s.error;
       EmitMsg(j);
       return;
     }
     std::string head = fmt::format("shared {} {} pair {} seq {}-{} with {} {} window {}..{} us",
                                    contact ? "contact" : invalid ? "invalid" : "free",
-                                   Name(s.client_id), s.pair, s.seq0, s.seq1, kind,
+                                   Name(m.client_id), m.pair, m.seq0, m.seq1, kind,
                                    EscapeForDisplay(s.entity), s.t_from, s.t_to);
     if (contact) {
       head += fmt::format(" t {:.1f}..{:.1f} us", s.t_lo, s.t_hi);
@@ -325,10 +347,12 @@ class Monitor {
       }
       if (s.initially_colliding) head += " initially_colliding";
       if (s.undecided) head += " undecided";
+      if (!s.links.empty()) head += fmt::format(" links {}", s.links.size());
     }
     if (invalid) head += " error: " + EscapeForDisplay(s.error, 1024);
     head += fmt::format(" waited {} us", s.waited_us);
     if (s.ended_by_timeout) head += " ended_by_timeout";
+    head += fmt::format(" [entry {} of {}]", index + 1, n);
     Show(head);
   }
 
@@ -386,6 +410,16 @@ class Monitor {
                 {"dropped_total", s.dropped_total},
                 {"rejected_unattributed", s.rejected_unattributed},
                 {"rejections_suppressed", s.rejections_suppressed},
+                {"shared_messages", s.shared_messages},
+                {"shared_entries", s.shared_entries},
+                {"shared_by_timeout", s.shared_by_timeout},
+                {"shared_dropped", s.shared_dropped},
+                {"shared_overflowed", s.shared_overflowed},
+                {"shared_pending", s.shared_pending},
+                {"shared_ready", s.shared_ready},
+                {"object_poses_received", s.object_poses_received},
+                {"object_poses_rejected", s.object_poses_rejected},
+                {"object_poses_rate_limited", s.object_poses_rate_limited},
                 {"utime", s.utime}});
     } else {
       Show(fmt::format(
@@ -393,6 +427,12 @@ class Monitor {
           "rejections_suppressed {}",
           EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
           s.dropped_total, s.rejected_unattributed, s.rejections_suppressed));
+      Show(fmt::format(
+          "status shared messages {} entries {} by_timeout {} dropped {} overflowed {} "
+          "pending {} ready {} object_poses {} rejected {} rate_limited {}",
+          s.shared_messages, s.shared_entries, s.shared_by_timeout, s.shared_dropped,
+          s.shared_overflowed, s.shared_pending, s.shared_ready, s.object_poses_received,
+          s.object_poses_rejected, s.object_poses_rate_limited));
     }
   }
 
@@ -410,6 +450,7 @@ class Monitor {
   std::optional<MacKey> key_;  // --key; none: nothing is verified.
   bool verified_ = false;      // Of the message being shown.
   int64_t shared_total_ = 0, shared_contact_total_ = 0;  // Shared-world entries seen.
+  int64_t shared_messages_ = 0;                          // In this many messages.
   int64_t unverified_ = 0;
   std::map<std::string, ClientTally> tally_;
   int64_t contact_total_ = 0;

@@ -107,6 +107,7 @@ ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
   options.security = config.security.mode;
   options.max_utime_jump_us = static_cast<int64_t>(config.security.max_utime_jump_s * 1e6);
   options.max_pose_rate_hz = config.max_pose_rate_hz;
+  options.max_object_pose_rate_hz = config.max_object_pose_rate_hz;
   options.max_live_clients = config.max_live_clients;
   options.silence_timeout_ms = config.silence_timeout_ms;
   options.shared_world = config.shared_world;

@@ -310,24 +310,43 @@ def messages(m):
     # Attack: object_id length INT32_MIN (as the 36-byte tracker_pose_t datagram).
     write("fuzz_decode_object_pose_t", "attack_object_id_length_int32_min.lcm",
           fp["object_pose_t"] + struct.pack(">qi", 1, -2**31) + bytes(16))
-    sc = m.shared_contact_t()
-    sc.utime, sc.client_id, sc.seq0, sc.seq1, sc.pair = 1, "alice", 1, 2, 0
-    sc.utime0, sc.utime1, sc.entity, sc.entity_kind = 1000000, 1011111, "cup", 1
-    sc.t_from, sc.t_to, sc.result, sc.error = 1000000, 1011111, 1, ""
-    sc.initially_colliding, sc.undecided = False, False
-    sc.s_lo, sc.s_hi, sc.t_lo, sc.t_hi = 0.5, 0.51, 1005555.0, 1005666.0
     ec = m.entity_contact_t()
     ec.link, ec.other_link, ec.triangle, ec.s = 3, -1, 12, 0.51
     ec.point_link, ec.point_other, ec.normal, ec.separation = [0, 0, 1], [0, 0, 0.9], [0, 0, 1], -1e-4
-    sc.num_contacts, sc.contacts = 1, [ec]
-    sc.waited_us, sc.ended_by_timeout, sc.receive_utime, sc.compute_us = 800, False, 5, 12.5
+    cup = m.shared_entry_t()
+    cup.entity, cup.entity_kind, cup.t_from, cup.t_to = "cup", 1, 1000000, 1011111
+    cup.result, cup.error, cup.initially_colliding, cup.undecided = 1, "", False, False
+    cup.s_lo, cup.s_hi, cup.t_lo, cup.t_hi = 0.5, 0.51, 1005555.0, 1005666.0
+    cup.num_contacts, cup.contacts = 1, [ec]
+    lb = m.entity_link_bracket_t()
+    lb.link, lb.s_lo, lb.s_hi, lb.t_lo, lb.t_hi = 3, 0.5, 0.51, 1005555.0, 1005666.0
+    lb.initially_colliding, lb.undecided, lb.has_witness, lb.witness = False, False, True, ec
+    cup.num_links, cup.links = 1, [lb]
+    cup.waited_us, cup.ended_by_timeout, cup.compute_us = 800, False, 12.5
+    bob = m.shared_entry_t()
+    bob.entity, bob.entity_kind, bob.t_from, bob.t_to = "bob", 0, 1000000, 1005000
+    bob.result, bob.error, bob.initially_colliding, bob.undecided = 0, "", False, False
+    bob.s_lo, bob.s_hi, bob.t_lo, bob.t_hi = 0, 0, 0, 0
+    bob.num_contacts, bob.contacts, bob.num_links, bob.links = 0, [], 0, []
+    bob.waited_us, bob.ended_by_timeout, bob.compute_us = 5000000, True, 3.5
+    sc = m.shared_contact_t()
+    sc.utime, sc.client_id, sc.seq0, sc.seq1, sc.pair = 1, "alice", 1, 2, 0
+    sc.utime0, sc.utime1, sc.receive_utime = 1000000, 1011111, 5
+    sc.num_entries, sc.entries = 2, [cup, bob]
     sc.mac = bytes(32)
     write("fuzz_decode_shared_contact_t", "contact.lcm", sc.encode())
     write("fuzz_decode_shared_contact_t", "contact_signed.lcm", sign(sc.encode()))
-    # Attack: num_contacts = 2^26 in a short message.
-    sc.num_contacts, sc.contacts = 0, []
+    # Attack: num_entries = 2^26 in a short message.
+    sc.num_entries, sc.entries = 0, []
     raw = bytearray(sc.encode())
-    at = 8 + 8 + (4 + 6) + 40 + (4 + 4) + 17 + 1 + 5 + 2 + 32
+    at = 8 + 8 + (4 + 6) + 6 * 8
+    raw[at:at + 4] = struct.pack(">i", 2**26)
+    write("fuzz_decode_shared_contact_t", "attack_num_entries_2pow26.lcm", bytes(raw))
+    # Attack: one entry whose num_contacts = 2^26.
+    cup.num_contacts, cup.contacts, cup.num_links, cup.links = 0, [], 0, []
+    sc.num_entries, sc.entries = 1, [cup]
+    raw = bytearray(sc.encode())
+    at = 8 + 8 + (4 + 6) + 6 * 8 + 4 + (4 + 4) + 17 + 1 + 5 + 2 + 32
     raw[at:at + 4] = struct.pack(">i", 2**26)
     write("fuzz_decode_shared_contact_t", "attack_num_contacts_2pow26.lcm", bytes(raw))
 

@@ -245,17 +245,53 @@ TEST(CheckedDecode, HugeContactCountIsRefusedWithoutAllocating) {
   EXPECT_NE(problem.find("num_contacts at byte 102 is 67108864"), std::string::npos) << problem;
 }
 
-TEST(CheckedDecode, HugeSharedContactCountIsRefusedWithoutAllocating) {
+TEST(CheckedDecode, HugeSharedEntryCountIsRefusedWithoutAllocating) {
   shared_contact_t e = RandomMessages(20).SharedContact();
-  e.contacts.clear();
-  e.num_contacts = 0;
-  e.client_id = "a", e.entity = "e", e.error = "";
+  e.entries.clear();
+  e.num_entries = 0;
+  e.client_id = "a";
   std::vector<uint8_t> bytes = Encode(e);
-  // 8 + 8 + 6 + 40 + 6 + 17 + 1 + 5 + 2 + 32 = 125: num_contacts.
-  PutInt32(&bytes, 125, 1 << 26);
+  // 8 + 8 + 6 + 6 * 8 = 70: num_entries.
+  PutInt32(&bytes, 70, 1 << 26);
   std::string problem;
   EXPECT_LT(LargestAllocationDecoding<shared_contact_t>(bytes, &problem), 1024u);
-  EXPECT_NE(problem.find("num_contacts at byte 125 is 67108864"), std::string::npos) << problem;
+  EXPECT_NE(problem.find("num_entries at byte 70 is 67108864"), std::string::npos) << problem;
+}
+
+TEST(CheckedDecode, SharedEntriesOverTheLimitAreRefused) {
+  shared_contact_t e = RandomMessages(21).SharedContact();
+  e.client_id = "a";
+  const shared_entry_t one = RandomMessages(22).SharedEntry();
+  e.entries.assign(static_cast<size_t>(shared_contact_t::MAX_ENTRIES) + 1, one);
+  e.num_entries = static_cast<int32_t>(e.entries.size());
+  const std::vector<uint8_t> bytes = Encode(e);
+  const DecodeResult<shared_contact_t> d =
+      DecodeChecked<shared_contact_t>(bytes.data(), bytes.size(), WireLimits{});
+  ASSERT_FALSE(d.ok());
+  EXPECT_NE(d.problem.find("num_entries at byte 70 is 65, outside [0, 64]"), std::string::npos)
+      << d.problem;
+  e.entries.pop_back();
+  e.num_entries = static_cast<int32_t>(e.entries.size());
+  const std::vector<uint8_t> fits = Encode(e);
+  EXPECT_TRUE((DecodeChecked<shared_contact_t>(fits.data(), fits.size(), WireLimits{}).ok()));
+}
+
+TEST(CheckedDecode, HugeContactCountInASharedEntryIsRefusedWithoutAllocating) {
+  shared_contact_t e = RandomMessages(20).SharedContact();
+  e.client_id = "a";
+  shared_entry_t entry = RandomMessages(23).SharedEntry();
+  entry.contacts.clear();
+  entry.num_contacts = 0;
+  entry.entity = "e", entry.error = "";
+  e.entries = {entry};
+  e.num_entries = 1;
+  std::vector<uint8_t> bytes = Encode(e);
+  // 70 + 4 (num_entries) + 6 (entity) + 17 + 1 + 5 (error) + 2 + 32 = 137: num_contacts.
+  PutInt32(&bytes, 137, 1 << 26);
+  std::string problem;
+  EXPECT_LT(LargestAllocationDecoding<shared_contact_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("entries[].num_contacts at byte 137 is 67108864"), std::string::npos)
+      << problem;
 }
 
 TEST(CheckedDecode, AllocationFailureIsARefusalNotAnAbort) {

@@ -187,10 +187,34 @@ class RandomMessages {
     return m;
   }
   shared_contact_t SharedContact() {
-    shared_contact_t e;
-    e.utime = Int();
-    e.client_id = Text(20);
-    e.seq0 = Int(), e.seq1 = Int(), e.pair = Int(), e.utime0 = Int(), e.utime1 = Int();
+    shared_contact_t m;
+    m.utime = Int();
+    m.client_id = Text(20);
+    m.seq0 = Int(), m.seq1 = Int(), m.pair = Int(), m.utime0 = Int(), m.utime1 = Int();
+    m.receive_utime = Int();
+    m.num_entries = Below(4);
+    for (int j = 0; j < m.num_entries; ++j) m.entries.push_back(SharedEntry());
+    Mac(m.mac);
+    return m;
+  }
+
+  entity_contact_t EntityContact() {
+    entity_contact_t c;
+    c.link = static_cast<int32_t>(Int());
+    c.other_link = static_cast<int32_t>(Int());
+    c.triangle = Int();
+    c.s = Real();
+    for (int k = 0; k < 3; ++k) {
+      c.point_link[k] = Real();
+      c.point_other[k] = Real();
+      c.normal[k] = Real();
+    }
+    c.separation = Real();
+    return c;
+  }
+
+  shared_entry_t SharedEntry() {
+    shared_entry_t e;
     e.entity = Text(20);
     e.entity_kind = static_cast<int8_t>(Below(2));
     e.t_from = Int(), e.t_to = Int();
@@ -199,25 +223,19 @@ class RandomMessages {
     e.initially_colliding = Below(2), e.undecided = Below(2);
     e.s_lo = Real(), e.s_hi = Real(), e.t_lo = Real(), e.t_hi = Real();
     e.num_contacts = Below(4);
-    for (int i = 0; i < e.num_contacts; ++i) {
-      entity_contact_t c;
-      c.link = static_cast<int32_t>(Int());
-      c.other_link = static_cast<int32_t>(Int());
-      c.triangle = Int();
-      c.s = Real();
-      for (int k = 0; k < 3; ++k) {
-        c.point_link[k] = Real();
-        c.point_other[k] = Real();
-        c.normal[k] = Real();
-      }
-      c.separation = Real();
-      e.contacts.push_back(c);
+    for (int i = 0; i < e.num_contacts; ++i) e.contacts.push_back(EntityContact());
+    e.num_links = Below(3);
+    for (int i = 0; i < e.num_links; ++i) {
+      entity_link_bracket_t b;
+      b.link = static_cast<int32_t>(Int());
+      b.s_lo = Real(), b.s_hi = Real(), b.t_lo = Real(), b.t_hi = Real();
+      b.initially_colliding = Below(2), b.undecided = Below(2), b.has_witness = Below(2);
+      b.witness = EntityContact();
+      e.links.push_back(b);
     }
     e.waited_us = Int();
     e.ended_by_timeout = Below(2);
-    e.receive_utime = Int();
     e.compute_us = Real();
-    Mac(e.mac);
     return e;
   }
 

@@ -135,6 +135,16 @@ void Fill(status_t& m) {
   m.live_joined = 12;
   m.live_left = 13;
   m.live_expired = 14;
+  m.shared_messages = 15;
+  m.shared_entries = 16;
+  m.shared_by_timeout = 17;
+  m.shared_dropped = 18;
+  m.shared_overflowed = 19;
+  m.shared_pending = 20;
+  m.shared_ready = 21;
+  m.object_poses_received = 22;
+  m.object_poses_rejected = 23;
+  m.object_poses_rate_limited = 24;
 }
 
 void Fill(join_request_t& m) {
@@ -196,19 +206,24 @@ void Fill(entity_contact_t& m) {
   m.separation = -2.0e-4;
 }
 
-void Fill(shared_contact_t& m) {
-  m.utime = 1700000000900000LL;
-  m.client_id = "alice";
-  m.seq0 = 21;
-  m.seq1 = 22;
-  m.pair = 20;
-  m.utime0 = 1700000000000001LL;
-  m.utime1 = 1700000000011112LL;
+void Fill(entity_link_bracket_t& m) {
+  m.link = 4;
+  m.s_lo = 0.25;
+  m.s_hi = 0.3125;
+  m.t_lo = 1.7e15 + 2.5;
+  m.t_hi = 1.7e15 + 3.5;
+  m.initially_colliding = 1;
+  m.undecided = 1;
+  m.has_witness = 1;
+  Fill(m.witness);
+}
+
+void Fill(shared_entry_t& m) {
   m.entity = "cup";
-  m.entity_kind = shared_contact_t::KIND_OBJECT;
+  m.entity_kind = shared_entry_t::KIND_OBJECT;
   m.t_from = 1700000000000002LL;
   m.t_to = 1700000000011111LL;
-  m.result = shared_contact_t::RESULT_CONTACT;
+  m.result = shared_entry_t::RESULT_CONTACT;
   m.error = "no error, but every field set";
   m.initially_colliding = 1;
   m.undecided = 1;
@@ -220,10 +235,28 @@ void Fill(shared_contact_t& m) {
   m.contacts.resize(2);
   Fill(m.contacts[0]);
   Fill(m.contacts[1]);
+  m.num_links = 1;
+  m.links.resize(1);
+  Fill(m.links[0]);
   m.waited_us = 4321;
   m.ended_by_timeout = 1;
-  m.receive_utime = 1700000000011200LL;
   m.compute_us = 17.25;
+}
+
+void Fill(shared_contact_t& m) {
+  m.utime = 1700000000900000LL;
+  m.client_id = "alice";
+  m.seq0 = 21;
+  m.seq1 = 22;
+  m.pair = 20;
+  m.utime0 = 1700000000000001LL;
+  m.utime1 = 1700000000011112LL;
+  m.receive_utime = 1700000000011200LL;
+  m.num_entries = 2;
+  m.entries.resize(2);
+  Fill(m.entries[0]);
+  Fill(m.entries[1]);
+  m.entries[1].entity = "box";  // KIND_AVATAR (0) is the default value DecodeLog refuses.
 }
 
 // Encodes `m`, signs it when its type ends in `byte mac[32]`, publishes it.

@@ -545,6 +545,84 @@ TEST_F(RateLimitTest, AFloodOfUnknownIdsAndForgeriesDoesNotSilenceAClientsReject
   EXPECT_EQ(rejections.back().suppressed, 0);
 }
 
+// A cube of 0.4 m, one object (the tracked object of the shared-world tests).
+std::shared_ptr<const Environment> CubeObject() {
+  TriangleMesh cube;
+  for (int c = 0; c < 8; ++c) {
+    cube.vertices.emplace_back((c & 1) ? 0.2f : -0.2f, (c & 2) ? 0.2f : -0.2f,
+                               (c & 4) ? 0.2f : -0.2f);
+  }
+  cube.indices = {0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1,
+                  2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3};
+  auto mesh = std::make_shared<Environment>();
+  mesh->AddMesh(cube, "cube");
+  return mesh;
+}
+
+object_pose_t BoxPose(int64_t seq, int64_t utime) {
+  object_pose_t o{};
+  o.utime = utime;
+  o.object_id = "box";
+  o.session = 1;
+  o.seq = seq;
+  o.position[2] = 0.6;
+  o.orientation[0] = 1;
+  return o;
+}
+
+// The per-object input rate limit: the same token bucket as a client's,
+// checked first; what it sheds is counted, refused through the throttled
+// rejection path, and never reaches the shared world.
+TEST_F(RateLimitTest, ObjectAtTenTimesItsRateGetsExactlyTheBucketsAdmissions) {
+  ServiceOptions options = LimitedOptions();
+  options.shared_world = true;
+  options.objects = {{"box", CubeObject()}};
+  options.max_object_pose_rate_hz = 50;
+  options.object_pose_burst = 3;
+  auto service = MakeWith({"a"}, options);
+  TokenBucket twin(options.max_object_pose_rate_hz, options.object_pose_burst);
+  constexpr int kPoses = 500;  // 1 s at 500 Hz, 10x the limit.
+  int64_t admitted = 0;
+  for (int64_t k = 0; k < kPoses; ++k) {
+    now_us_ = 1'000'000 + k * 2000;
+    admitted += twin.TryTake(now_us_);
+    // utimes 1 us apart: a pose that got through the bucket is used.
+    service->OnObjectPose(BoxPose(k, 1'000'000 + k));
+  }
+  service->WaitUntilIdle();
+  ASSERT_EQ(admitted, 3 + 49);
+  const status_t s = service->Status();
+  EXPECT_EQ(s.object_poses_received, kPoses);
+  EXPECT_EQ(s.object_poses_rate_limited, kPoses - admitted);
+  EXPECT_EQ(s.object_poses_rejected, 0) << "shed ones are never validated";
+  const auto rejections = publisher_.rejections();
+  EXPECT_LE(rejections.size(), 10u + 10u);
+  EXPECT_GE(rejections.size(), 10u);
+  for (const rejection_t& r : rejections) {
+    EXPECT_EQ(r.reason, rejection_code::kRateLimited);
+    EXPECT_EQ(r.client_id, "box");
+  }
+  EXPECT_EQ(static_cast<int64_t>(rejections.size()) + s.rejections_suppressed, kPoses - admitted);
+  // An unknown object is not limited by any configured object's bucket.
+  service->OnObjectPose([] {
+    object_pose_t o = BoxPose(1, 5'000'000);
+    o.object_id = "ghost";
+    return o;
+  }());
+  EXPECT_EQ(service->Status().object_poses_rejected, 1);
+  EXPECT_EQ(publisher_.rejections().back().reason, rejection_code::kUnknownObject);
+}
+
+TEST_F(RateLimitTest, BadObjectRatesAreRefused) {
+  ServiceOptions options = LimitedOptions();
+  options.shared_world = true;
+  options.max_object_pose_rate_hz = 0;
+  EXPECT_THROW(MakeWith({"a"}, options), InputError);
+  options.max_object_pose_rate_hz = 10;
+  options.object_pose_burst = 0;
+  EXPECT_THROW(MakeWith({"a"}, options), InputError);
+}
+
 TEST_F(RateLimitTest, BadRatesAreRefused) {
   ServiceOptions options = LimitedOptions();
   options.max_pose_rate_hz = 0;
@@ -558,6 +636,67 @@ TEST_F(RateLimitTest, BadRatesAreRefused) {
 }
 
 }  // namespace
+
+// One message per (pair, batch): a's pair is covered by b, c and the box
+// at once (their samples are ahead of it), so its three entries are due
+// together and published as one shared_contact_t, each with its own window
+// and waited_us.
+TEST_F(CollisionServiceTest, SharedEntriesDueTogetherArePublishedAsOneMessage) {
+  ServiceOptions options;
+  options.num_workers = 2;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.max_object_pose_rate_hz = 1e6;
+  options.object_pose_burst = 1 << 20;
+  options.silence_timeout_ms = 3'600'000;
+  options.shared_world = true;
+  options.objects = {{"box", CubeObject()}};
+  auto service = MakeWith({"a", "b", "c"}, options);
+  for (int64_t k = 0; k < 4; ++k) {
+    service->OnPose(Sample("b", k));
+    service->WaitUntilIdle();
+    service->OnPose(Sample("c", k));
+    service->WaitUntilIdle();
+    service->OnObjectPose(BoxPose(k, 1'000'000 + k * kDtUs));
+    service->WaitUntilIdle();
+  }
+  const size_t before = publisher_.shared_messages().size();
+  service->OnPose(Sample("a", 0));
+  service->OnPose(Sample("a", 1));
+  service->WaitUntilIdle();
+  std::vector<shared_contact_t> of_a;
+  for (const shared_contact_t& m : publisher_.shared_messages()) {
+    if (m.client_id == "a") of_a.push_back(m);
+  }
+  ASSERT_EQ(of_a.size(), 1u) << "one message for a's pair";
+  EXPECT_EQ(publisher_.shared_messages().size(), before + 1);
+  const shared_contact_t& m = of_a[0];
+  EXPECT_EQ(m.seq0, 0);
+  EXPECT_EQ(m.seq1, 1);
+  ASSERT_EQ(m.num_entries, 3);
+  ASSERT_EQ(m.entries.size(), 3u);
+  EXPECT_EQ(m.entries[0].entity, "b");
+  EXPECT_EQ(m.entries[1].entity, "c");
+  EXPECT_EQ(m.entries[2].entity, "box");
+  EXPECT_EQ(m.entries[2].entity_kind, +shared_entry_t::KIND_OBJECT);
+  for (const shared_entry_t& e : m.entries) {
+    EXPECT_FALSE(e.ended_by_timeout) << e.entity;
+    EXPECT_EQ(e.t_from, m.utime0) << e.entity;
+    EXPECT_EQ(e.t_to, m.utime1) << e.entity;
+    EXPECT_EQ(e.waited_us, 0) << e.entity << ": covered before the pair formed";
+  }
+  const status_t s = service->Status();
+  EXPECT_EQ(s.shared_messages, service->shared_published_messages());
+  EXPECT_EQ(s.shared_entries, service->shared_published());
+  EXPECT_GT(s.shared_entries, s.shared_messages);
+  service->Stop();
+  // Every entry once, whatever message it came in.
+  std::set<std::tuple<std::string, int64_t, std::string>> keys;
+  for (const auto& x : publisher_.shared()) {
+    EXPECT_TRUE(keys.insert({x.client_id, x.pair, x.entry.entity}).second) << "published twice";
+  }
+}
 
 // The shared world (docs/SERVICE.md "Shared world"): two clients whose
 // streams interleave and a tracked object; every pair answered once against
@@ -629,28 +768,48 @@ TEST_F(CollisionServiceTest, SharedWorldAnswersEachPairAgainstEveryOtherEntityOn
   EXPECT_EQ(service->shared_pending(), 1u);
   service->Stop();
 
-  const std::vector<shared_contact_t> shared = publisher_.shared();
+  const auto shared = publisher_.shared();
   EXPECT_EQ(publisher_.shared_before_contact(), 0);
   EXPECT_EQ(service->shared_published(), static_cast<int64_t>(shared.size()));
+  EXPECT_EQ(service->shared_published_messages(),
+            static_cast<int64_t>(publisher_.shared_messages().size()));
+  for (const shared_contact_t& m : publisher_.shared_messages()) {
+    EXPECT_GE(m.num_entries, 1);
+    EXPECT_LE(m.num_entries, +shared_contact_t::MAX_ENTRIES);
+    EXPECT_EQ(m.num_entries, static_cast<int32_t>(m.entries.size()));
+  }
   std::set<std::tuple<std::string, int64_t, std::string>> keys;
   int cut = 0, contacts = 0;
-  for (const shared_contact_t& s : shared) {
-    EXPECT_TRUE(keys.insert({s.client_id, s.pair, s.entity}).second) << "published twice";
-    EXPECT_NE(s.client_id, s.entity);
-    EXPECT_EQ(s.entity_kind == shared_contact_t::KIND_OBJECT, s.entity == "box");
+  for (const auto& x : shared) {
+    const shared_entry_t& s = x.entry;
+    EXPECT_TRUE(keys.insert({x.client_id, x.pair, s.entity}).second) << "published twice";
+    EXPECT_NE(x.client_id, s.entity);
+    EXPECT_EQ(s.entity_kind == shared_entry_t::KIND_OBJECT, s.entity == "box");
     EXPECT_LE(s.t_from, s.t_to);
-    EXPECT_GE(s.t_from, s.utime0);
-    EXPECT_LE(s.t_to, s.utime1);
+    EXPECT_GE(s.t_from, x.utime0);
+    EXPECT_LE(s.t_to, x.utime1);
     EXPECT_EQ(s.error, "");
     cut += s.ended_by_timeout;
     contacts += s.result == 1;
-    if (!s.ended_by_timeout) EXPECT_EQ(s.t_to, s.utime1) << "covered: the whole pair";
+    if (!s.ended_by_timeout) {
+      EXPECT_EQ(s.t_to, x.utime1) << "covered: the whole pair";
+    }
   }
   // 9 pairs each of a and b, against the other avatar and the box.
   EXPECT_EQ(shared.size(), 36u);
   EXPECT_EQ(cut, 1) << "b's last pair against a, cut at a's last sample";
   EXPECT_GT(contacts, 0) << "the two avatars walk the same path";
   EXPECT_EQ(service->shared_pending(), 0u);
+  const status_t status = service->Status();
+  EXPECT_EQ(status.shared_entries, 36);
+  EXPECT_EQ(status.shared_messages, service->shared_published_messages());
+  EXPECT_EQ(status.shared_by_timeout, 1);
+  EXPECT_EQ(status.shared_dropped, 0);
+  EXPECT_EQ(status.shared_pending, 0);
+  EXPECT_EQ(status.shared_ready, 0);
+  EXPECT_EQ(status.object_poses_received, 8);
+  EXPECT_EQ(status.object_poses_rejected, 1);
+  EXPECT_EQ(status.object_poses_rate_limited, 0);
 }
 
 }  // namespace sweptccd

@@ -64,6 +64,12 @@ wait $monitor
 grep -q '"type":"shared_contact".*"entity":"cup".*"entity_kind":"object"' "$work/monitor.out"
 grep -q '"type":"shared_contact".*"entity":"bob".*"entity_kind":"client"' "$work/monitor.out"
 ! grep '"type":"shared' "$work/monitor.out" | grep -q '"verified":false'
+# The shared world's counters of status_t: entries answered in messages, and
+# the one refused object pose (the ghost, below).
+grep -q '"type":"service".*"shared_messages":[1-9][0-9]*,"shared_entries":[1-9]' \
+  "$work/monitor.out"
+grep -q '"type":"service".*"object_poses_received":[1-9][0-9]*,"object_poses_rejected":1,' \
+  "$work/monitor.out"
 # The only rejection of the whole run: the unknown object.
 [ "$(grep -c '"type":"reject"' "$work/monitor.out")" = 1 ]
 grep -q '"type":"reject".*"client":"ghost".*unknown_object' "$work/monitor.out"

@@ -28,6 +28,7 @@ backend: cpu
 workers: 3
 status_period_s: 0.5
 max_pose_rate_hz: 150
+max_object_pose_rate_hz: 75
 log_level: debug
 clients:
   - id: alice
@@ -57,6 +58,7 @@ TEST(ServiceConfigTest, FullFileParses) {
   EXPECT_EQ(c.workers, 3);
   EXPECT_DOUBLE_EQ(c.status_period_s, 0.5);
   EXPECT_DOUBLE_EQ(c.max_pose_rate_hz, 150);
+  EXPECT_DOUBLE_EQ(c.max_object_pose_rate_hz, 75);
   EXPECT_EQ(c.log_level, "debug");
   ASSERT_EQ(c.clients.size(), 2u);
   EXPECT_EQ(c.clients[0].id, "alice");
@@ -85,6 +87,10 @@ TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
       {base + "gpu_device: -5\n", "gpu_device must be an EGL device index"},
       {base + "status_period_s: 0\n", "status_period_s must be > 0"},
       {base + "max_pose_rate_hz: 0\n", "max_pose_rate_hz must be in (0, 1e6] Hz"},
+      {base + "max_object_pose_rate_hz: 0\n", "max_object_pose_rate_hz must be in (0, 1e6] Hz"},
+      {base + "max_object_pose_rate_hz: 2e6\n",
+       "max_object_pose_rate_hz must be in (0, 1e6] Hz"},
+      {base + "max_object_pose_rate_hz: fast\n", "max_object_pose_rate_hz"},
       {base + "query: {eps: 0}\n", "eps must be"},
       {base + "query: {delta: -1}\n", "delta must be"},
       {base + "query: {speed: 1}\n", "query: unknown key 'speed'"},

@@ -29,7 +29,7 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
                         "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
                         "--gpu-device",     "-1",        "--workers", "3",
                         "--room-key",       "room.key",  "--client-key", "a=a.key",
-                        "--max-pose-rate",  "500"};
+                        "--max-pose-rate",  "500",       "--max-object-pose-rate", "60"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};
@@ -53,6 +53,7 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   EXPECT_EQ(config.workers, 3);
   EXPECT_EQ(config.log_level, "info");
   EXPECT_EQ(config.max_pose_rate_hz, 500);
+  EXPECT_EQ(config.max_object_pose_rate_hz, 60);
   EXPECT_EQ(config.security.mode, "signed");  // The default: not given.
   EXPECT_EQ(config.security.room_key, "room.key");
   EXPECT_EQ(config.security.client_keys.at("a"), "a.key");

@@ -199,9 +199,26 @@ class CapturingPublisher : public Publisher {
     if (!env_first) ++shared_before_contact_;
     shared_.push_back(s);
   }
-  std::vector<shared_contact_t> shared() const {
+  std::vector<shared_contact_t> shared_messages() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return shared_;
+  }
+  // One entry of a shared_contact_t with its message's pair fields.
+  struct SharedEntry {
+    std::string client_id;
+    int64_t pair = 0, seq0 = 0, seq1 = 0, utime0 = 0, utime1 = 0;
+    shared_entry_t entry;
+  };
+  // Every entry of every shared_contact_t, in publication order.
+  std::vector<SharedEntry> shared() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::vector<SharedEntry> out;
+    for (const shared_contact_t& m : shared_) {
+      for (const shared_entry_t& e : m.entries) {
+        out.push_back({m.client_id, m.pair, m.seq0, m.seq1, m.utime0, m.utime1, e});
+      }
+    }
+    return out;
   }
   int shared_before_contact() const {
     std::lock_guard<std::mutex> lock(mutex_);

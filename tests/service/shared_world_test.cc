@@ -127,15 +127,15 @@ struct Offline {
   }
 };
 
-void ExpectEqualToOffline(const shared_contact_t& live, const json& off) {
-  SCOPED_TRACE(live.client_id + " pair " + std::to_string(live.pair) + " vs " + live.entity);
+void ExpectEqualToOffline(const SharedJob& job, const shared_entry_t& live, const json& off) {
+  SCOPED_TRACE(job.client_id + " pair " + std::to_string(job.pair) + " vs " + live.entity);
   EXPECT_EQ(live.t_from, off["window"][0].get<int64_t>());
   EXPECT_EQ(live.t_to, off["window"][1].get<int64_t>());
-  EXPECT_EQ(live.entity_kind == shared_contact_t::KIND_OBJECT ? "object" : "avatar",
+  EXPECT_EQ(live.entity_kind == shared_entry_t::KIND_OBJECT ? "object" : "avatar",
             off["kind"].get<std::string>());
-  ASSERT_NE(+live.result, +shared_contact_t::RESULT_INVALID) << live.error;
+  ASSERT_NE(+live.result, +shared_entry_t::RESULT_INVALID) << live.error;
   const bool contact = off["result"] == "contact";
-  ASSERT_EQ(live.result == shared_contact_t::RESULT_CONTACT, contact);
+  ASSERT_EQ(live.result == shared_entry_t::RESULT_CONTACT, contact);
   EXPECT_EQ(live.initially_colliding, off["initially_colliding"].get<bool>());
   EXPECT_EQ(live.undecided, off["undecided"].get<bool>());
   if (!contact) return;
@@ -157,6 +157,37 @@ void ExpectEqualToOffline(const shared_contact_t& live, const json& off) {
       EXPECT_EQ(c.normal[k], o["normal"][k].get<double>());
     }
     EXPECT_EQ(c.separation, o["separation"].get<double>());
+  }
+}
+
+// Per-link mode: the live entry's `links` equal `sweptccd world --per-link`'s.
+void ExpectLinksEqualToOffline(const SharedJob& job, const shared_entry_t& live,
+                               const json& off) {
+  SCOPED_TRACE(job.client_id + " pair " + std::to_string(job.pair) + " vs " + live.entity +
+               " (per link)");
+  ASSERT_TRUE(off.contains("links"));
+  ASSERT_EQ(live.num_links, static_cast<int32_t>(live.links.size()));
+  ASSERT_EQ(live.links.size(), off["links"].size());
+  for (size_t i = 0; i < live.links.size(); ++i) {
+    const entity_link_bracket_t& b = live.links[i];
+    const json& o = off["links"][i];
+    EXPECT_EQ(b.link, o["link"].get<int>());
+    EXPECT_EQ(b.s_lo, o["s_lo"].get<double>());
+    EXPECT_EQ(b.s_hi, o["s_hi"].get<double>());
+    EXPECT_EQ(b.t_lo, o["t_lo"].get<double>());
+    EXPECT_EQ(b.t_hi, o["t_hi"].get<double>());
+    EXPECT_EQ(b.initially_colliding, o["initially_colliding"].get<bool>());
+    EXPECT_EQ(b.undecided, o["undecided"].get<bool>());
+    ASSERT_EQ(static_cast<bool>(b.has_witness), o.contains("contact"));
+    if (!b.has_witness) continue;
+    const json& w = o["contact"];
+    EXPECT_EQ(b.witness.link, w["link"].get<int>());
+    EXPECT_EQ(b.witness.s, w["s"].get<double>());
+    EXPECT_EQ(b.witness.separation, w["separation"].get<double>());
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(b.witness.point_link[k], w["point_link"][k].get<double>());
+      EXPECT_EQ(b.witness.point_other[k], w["point_other"][k].get<double>());
+    }
   }
 }
 
@@ -216,6 +247,13 @@ void RunClientsAtDifferentRates(bool far_tail) {
   eo.eps_s = qo.eps_s;
   eo.delta_m = qo.delta_m;
   eo.max_intervals = qo.max_intervals;
+  // The same in per-link mode (every 4th entry, to bound the test's time).
+  QueryOptions qo_links = qo;
+  qo_links.per_link = true;
+  const world::WorldAnswerer links_answerer(off.w, qo_links);
+  world::EntityQueryOptions eo_links = eo;
+  eo_links.per_link = true;
+  int per_link_compared = 0, per_link_brackets = 0;
 
   SharedWorldOptions so;
   so.silence_timeout_us = 200'000;
@@ -282,12 +320,25 @@ void RunClientsAtDifferentRates(bool far_tail) {
     EXPECT_EQ(job.ended_by_timeout, i >= covered);
     if (!job.ended_by_timeout) got_covered.insert(key);
     waited += job.waited_us > 0;
-    const shared_contact_t m = AnswerSharedJob(job, eo);
+    const shared_entry_t m = AnswerSharedJob(job, eo);
     const int a = job.client_id == "alice" ? 0 : 1;
     // Entries the entity really ended are equal too: the same samples.
-    ExpectEqualToOffline(m, off.Others(a, static_cast<size_t>(job.pair)).at(job.entity));
+    ExpectEqualToOffline(job, m, off.Others(a, static_cast<size_t>(job.pair)).at(job.entity));
     EXPECT_EQ(m.waited_us, job.waited_us);
+    EXPECT_TRUE(m.links.empty()) << "no per-link brackets outside per-link mode";
+    if (i % 4 == 0 || m.result == shared_entry_t::RESULT_CONTACT) {
+      const shared_entry_t ml = AnswerSharedJob(job, eo_links);
+      const json record =
+          json::parse(links_answerer.RecordJson(a, static_cast<size_t>(job.pair)));
+      for (const json& o : record["others"]) {
+        if (o["entity"] != job.entity) continue;
+        ExpectLinksEqualToOffline(job, ml, o);
+        ++per_link_compared;
+        per_link_brackets += static_cast<int>(ml.links.size());
+      }
+    }
   }
+  EXPECT_GT(per_link_brackets, 10) << per_link_compared << " per-link entries compared";
   EXPECT_EQ(got_covered, expected_covered);
   EXPECT_EQ(got_all, expected_all);
   EXPECT_GT(waited, 100) << "bob's delay makes entries wait";

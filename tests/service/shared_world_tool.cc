@@ -176,9 +176,16 @@ void Send(lcm::LCM& lcm, const std::string& channel, const T& m) {
   lcm.publish(channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
 }
 
+// One entry of a shared_contact_t, with its message's pair fields.
+struct LiveEntry : shared_entry_t {
+  std::string client_id;
+  int64_t pair = 0, seq0 = 0, seq1 = 0, utime0 = 0, utime1 = 0;
+};
+
 struct Receiver {
   std::vector<contact_event_t> contacts;
-  std::vector<shared_contact_t> shared;
+  std::vector<LiveEntry> shared;  // Every entry of every message.
+  int64_t shared_messages = 0;
   std::vector<rejection_t> rejections;
   int bad = 0;
   template <class T>
@@ -197,7 +204,15 @@ struct Receiver {
   }
   void OnShared(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     shared_contact_t m;
-    if (Take(rbuf, &m)) shared.push_back(m);
+    if (!Take(rbuf, &m)) return;
+    ++shared_messages;
+    for (const shared_entry_t& e : m.entries) {
+      LiveEntry x;
+      static_cast<shared_entry_t&>(x) = e;
+      x.client_id = m.client_id;
+      x.pair = m.pair, x.seq0 = m.seq0, x.seq1 = m.seq1, x.utime0 = m.utime0, x.utime1 = m.utime1;
+      shared.push_back(std::move(x));
+    }
   }
   void OnReject(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     rejection_t m;
@@ -206,7 +221,7 @@ struct Receiver {
 };
 
 // The differences between a live entry and the offline one ("" if none).
-std::string Diff(const shared_contact_t& s, const json& o) {
+std::string Diff(const LiveEntry& s, const json& o) {
   std::string d;
   auto eq = [&](const char* what, double live, double off) {
     if (!(live == off)) d += std::string(" ") + what;
@@ -388,7 +403,7 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
     }
     if (answered != expect.last_seq) return false;
     std::set<std::tuple<std::string, int64_t, std::string>> got;
-    for (const shared_contact_t& s : rx.shared) got.insert({s.client_id, s.pair, s.entity});
+    for (const LiveEntry& s : rx.shared) got.insert({s.client_id, s.pair, s.entity});
     for (const auto& k : expected_keys()) {
       if (!got.count(k)) return false;
     }
@@ -406,7 +421,7 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
   }
   std::set<std::tuple<std::string, int64_t, std::string>> seen;
   int compared = 0, cut = 0, merged = 0, waited = 0, contacts = 0;
-  for (const shared_contact_t& s : rx.shared) {
+  for (const LiveEntry& s : rx.shared) {
     if (!seen.insert({s.client_id, s.pair, s.entity}).second) {
       std::printf("FAIL: %s pair %lld against %s published twice\n",
                   EscapeForDisplay(s.client_id).c_str(), static_cast<long long>(s.pair),
@@ -471,9 +486,10 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
     ++failures;
   }
   std::printf(
-      "shared_world_tool: %zu pairs, %zu shared entries: %d equal to sweptccd world "
-      "(%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
-      rx.contacts.size(), rx.shared.size(), compared, contacts, cut, merged, waited, failures);
+      "shared_world_tool: %zu pairs, %zu shared entries in %lld messages: %d equal to sweptccd "
+      "world (%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
+      rx.contacts.size(), rx.shared.size(), static_cast<long long>(rx.shared_messages), compared,
+      contacts, cut, merged, waited, failures);
   return failures == 0 ? 0 : 1;
 }
 

@@ -15,8 +15,9 @@
 //                         along x and z from that place, the grid centred
 //   --stagger             client c starts the clip c x frames/CLIENTS frames
 //                         later (different poses in each tick)
-//   --shared              also time shared_contact_t (SPEC 8): each entry
-//                         from the publication of its covering sample (below)
+//   --shared              also time shared_contact_t (SPEC 8): each entry of
+//                         each message from the publication of its covering
+//                         sample (below)
 //   --label TEXT          the table row's label
 //
 // A shared entry of A's pair (seq0, seq1) against client E is covered when
@@ -68,6 +69,7 @@ struct Collector {
   std::set<std::pair<std::string, std::string>> contact_pairs;     // Unordered client pairs.
   std::vector<double> shared_compute_us;                           // shared_contact_t.compute_us.
   int64_t shared_received = 0, shared_timeout = 0, shared_invalid = 0, shared_uncovered = 0;
+  int64_t shared_messages = 0;  // shared_contact_t received (each carries entries).
 
   void On(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::contact_event_t* e) {
     const Clock::time_point now = Clock::now();
@@ -79,28 +81,32 @@ struct Collector {
   }
 
   void OnShared(const lcm::ReceiveBuffer*, const std::string&,
-                const sweptccd::shared_contact_t* e) {
+                const sweptccd::shared_contact_t* m) {
     const Clock::time_point now = Clock::now();
-    const auto a = sent.find({e->client_id, e->seq1});
-    const auto other = sent_by_utime.find(e->entity);
-    if (a == sent.end() || other == sent_by_utime.end()) return;
-    ++shared_received;
-    ++shared_per_pair[{e->client_id, e->seq1}];
-    shared_compute_us.push_back(e->compute_us);
-    if (e->result == sweptccd::shared_contact_t::RESULT_INVALID) ++shared_invalid;
-    if (e->result == sweptccd::shared_contact_t::RESULT_CONTACT) {
-      contact_pairs.insert({std::min(e->client_id, e->entity), std::max(e->client_id, e->entity)});
+    const auto a = sent.find({m->client_id, m->seq1});
+    if (a == sent.end()) return;
+    ++shared_messages;
+    for (const sweptccd::shared_entry_t& e : m->entries) {
+      const auto other = sent_by_utime.find(e.entity);
+      if (other == sent_by_utime.end()) continue;
+      ++shared_received;
+      ++shared_per_pair[{m->client_id, m->seq1}];
+      shared_compute_us.push_back(e.compute_us);
+      if (e.result == sweptccd::shared_entry_t::RESULT_INVALID) ++shared_invalid;
+      if (e.result == sweptccd::shared_entry_t::RESULT_CONTACT) {
+        contact_pairs.insert({std::min(m->client_id, e.entity), std::max(m->client_id, e.entity)});
+      }
+      if (e.ended_by_timeout) {
+        ++shared_timeout;
+        continue;
+      }
+      const auto cover = other->second.upper_bound(m->utime1);
+      if (cover == other->second.end()) {  // Answered before E's covering sample: cannot be.
+        ++shared_uncovered;
+        continue;
+      }
+      shared_latencies_us.push_back(MicrosSince(std::max(a->second, cover->second), now));
     }
-    if (e->ended_by_timeout) {
-      ++shared_timeout;
-      return;
-    }
-    const auto cover = other->second.upper_bound(e->utime1);
-    if (cover == other->second.end()) {  // Answered before E's covering sample: cannot be.
-      ++shared_uncovered;
-      return;
-    }
-    shared_latencies_us.push_back(MicrosSince(std::max(a->second, cover->second), now));
   }
 };
 
@@ -300,6 +306,12 @@ int main(int argc, char** argv) {
       "shared entries' compute_us (AnswerSharedJob in the daemon, wall time): median %.1f, "
       "mean %.1f, p99 %.1f, max %.1f\n",
       compute.median, compute.n ? compute_sum_us / compute.n : 0.0, compute.p99, compute.max);
+  std::printf("shared messages: %lld received carrying %lld entries (%.2f entries a message)\n",
+              static_cast<long long>(collector.shared_messages),
+              static_cast<long long>(collector.shared_received),
+              collector.shared_messages
+                  ? static_cast<double>(collector.shared_received) / collector.shared_messages
+                  : 0.0);
   const int64_t client_pairs = static_cast<int64_t>(clients) * (clients - 1) / 2;
   std::printf(
       "shared entries: %lld received, %lld expected for the covered answered pairs, %lld dropped, "

@@ -64,7 +64,7 @@ echo "|---|---:|---:|---:|---:|"
 grep '^| ' "$work/bench_false.out"
 grep '^| ' "$work/bench_true.out"
 echo
-grep '^shared entries' "$work/bench_true.out"
+grep -E '^shared (entries|messages)' "$work/bench_true.out"
 grep 'dropped unanswered' "$work/daemon_true.log" | tail -1 || true
 p99_off=$(awk -F'|' '/^\| env part/ {print $5}' "$work/bench_false.out")
 p99_on=$(awk -F'|' '/^\| env part/ {print $5}' "$work/bench_true.out")

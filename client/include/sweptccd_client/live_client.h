@@ -56,7 +56,7 @@ struct ClientChannels {
   std::string join_reply = kJoinReplyChannel;
   std::string leave = kLeaveChannel;
   std::string object_pose = kObjectPoseChannel;        // Tracked objects' samples (in).
-  std::string shared_contact = kSharedContactChannel;  // Shared-world entries (out).
+  std::string shared_contact = kSharedContactChannel;  // Shared-world entries, by pair (out).
 };
 
 /// Receives and checks what the daemon publishes.
@@ -87,7 +87,8 @@ class DaemonConnection {
   void OnRejection(Callback<rejection_t> cb) { on_rejection_ = std::move(cb); }
   void OnStatus(Callback<status_t> cb) { on_status_ = std::move(cb); }
   void OnJoinReply(Callback<join_reply_t> cb) { on_join_reply_ = std::move(cb); }
-  /// The shared world's entries (a pair against another client or object).
+  /// The shared world's answers: one message per (pair, batch), each entry a
+  /// pair against another client or object (shared_contact_t::entries).
   void OnSharedContact(Callback<shared_contact_t> cb) { on_shared_contact_ = std::move(cb); }
   /// A message that failed its byte checks: the channel and a one-line problem.
   void OnUndecodable(std::function<void(const std::string&, const std::string&)> cb) {
