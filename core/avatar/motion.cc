@@ -57,6 +57,9 @@ Interval Norm(const Eigen::Vector3d& v) {
   return Sqrt(Sqr(Interval(v.x())) + Sqr(Interval(v.y())) + Sqr(Interval(v.z())));
 }
 
+// Norm(v).hi(), bit for bit, at half the cost (interval.h, NormUpper).
+double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
+
 }  // namespace
 
 Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
@@ -81,7 +84,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     LinkMotion& m = links_[i];
     m.a_L = link.a_L;
     m.b_L = link.b_L;
-    m.extent = Interval::Hull(Norm(link.a_L), Norm(link.b_L)).hi();
+    m.extent = std::max(NormHi(link.a_L), NormHi(link.b_L));  // Hull(...).hi()
     const LinkPose& x0 = pose0.links[i];
     const LinkPose& x1 = pose1.links[i];
     if (model == MotionModel::kArticulated && link.parent >= 0) {
@@ -100,6 +103,11 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     }
     m.q1 = ShortestArcTarget(m.q0, m.q1);
     m.half_angle = QuatAngle4D(m.q0, m.q1);
+    if (m.half_angle >= kNlerpAngle) {
+      m.sin_half = std::sin(m.half_angle);
+      m.inv_sin_half = 1.0 / m.sin_half;
+      m.sin_quarter = std::sin(0.5 * m.half_angle);
+    }
     scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
                       m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
@@ -122,7 +130,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       m.angular_accel_bound = 0;
     } else {
       const LinkMotion& k = links_[m.parent];
-      const Interval lever(Interval::Hull(Norm(m.p0), Norm(m.p1)).hi());
+      const Interval lever(std::max(NormHi(m.p0), NormHi(m.p1)));  // Hull(...).hi()
       const Interval wk(k.angular_bound);
       m.angular_bound = (wk + own_angular).hi();
       m.speed_bound = (Interval(k.speed_bound) + wk * lever + own_speed).hi();
@@ -147,17 +155,47 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
   coordinate_scale_ = scale;
-  if (model == MotionModel::kArticulated) {
-    // Linear in the link count; PoseAt composes O(depth) per call otherwise,
-    // quadratic over a chain (9.2 s per pair for 10,000 links).
-    PosesAt(0.0, &poses_at_ends_[0]);
-    PosesAt(0.5, &poses_at_ends_[1]);
-    PosesAt(1.0, &poses_at_ends_[2]);
+  // Linear in the link count; PoseAt composes O(depth) per call otherwise,
+  // quadratic over a chain (9.2 s per pair for 10,000 links). For
+  // `independent` a pose is its own slerp; the look-up still saves it.
+  PosesAt(0.0, &poses_at_ends_[0]);
+  PosesAt(0.5, &poses_at_ends_[1]);
+  PosesAt(1.0, &poses_at_ends_[2]);
+  segments_at_ends_.resize(6 * static_cast<size_t>(n));
+  for (int k = 0; k < 3; ++k) {
+    for (int i = 0; i < n; ++i) {
+      SegmentFromPose(i, poses_at_ends_[k][i], &segments_at_ends_[6 * i + 2 * k],
+                      &segments_at_ends_[6 * i + 2 * k + 1]);
+    }
   }
 }
 
+// SlerpPrepared(m.q0, m.q1, m.half_angle, s), bit for bit, with the sines
+// computed at construction where s allows: sin(half_angle) always (and its
+// inverse), both sines at s = 0, 0.5 and 1. At s = 0 (and s = 1) the other
+// argument is s * half_angle = +-0 (or (1 - s) * half_angle = +0), whose sine
+// is itself.
 Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) const {
-  return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
+  if (m.half_angle < kNlerpAngle) return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
+  double sin_a, sin_b;  // sin((1 - s) * half_angle), sin(s * half_angle).
+  if (s == 0.0) {
+    sin_a = m.sin_half;  // (1 - s) * half_angle == half_angle.
+    sin_b = s * m.half_angle;
+  } else if (s == 1.0) {
+    sin_a = (1 - s) * m.half_angle;
+    sin_b = m.sin_half;  // s * half_angle == half_angle.
+  } else if (s == 0.5) {
+    sin_a = m.sin_quarter;  // (1 - s) * half_angle == s * half_angle == half_angle / 2.
+    sin_b = m.sin_quarter;
+  } else {
+    sin_a = std::sin((1 - s) * m.half_angle);
+    sin_b = std::sin(s * m.half_angle);
+  }
+  const double inv = m.inv_sin_half;
+  const Eigen::Vector4d v = sin_a * inv * m.q0.coeffs() + sin_b * inv * m.q1.coeffs();
+  Eigen::Quaterniond q;
+  q.coeffs() = v / v.norm();
+  return q;
 }
 
 void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
@@ -211,7 +249,17 @@ LinkPose PairMotion::PoseAt(int link, double s) const {
 }
 
 void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const {
-  const LinkPose X = PoseAt(link, s);
+  const int k = s == 0.0 ? 0 : s == 0.5 ? 1 : s == 1.0 ? 2 : -1;
+  if (k >= 0 && !segments_at_ends_.empty()) {
+    *p_WA = segments_at_ends_[6 * link + 2 * k];
+    *p_WB = segments_at_ends_[6 * link + 2 * k + 1];
+    return;
+  }
+  SegmentFromPose(link, PoseAt(link, s), p_WA, p_WB);
+}
+
+void PairMotion::SegmentFromPose(int link, const LinkPose& X, Eigen::Vector3d* p_WA,
+                                 Eigen::Vector3d* p_WB) const {
   const Eigen::Matrix3d R = X.q.toRotationMatrix();
   *p_WA = X.p + R * links_[link].a_L;
   *p_WB = X.p + R * links_[link].b_L;
@@ -246,7 +294,7 @@ void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eige
   const Interval acc =
       Interval(m.accel_bound) + (Interval(m.angular_accel_bound) + w * w) * Interval(m.extent);
   const Interval width = Interval(s1) - Interval(s0);
-  const Interval chord = Interval::Hull(Norm(a1 - a0), Norm(b1 - b0));
+  const Interval chord(std::max(NormHi(a1 - a0), NormHi(b1 - b0)));  // Hull(...).hi()
   // Each of the three evaluated segments is off by at most rounding_slack_.
   const Interval second_order = Interval(chord.hi()) * Interval(0.5) +
                                 Interval(0.25) * Sqr(width) * acc +

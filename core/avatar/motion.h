@@ -47,7 +47,8 @@ class PairMotion {
   /// exactly those, so a culled link costs O(1), not O(chain depth)). The
   /// same bits either way (the same operations in the same order).
   LinkPose PoseAt(int link, double s) const;
-  /// World segment (A, B) of a link at s.
+  /// World segment (A, B) of a link at s. At s = 0, 0.5 and 1 a look-up of
+  /// the segments computed at construction (the same bits).
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
 
   /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
@@ -92,6 +93,9 @@ class PairMotion {
     Eigen::Vector3d p0, p1;
     Eigen::Quaterniond q0, q1;  // q1 already sign-flipped to the shortest arc.
     double half_angle = 0;      // Angle between q0 and q1 in R^4.
+    // sin(half_angle), its inverse and sin(half_angle / 2): slerp at s = 0,
+    // 0.5 and 1 needs no other sine (SlerpPrepared's values, bit for bit).
+    double sin_half = 0, inv_sin_half = 0, sin_quarter = 0;
     Eigen::Vector3d a_L, b_L;
     double speed_bound = 0;
     double angular_bound = 0;
@@ -100,15 +104,22 @@ class PairMotion {
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
+  // The segment at s from the link's pose at s (SegmentAt without the look-up).
+  void SegmentFromPose(int link, const LinkPose& X, Eigen::Vector3d* p_WA,
+                       Eigen::Vector3d* p_WB) const;
 
   MotionModel model_;
   std::vector<LinkMotion> links_;
   std::vector<int> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
-  // `articulated`: every link's pose at s = 0, 0.5 and 1 (PosesAt), so
-  // PoseAt at those times is a look-up; empty for `independent`.
+  // Every link's pose at s = 0, 0.5 and 1 (PosesAt), so PoseAt at those
+  // times is a look-up.
   std::vector<LinkPose> poses_at_ends_[3];
+  // Both models: every link's segment (A, B) at s = 0, 0.5 and 1, in that
+  // order, 6 per link: the whole-pair swept capsule of every link reads
+  // exactly those.
+  std::vector<Eigen::Vector3d> segments_at_ends_;
 };
 
 }  // namespace sweptccd

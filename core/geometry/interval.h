@@ -120,6 +120,18 @@ inline Interval Sqrt(const Interval& x) {
   return Interval(std::max(0.0, r.lo()), r.hi());
 }
 
+/// Sqrt(Sqr(x) + Sqr(y) + Sqr(z)).hi() for points x, y, z, bit for bit (the
+/// same roundings of the upper ends), without the lower ends: the motion's
+/// bounds only ever read the upper end of a norm. Each Sqr's upper end is
+/// x * x stepped up once (for x = 0 too: Sqr clamps the lower end only).
+inline double NormUpper(double x, double y, double z) {
+  const double sum = Interval::StepUp(
+      Interval::StepUp(Interval::StepUp(x * x, 1) + Interval::StepUp(y * y, 1), 1) +
+          Interval::StepUp(z * z, 1),
+      1);
+  return Interval::StepUp(std::sqrt(std::max(0.0, sum)), Interval::kLibmUlps);
+}
+
 /// sin over an interval, using monotone pieces between the extrema.
 Interval Sin(const Interval& x);
 /// cos over an interval.

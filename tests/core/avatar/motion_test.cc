@@ -765,5 +765,85 @@ TEST(MotionTest, PoseAtEndsAndMiddleMatchPosesAtOnDeepChains) {
   }
 }
 
+
+// The slerp sines cached per link (s = 0, 0.5, 1 and the inverse of
+// sin(half angle) everywhere) and the segments cached at s = 0, 0.5, 1 give
+// the same bits as computing them afresh: the twin is Slerp() (fresh sines)
+// composed by hand as SPEC section 3 says, in the engine's operation order.
+TEST(MotionTest, CachedSinesAndSegmentsMatchFreshComputationBitForBit) {
+  std::mt19937_64 g(0x5117e5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::vector<Link> links(2);
+  links[0].name = "root";
+  links[1].name = "child";
+  links[1].parent = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    for (Link& l : links) {
+      l.a_L = {u(g), u(g), u(g)};
+      l.b_L = trial % 5 == 0 ? l.a_L : Eigen::Vector3d(u(g), u(g), u(g));
+      l.radius = 0.05;
+    }
+    const Skeleton skeleton = Skeleton::FromLinks("pair", links, "test");
+    Pose pose[2];
+    for (Pose& p : pose) {
+      p.links.resize(2);
+      for (LinkPose& l : p.links) {
+        l.p = {u(g), u(g), u(g)};
+        l.q = Eigen::Quaterniond(u(g), u(g), u(g), u(g)).normalized();
+      }
+    }
+    // Small turns too (the nlerp fallback below 1e-6 rad), and sign flips.
+    if (trial % 3 == 0) {
+      for (int i = 0; i < 2; ++i) {
+        const double tiny = std::pow(10.0, -9 + 6 * u01(g));
+        pose[1].links[i].q = (pose[0].links[i].q *
+                              Eigen::Quaterniond(Eigen::AngleAxisd(tiny, Eigen::Vector3d::UnitX())))
+                                 .normalized();
+      }
+    }
+    if (trial % 4 == 1) pose[1].links[1].q.coeffs() *= -1;
+    const double random_s = u01(g);
+    for (MotionModel model : {MotionModel::kIndependent, MotionModel::kArticulated}) {
+      const PairMotion motion(skeleton, pose[0], pose[1], model);
+      for (double s : {0.0, 0.5, 1.0, random_s, 0.25}) {
+        LinkPose twin[2];
+        for (int i = 0; i < 2; ++i) {
+          const LinkPose& x0 = pose[0].links[i];
+          const LinkPose& x1 = pose[1].links[i];
+          if (model == MotionModel::kIndependent || i == 0) {
+            twin[i].p = (1 - s) * x0.p + s * x1.p;
+            twin[i].q = Slerp(x0.q, x1.q, s);
+            continue;
+          }
+          const LinkPose& k0 = pose[0].links[0];
+          const LinkPose& k1 = pose[1].links[0];
+          const Eigen::Vector3d c0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
+          const Eigen::Vector3d c1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
+          const Eigen::Quaterniond r0 = (k0.q.conjugate() * x0.q).normalized();
+          const Eigen::Quaterniond r1 = (k1.q.conjugate() * x1.q).normalized();
+          const Eigen::Vector3d c = (1 - s) * c0 + s * c1;
+          const Eigen::Quaterniond r = Slerp(r0, r1, s);
+          twin[i].q = (twin[0].q * r).normalized();
+          twin[i].p = twin[0].p + twin[0].q * c;
+        }
+        for (int i = 0; i < 2; ++i) {
+          const LinkPose got = motion.PoseAt(i, s);
+          ASSERT_EQ(got.p, twin[i].p) << "trial " << trial << " link " << i << " s " << s;
+          ASSERT_EQ(got.q.coeffs(), twin[i].q.coeffs())
+              << "trial " << trial << " link " << i << " s " << s;
+          const Eigen::Matrix3d R = twin[i].q.toRotationMatrix();
+          const Eigen::Vector3d A = twin[i].p + R * links[i].a_L;
+          const Eigen::Vector3d B = twin[i].p + R * links[i].b_L;
+          Eigen::Vector3d a, b;
+          motion.SegmentAt(i, s, &a, &b);
+          ASSERT_EQ(a, A) << "trial " << trial << " link " << i << " s " << s;
+          ASSERT_EQ(b, B) << "trial " << trial << " link " << i << " s " << s;
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <sstream>
@@ -351,6 +352,37 @@ TEST(IntervalTest, ArithmeticIsStrictlyOutward) {
     EXPECT_LT((A * B).lo(), *std::min_element(p, p + 4));
     EXPECT_GT((A * B).hi(), *std::max_element(p, p + 4));
   }
+}
+
+// NormUpper is the upper end of the interval norm of a point, bit for bit:
+// its brute-force twin is the full interval expression it replaces.
+TEST(IntervalTest, NormUpperEqualsIntervalNormBitForBit) {
+  std::mt19937_64 g(20261124);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double specials[] = {0.0, -0.0, 1.0, -1.0, std::numeric_limits<double>::denorm_min(),
+                             std::numeric_limits<double>::min(), 1e-160, 1e154, 1e155,
+                             std::numeric_limits<double>::max(), kInf, -kInf,
+                             std::numeric_limits<double>::quiet_NaN()};
+  auto pick = [&]() {
+    const double r = u01(g);
+    if (r < 0.15) return specials[std::uniform_int_distribution<int>(0, 12)(g)];
+    if (r < 0.5) return std::uniform_real_distribution<double>(-3, 3)(g);  // Avatars' metres.
+    return RandomValue(g);
+  };
+  int64_t checks = 0;
+  for (int k = 0; k < 2'000'000; ++k) {
+    const double x = pick(), y = pick(), z = pick();
+    const Interval full = Sqrt(Sqr(Interval(x)) + Sqr(Interval(y)) + Sqr(Interval(z)));
+    const double upper = NormUpper(x, y, z);
+    uint64_t a, b;
+    std::memcpy(&a, &upper, sizeof a);
+    const double want = full.hi();
+    std::memcpy(&b, &want, sizeof b);
+    ASSERT_EQ(a, b) << "x " << Num(x) << " y " << Num(y) << " z " << Num(z) << ": " << Num(upper)
+                    << " vs " << Num(want);
+    ++checks;
+  }
+  EXPECT_EQ(checks, 2'000'000);
 }
 
 TEST(IntervalTest, SmallHelpers) {
