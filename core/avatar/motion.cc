@@ -53,11 +53,9 @@ Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::
   return q1;
 }
 
-Interval Norm(const Eigen::Vector3d& v) {
-  return Sqrt(Sqr(Interval(v.x())) + Sqr(Interval(v.y())) + Sqr(Interval(v.z())));
-}
-
-// Norm(v).hi(), bit for bit, at half the cost (interval.h, NormUpper).
+// The upper end of the interval norm Sqrt(Sqr(x) + Sqr(y) + Sqr(z)), bit for
+// bit, without its lower end (interval.h, NormUpper): every bound below reads
+// only the upper end of a norm.
 double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
 
 }  // namespace
@@ -120,7 +118,11 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     // 2 * half_angle, widened for the rounding of atan2 and the nlerp fallback.
     const Interval own_angular = Interval(2.0) * Interval::Outward(m.half_angle, m.half_angle, 8) *
                                  Interval(1.0, 1.0 + 1e-12);
-    const Interval own_speed = Norm(m.p1 - m.p0);
+    // Only the upper end of this norm reaches a bound: sums' upper ends add
+    // upper ends, and its one product, with 2 w_k (upper end >= |lower end|),
+    // peaks at the two upper ends whatever its lower end. So the point at the
+    // upper end gives the same bits as Norm(m.p1 - m.p0).
+    const Interval own_speed(NormHi(m.p1 - m.p0));
     if (m.parent < 0) {
       // Linear position, and slerp turns about a fixed world axis: no
       // acceleration at all.
@@ -147,24 +149,24 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
   // Chain depth, parents first (linear time).
-  std::vector<int> link_depth(n, 1);
   int depth = 1;
   for (int i : order_) {
-    if (links_[i].parent >= 0) link_depth[i] = link_depth[links_[i].parent] + 1;
-    depth = std::max(depth, link_depth[i]);
+    if (links_[i].parent >= 0) links_[i].depth = links_[links_[i].parent].depth + 1;
+    depth = std::max(depth, links_[i].depth);
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
   coordinate_scale_ = scale;
   // Linear in the link count; PoseAt composes O(depth) per call otherwise,
   // quadratic over a chain (9.2 s per pair for 10,000 links). For
   // `independent` a pose is its own slerp; the look-up still saves it.
-  PosesAt(0.0, &poses_at_ends_[0]);
-  PosesAt(0.5, &poses_at_ends_[1]);
-  PosesAt(1.0, &poses_at_ends_[2]);
+  poses_at_ends_.resize(3 * static_cast<size_t>(n));
+  PosesAtInto(0.0, &poses_at_ends_[0]);
+  PosesAtInto(0.5, &poses_at_ends_[n]);
+  PosesAtInto(1.0, &poses_at_ends_[2 * n]);
   segments_at_ends_.resize(6 * static_cast<size_t>(n));
   for (int k = 0; k < 3; ++k) {
     for (int i = 0; i < n; ++i) {
-      SegmentFromPose(i, poses_at_ends_[k][i], &segments_at_ends_[6 * i + 2 * k],
+      SegmentFromPose(i, poses_at_ends_[k * n + i], &segments_at_ends_[6 * i + 2 * k],
                       &segments_at_ends_[6 * i + 2 * k + 1]);
     }
   }
@@ -200,16 +202,20 @@ Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) cons
 
 void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
   X_WL->resize(links_.size());
+  PosesAtInto(s, X_WL->data());
+}
+
+void PairMotion::PosesAtInto(double s, LinkPose* X_WL) const {
   for (int i : order_) {
     const LinkMotion& m = links_[i];
     const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
     const Eigen::Quaterniond r = LocalRotation(m, s);
-    LinkPose& out = (*X_WL)[i];
+    LinkPose& out = X_WL[i];
     if (m.parent < 0) {
       out.p = c;
       out.q = r;
     } else {
-      const LinkPose& k = (*X_WL)[m.parent];
+      const LinkPose& k = X_WL[m.parent];
       out.q = (k.q * r).normalized();
       out.p = k.p + k.q * c;
     }
@@ -217,10 +223,11 @@ void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
 }
 
 LinkPose PairMotion::PoseAt(int link, double s) const {
-  if (!poses_at_ends_[0].empty()) {
-    if (s == 0.0) return poses_at_ends_[0][link];
-    if (s == 0.5) return poses_at_ends_[1][link];
-    if (s == 1.0) return poses_at_ends_[2][link];
+  if (!poses_at_ends_.empty()) {
+    const size_t n = links_.size();
+    if (s == 0.0) return poses_at_ends_[link];
+    if (s == 0.5) return poses_at_ends_[n + link];
+    if (s == 1.0) return poses_at_ends_[2 * n + link];
   }
   // Compose from the root down along the ancestors, iteratively (chains may
   // be deep). The same operations in the same order as PosesAt.

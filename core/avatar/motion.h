@@ -102,8 +102,11 @@ class PairMotion {
     double accel_bound = 0;
     double angular_accel_bound = 0;
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
+    int depth = 1;      // Links from the root to this one, both counted.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
+  // PosesAt into num_links() poses at X_WL.
+  void PosesAtInto(double s, LinkPose* X_WL) const;
   // The segment at s from the link's pose at s (SegmentAt without the look-up).
   void SegmentFromPose(int link, const LinkPose& X, Eigen::Vector3d* p_WA,
                        Eigen::Vector3d* p_WB) const;
@@ -113,9 +116,9 @@ class PairMotion {
   std::vector<int> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
-  // Every link's pose at s = 0, 0.5 and 1 (PosesAt), so PoseAt at those
-  // times is a look-up.
-  std::vector<LinkPose> poses_at_ends_[3];
+  // Every link's pose at s = 0 (first n), 0.5 and 1 (PosesAt), so PoseAt at
+  // those times is a look-up.
+  std::vector<LinkPose> poses_at_ends_;
   // Both models: every link's segment (A, B) at s = 0, 0.5 and 1, in that
   // order, 6 per link: the whole-pair swept capsule of every link reads
   // exactly those.

@@ -19,6 +19,7 @@ namespace sweptccd {
 class Interval {
  public:
   static constexpr int kLibmUlps = 4;
+  static constexpr double kFiniteMax = std::numeric_limits<double>::max();
 
   constexpr Interval() = default;
   constexpr Interval(double v) : lo_(v), hi_(v) {}  // NOLINT: implicit by design
@@ -43,6 +44,15 @@ class Interval {
   }
   friend Interval operator-(const Interval& a) { return Interval(-a.hi_, -a.lo_); }
   friend Interval operator*(const Interval& a, const Interval& b) {
+    // Both operands valid, finite and non-negative (the motion's bounds,
+    // nearly every product): rounded multiplication is monotone there, so the
+    // extreme products are lo * lo and hi * hi. The same bits as the four
+    // products below: ties can only differ in the sign of a zero, and
+    // Outward widens -0 and +0 alike.
+    if (0 <= a.lo_ && a.lo_ <= a.hi_ && a.hi_ <= kFiniteMax && 0 <= b.lo_ && b.lo_ <= b.hi_ &&
+        b.hi_ <= kFiniteMax) {
+      return Outward(a.lo_ * b.lo_, a.hi_ * b.hi_, 1);
+    }
     const double p[4] = {a.lo_ * b.lo_, a.lo_ * b.hi_, a.hi_ * b.lo_, a.hi_ * b.hi_};
     return Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
   }

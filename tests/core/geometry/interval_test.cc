@@ -385,6 +385,43 @@ TEST(IntervalTest, NormUpperEqualsIntervalNormBitForBit) {
   EXPECT_EQ(checks, 2'000'000);
 }
 
+// operator* takes a shortcut for valid, finite, non-negative operands; its
+// brute-force twin is the general rule (Outward of the least and greatest of
+// the four end products), compared bit for bit.
+TEST(IntervalTest, ProductShortcutEqualsFourProductRuleBitForBit) {
+  std::mt19937_64 g(0x9e0d);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double specials[] = {0.0, -0.0, 1.0, std::numeric_limits<double>::denorm_min(),
+                             std::numeric_limits<double>::min(), 1e-160, 1e154, 1e155,
+                             std::numeric_limits<double>::max(), kInf};
+  auto pick = [&]() {
+    const double r = u01(g);
+    if (r < 0.2) return specials[std::uniform_int_distribution<int>(0, 9)(g)];
+    if (r < 0.6) return std::fabs(RandomValue(g));
+    return RandomValue(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int k = 0; k < 2'000'000; ++k) {
+    double a0 = pick(), a1 = pick(), b0 = pick(), b1 = pick();
+    if (u01(g) < 0.9) {  // Mostly valid intervals; some inverted ones too.
+      if (a1 < a0) std::swap(a0, a1);
+      if (b1 < b0) std::swap(b0, b1);
+    }
+    if (u01(g) < 0.1) a1 = a0;
+    const Interval A(a0, a1), B(b0, b1);
+    const double p[4] = {a0 * b0, a0 * b1, a1 * b0, a1 * b1};
+    const Interval want =
+        Interval::Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
+    const Interval got = A * B;
+    ASSERT_EQ(bits(got.lo()), bits(want.lo())) << Describe(A) << " * " << Describe(B);
+    ASSERT_EQ(bits(got.hi()), bits(want.hi())) << Describe(A) << " * " << Describe(B);
+  }
+}
+
 TEST(IntervalTest, SmallHelpers) {
   const Interval X(-2, 3);
   EXPECT_EQ(X.width(), 5);
