@@ -103,8 +103,9 @@ BENCHMARK(BM_QueryCulledBreakfast)->Unit(benchmark::kMicrosecond);
 
 // The quiet rows of `sweptccd bench` (issue 11): every pair of its six
 // clips at 30 Hz (at most 300 per clip), placed as the bench places them,
-// through the MORSE apartment (arg 0) or the breakfast room (arg 1). Mostly
-// culled links; the time per iteration is one pair, averaged over them all.
+// through the MORSE apartment (first arg 0) or the breakfast room (1), all
+// clips (second arg -1) or one (its index below). Mostly culled links; the
+// time per iteration is one pair, averaged over them all.
 void BM_QueryQuietScene(benchmark::State& state) {
   struct Scene {
     const char* file;
@@ -120,7 +121,9 @@ void BM_QueryQuietScene(benchmark::State& state) {
                               "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
                               "cmu_01_03_playground_climb_hang_swing.bvh", "boxing_toes.bvh"};
   std::vector<MocapClip> clips;
-  for (const char* name : clip_names) {
+  for (int c = 0; c < 6; ++c) {
+    if (state.range(1) >= 0 && state.range(1) != c) continue;
+    const char* name = clip_names[c];
     const std::string path = bench::DataFile(kData + "/mocap/" + name);
     if (!std::ifstream(path)) continue;  // Not every data folder holds every clip.
     MocapImportOptions mo;
@@ -149,7 +152,11 @@ void BM_QueryQuietScene(benchmark::State& state) {
     benchmark::DoNotOptimize(engine.Query(clip->poses[i], clip->poses[i + 1], QueryOptions()));
   }
 }
-BENCHMARK(BM_QueryQuietScene)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_QueryQuietScene)
+    ->Args({0, -1})
+    ->Args({1, -1})
+    ->Args({0, 3})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace sweptccd
