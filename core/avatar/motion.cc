@@ -1,6 +1,7 @@
 #include "core/avatar/motion.h"
 
 #include <cmath>
+#include <limits>
 
 #include "core/errors.h"
 #include "core/geometry/interval.h"
@@ -59,6 +60,51 @@ Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::
 double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
 
 }  // namespace
+
+namespace internal {
+
+// Each interval operation's upper end, for the operands met here: sums add
+// upper ends; in every product both operands' upper ends are >= 0 and >= the
+// magnitude of their lower ends (a lower end is only below 0, by one step,
+// where the value is 0), so the greatest of the four end products is the
+// product of the upper ends (ties differ at most in the sign of a zero,
+// which StepUp treats alike). Sqr's upper end is the square of the upper end
+// for the same reason. All of that holds while every step is finite; a
+// result that is not (an overflow on the way: inf, or inf * 0) is computed
+// again with the intervals.
+namespace {
+double Up(double x) { return Interval::StepUp(x, 1); }
+bool Finite(double x) { return x <= std::numeric_limits<double>::max(); }  // NaN: false.
+}  // namespace
+
+double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
+                        double s1) {
+  const double half_width = Up(Up(s1 - s0) * 0.5);
+  const double speed_all = Up(speed + Up(angular * extent));
+  const double growth = Up(Up(speed_all * half_width) + slack);
+  if (Finite(growth)) return growth;
+  const Interval interval_speed = Interval(speed) + Interval(angular) * Interval(extent);
+  return (interval_speed * ((Interval(s1) - Interval(s0)) * Interval(0.5)) + Interval(slack))
+      .hi();
+}
+
+double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
+                         double extent, double slack, double s0, double s1) {
+  const double acc = Up(accel + Up(Up(angular_accel + Up(angular * angular)) * extent));
+  const double width = Up(s1 - s0);
+  const double curve = Up(Up(0.25 * Up(width * width)) * acc);
+  const double growth = Up(Up(Up(chord * 0.5) + curve) + Up(4.0 * slack));
+  if (Finite(growth)) return growth;
+  const Interval w(angular);
+  const Interval interval_acc =
+      Interval(accel) + (Interval(angular_accel) + w * w) * Interval(extent);
+  const Interval interval_width = Interval(s1) - Interval(s0);
+  return (Interval(chord) * Interval(0.5) + Interval(0.25) * Sqr(interval_width) * interval_acc +
+          Interval(4.0) * Interval(slack))
+      .hi();
+}
+
+}  // namespace internal
 
 Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
   const Eigen::Quaterniond t = ShortestArcTarget(q0, q1);
@@ -274,10 +320,9 @@ void PairMotion::SegmentFromPose(int link, const LinkPose& X, Eigen::Vector3d* p
 
 double PairMotion::SweepRadius(int link, double s0, double s1) const {
   const LinkMotion& m = links_[link];
-  const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
-  const Interval speed =
-      Interval(m.speed_bound) + Interval(m.angular_bound) * Interval(m.extent);
-  return (speed * half_width + Interval(rounding_slack_)).hi();
+  // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
+  return internal::FirstOrderGrowth(m.speed_bound, m.angular_bound, m.extent, rounding_slack_,
+                                    s0, s1);
 }
 
 void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
@@ -296,17 +341,13 @@ void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eige
   const double mid = 0.5 * (s0 + s1);
   SegmentAt(link, mid, p_WA, p_WB);
   const double first_order = SweepRadius(link, s0, s1);
-  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
-  const Interval w(m.angular_bound);
-  const Interval acc =
-      Interval(m.accel_bound) + (Interval(m.angular_accel_bound) + w * w) * Interval(m.extent);
-  const Interval width = Interval(s1) - Interval(s0);
-  const Interval chord(std::max(NormHi(a1 - a0), NormHi(b1 - b0)));  // Hull(...).hi()
-  // Each of the three evaluated segments is off by at most rounding_slack_.
-  const Interval second_order = Interval(chord.hi()) * Interval(0.5) +
-                                Interval(0.25) * Sqr(width) * acc +
-                                Interval(4.0) * Interval(rounding_slack_);
-  *growth = std::min(first_order, second_order.hi());
+  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|. Each of the
+  // three evaluated segments is off by at most rounding_slack_.
+  const double chord = std::max(NormHi(a1 - a0), NormHi(b1 - b0));
+  const double second_order =
+      internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
+                                  m.extent, rounding_slack_, s0, s1);
+  *growth = std::min(first_order, second_order);
 }
 
 }  // namespace sweptccd

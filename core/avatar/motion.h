@@ -27,6 +27,22 @@ Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond&
 /// constant angular speed of Slerp per unit of s.
 double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1);
 
+namespace internal {
+
+/// The upper ends of PairMotion's two growth bounds over [s0, s1], bit for
+/// bit the interval expressions they replace (the twins in
+/// tests/core/avatar/motion_test.cc), without the lower ends. Inputs are the
+/// bounds' upper ends: non-negative and finite; 0 <= s0 <= s1 <= 1.
+/// First order: (speed + angular * extent) * (s1 - s0) / 2 + slack.
+double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
+                        double s1);
+/// Second order: chord / 2 + (s1 - s0)^2 / 4 * (accel + (angular_accel +
+/// angular^2) * extent) + 4 slack.
+double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
+                         double extent, double slack, double s0, double s1);
+
+}  // namespace internal
+
 /// The interpolated motion of every link of a skeleton between two valid poses
 /// (normalised quaternions). Immutable after construction; const methods are
 /// safe to call from several threads.

@@ -16,6 +16,8 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
     links_[l].box = Aabb::OfCapsule(c.a, c.b, c.radius);
   }
   scratch_.reserve(static_cast<size_t>(4 * n + 16));
+  link_order_.reserve(static_cast<size_t>(n));
+  link_nodes_.reserve(static_cast<size_t>(2 * n));  // A binary tree over n leaves.
 }
 
 void RootCandidates::FindOpen(const std::vector<bool>& skip) {

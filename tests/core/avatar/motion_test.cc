@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <numeric>
 #include <random>
 #include <sstream>
@@ -18,6 +19,7 @@
 
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/geometry/interval.h"
 
 namespace sweptccd {
 namespace {
@@ -842,6 +844,54 @@ TEST(MotionTest, CachedSinesAndSegmentsMatchFreshComputationBitForBit) {
         }
       }
     }
+  }
+}
+
+
+// The growth bounds' upper-end arithmetic against its twin, the interval
+// expressions it replaced (verbatim), bit for bit, on random non-negative
+// bounds of every magnitude (zeros and subnormals included) and intervals
+// [s0, s1] of every width (zero included).
+TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
+  std::mt19937_64 g(0x60e7);
+  std::uniform_real_distribution<double> u01(0, 1);
+  auto value = [&]() {
+    const double r = u01(g);
+    if (r < 0.1) return 0.0;
+    if (r < 0.15) return std::ldexp(u01(g), -1060);  // Subnormal.
+    if (r < 0.5) return 10 * u01(g);
+    return std::pow(10.0, -300 + 600 * u01(g)) * u01(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int k = 0; k < 1'000'000; ++k) {
+    const double speed = value(), angular = value(), extent = value(), slack = value();
+    const double accel = value(), angular_accel = value(), chord = value();
+    double s0 = u01(g), s1 = u01(g);
+    if (s1 < s0) std::swap(s0, s1);
+    const double r = u01(g);
+    if (r < 0.1) s1 = s0;
+    else if (r < 0.2) s1 = std::nextafter(s0, 2.0);
+    else if (r < 0.3) s0 = 0, s1 = 1;
+    // The expressions as PairMotion wrote them with intervals.
+    const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
+    const Interval speed_all = Interval(speed) + Interval(angular) * Interval(extent);
+    const double first = (speed_all * half_width + Interval(slack)).hi();
+    const Interval w(angular);
+    const Interval acc = Interval(accel) + (Interval(angular_accel) + w * w) * Interval(extent);
+    const Interval width = Interval(s1) - Interval(s0);
+    const double second = (Interval(chord) * Interval(0.5) + Interval(0.25) * Sqr(width) * acc +
+                           Interval(4.0) * Interval(slack))
+                              .hi();
+    ASSERT_EQ(bits(internal::FirstOrderGrowth(speed, angular, extent, slack, s0, s1)), bits(first))
+        << k;
+    ASSERT_EQ(bits(internal::SecondOrderGrowth(chord, accel, angular_accel, angular, extent, slack,
+                                               s0, s1)),
+              bits(second))
+        << k;
   }
 }
 
