@@ -3,7 +3,12 @@
 
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <cmath>
+#include <fstream>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "core/geometry/bvh.h"
 #include "core/query/ccd_query.h"
@@ -12,6 +17,7 @@
 #include "core/geometry/mesh.h"
 #include "mocap/mocap_import.h"
 #include "core/avatar/motion.h"
+#include "tools/bench_common.h"
 
 namespace sweptccd {
 namespace {
@@ -93,6 +99,64 @@ void BM_QueryCulledBreakfast(benchmark::State& state) {
   state.counters["culled_links_per_pair"] = pairs ? static_cast<double>(culled) / pairs : 0.0;
 }
 BENCHMARK(BM_QueryCulledBreakfast)->Unit(benchmark::kMicrosecond);
+
+
+// The quiet rows of `sweptccd bench` (issue 11): every pair of its six
+// clips at 30 Hz (at most 300 per clip), placed as the bench places them,
+// through the MORSE apartment (first arg 0) or the breakfast room (1), all
+// clips (second arg -1) or one (its index below). Mostly culled links; the
+// time per iteration is one pair, averaged over them all.
+void BM_QueryQuietScene(benchmark::State& state) {
+  struct Scene {
+    const char* file;
+    char up;
+    double floor;
+    Eigen::Vector2d centre;
+  };
+  const Scene scenes[] = {{"morse_apartment.ply", 'z', 0.0, {1.0, 1.0}},
+                          {"bitterli_breakfast_room.ply", 'y', -1.42, {-0.67, -1.9}}};
+  const Scene& scene = scenes[state.range(0)];
+  const Environment env = Environment::LoadFiles({bench::DataFile(kData + "/env/" + scene.file)});
+  const char* clip_names[] = {"cmu_02_01_walk.bvh", "cmu_02_03_run_jog.bvh", "cmu_13_41_jump.bvh",
+                              "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
+                              "cmu_01_03_playground_climb_hang_swing.bvh", "boxing_toes.bvh"};
+  std::vector<MocapClip> clips;
+  for (int c = 0; c < 6; ++c) {
+    if (state.range(1) >= 0 && state.range(1) != c) continue;
+    const char* name = clip_names[c];
+    const std::string path = bench::DataFile(kData + "/mocap/" + name);
+    if (!std::ifstream(path)) continue;  // Not every data folder holds every clip.
+    MocapImportOptions mo;
+    mo.up_axis = scene.up;
+    MocapClip clip = ImportBvhFile(path, mo);
+    const int step = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s * 30))));
+    std::vector<Pose> poses;
+    for (size_t f = 0; f < clip.poses.size() && poses.size() < 301; f += step) {
+      poses.push_back(clip.poses[f]);
+    }
+    clip.poses = poses;
+    bench::PlaceClipOnFloor(&clip, scene.up, scene.floor, scene.centre);
+    clips.push_back(std::move(clip));
+  }
+  std::vector<std::pair<const MocapClip*, size_t>> pairs;
+  for (const MocapClip& clip : clips) {
+    for (size_t i = 0; i + 1 < clip.poses.size(); ++i) pairs.emplace_back(&clip, i);
+  }
+  std::vector<CcdEngine> engines;
+  engines.reserve(clips.size());
+  for (const MocapClip& clip : clips) engines.emplace_back(clip.skeleton, env);
+  size_t k = 0;
+  for (auto _ : state) {
+    const auto& [clip, i] = pairs[k++ % pairs.size()];
+    const CcdEngine& engine = engines[clip - clips.data()];
+    benchmark::DoNotOptimize(engine.Query(clip->poses[i], clip->poses[i + 1], QueryOptions()));
+  }
+}
+BENCHMARK(BM_QueryQuietScene)
+    ->Args({0, -1})
+    ->Args({1, -1})
+    ->Args({0, 3})
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace sweptccd

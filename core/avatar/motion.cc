@@ -1,6 +1,7 @@
 #include "core/avatar/motion.h"
 
 #include <cmath>
+#include <limits>
 
 #include "core/errors.h"
 #include "core/geometry/interval.h"
@@ -53,11 +54,57 @@ Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::
   return q1;
 }
 
-Interval Norm(const Eigen::Vector3d& v) {
-  return Sqrt(Sqr(Interval(v.x())) + Sqr(Interval(v.y())) + Sqr(Interval(v.z())));
-}
+// The upper end of the interval norm Sqrt(Sqr(x) + Sqr(y) + Sqr(z)), bit for
+// bit, without its lower end (interval.h, NormUpper): every bound below reads
+// only the upper end of a norm.
+double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
 
 }  // namespace
+
+namespace internal {
+
+// Each interval operation's upper end, for the operands met here: sums add
+// upper ends; in every product both operands' upper ends are >= 0 and >= the
+// magnitude of their lower ends (a lower end is only below 0, by one step,
+// where the value is 0), so the greatest of the four end products is the
+// product of the upper ends (ties differ at most in the sign of a zero,
+// which StepUp treats alike). Sqr's upper end is the square of the upper end
+// for the same reason. All of that holds while every step is finite; a
+// result that is not (an overflow on the way: inf, or inf * 0) is computed
+// again with the intervals.
+namespace {
+double Up(double x) { return Interval::StepUp(x, 1); }
+bool Finite(double x) { return x <= std::numeric_limits<double>::max(); }  // NaN: false.
+}  // namespace
+
+double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
+                        double s1) {
+  const double half_width = Up(Up(s1 - s0) * 0.5);
+  const double speed_all = Up(speed + Up(angular * extent));
+  const double growth = Up(Up(speed_all * half_width) + slack);
+  if (Finite(growth)) return growth;
+  const Interval interval_speed = Interval(speed) + Interval(angular) * Interval(extent);
+  return (interval_speed * ((Interval(s1) - Interval(s0)) * Interval(0.5)) + Interval(slack))
+      .hi();
+}
+
+double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
+                         double extent, double slack, double s0, double s1) {
+  const double acc = Up(accel + Up(Up(angular_accel + Up(angular * angular)) * extent));
+  const double width = Up(s1 - s0);
+  const double curve = Up(Up(0.25 * Up(width * width)) * acc);
+  const double growth = Up(Up(Up(chord * 0.5) + curve) + Up(4.0 * slack));
+  if (Finite(growth)) return growth;
+  const Interval w(angular);
+  const Interval interval_acc =
+      Interval(accel) + (Interval(angular_accel) + w * w) * Interval(extent);
+  const Interval interval_width = Interval(s1) - Interval(s0);
+  return (Interval(chord) * Interval(0.5) + Interval(0.25) * Sqr(interval_width) * interval_acc +
+          Interval(4.0) * Interval(slack))
+      .hi();
+}
+
+}  // namespace internal
 
 Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
   const Eigen::Quaterniond t = ShortestArcTarget(q0, q1);
@@ -81,7 +128,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     LinkMotion& m = links_[i];
     m.a_L = link.a_L;
     m.b_L = link.b_L;
-    m.extent = Interval::Hull(Norm(link.a_L), Norm(link.b_L)).hi();
+    m.extent = std::max(NormHi(link.a_L), NormHi(link.b_L));  // Hull(...).hi()
     const LinkPose& x0 = pose0.links[i];
     const LinkPose& x1 = pose1.links[i];
     if (model == MotionModel::kArticulated && link.parent >= 0) {
@@ -100,6 +147,11 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     }
     m.q1 = ShortestArcTarget(m.q0, m.q1);
     m.half_angle = QuatAngle4D(m.q0, m.q1);
+    if (m.half_angle >= kNlerpAngle) {
+      m.sin_half = std::sin(m.half_angle);
+      m.inv_sin_half = 1.0 / m.sin_half;
+      m.sin_quarter = std::sin(0.5 * m.half_angle);
+    }
     scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
                       m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
@@ -112,7 +164,11 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     // 2 * half_angle, widened for the rounding of atan2 and the nlerp fallback.
     const Interval own_angular = Interval(2.0) * Interval::Outward(m.half_angle, m.half_angle, 8) *
                                  Interval(1.0, 1.0 + 1e-12);
-    const Interval own_speed = Norm(m.p1 - m.p0);
+    // Only the upper end of this norm reaches a bound: sums' upper ends add
+    // upper ends, and its one product, with 2 w_k (upper end >= |lower end|),
+    // peaks at the two upper ends whatever its lower end. So the point at the
+    // upper end gives the same bits as Norm(m.p1 - m.p0).
+    const Interval own_speed(NormHi(m.p1 - m.p0));
     if (m.parent < 0) {
       // Linear position, and slerp turns about a fixed world axis: no
       // acceleration at all.
@@ -122,7 +178,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       m.angular_accel_bound = 0;
     } else {
       const LinkMotion& k = links_[m.parent];
-      const Interval lever(Interval::Hull(Norm(m.p0), Norm(m.p1)).hi());
+      const Interval lever(std::max(NormHi(m.p0), NormHi(m.p1)));  // Hull(...).hi()
       const Interval wk(k.angular_bound);
       m.angular_bound = (wk + own_angular).hi();
       m.speed_bound = (Interval(k.speed_bound) + wk * lever + own_speed).hi();
@@ -139,25 +195,55 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
   // Chain depth, parents first (linear time).
-  std::vector<int> link_depth(n, 1);
   int depth = 1;
   for (int i : order_) {
-    if (links_[i].parent >= 0) link_depth[i] = link_depth[links_[i].parent] + 1;
-    depth = std::max(depth, link_depth[i]);
+    if (links_[i].parent >= 0) links_[i].depth = links_[links_[i].parent].depth + 1;
+    depth = std::max(depth, links_[i].depth);
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
   coordinate_scale_ = scale;
-  if (model == MotionModel::kArticulated) {
-    // Linear in the link count; PoseAt composes O(depth) per call otherwise,
-    // quadratic over a chain (9.2 s per pair for 10,000 links).
-    PosesAt(0.0, &poses_at_ends_[0]);
-    PosesAt(0.5, &poses_at_ends_[1]);
-    PosesAt(1.0, &poses_at_ends_[2]);
+  // Linear in the link count; PoseAt composes O(depth) per call otherwise,
+  // quadratic over a chain (9.2 s per pair for 10,000 links). For
+  // `independent` a pose is its own slerp; the look-up still saves it.
+  poses_at_ends_.resize(3 * static_cast<size_t>(n));
+  PosesAtInto(0.0, &poses_at_ends_[0]);
+  PosesAtInto(0.5, &poses_at_ends_[n]);
+  PosesAtInto(1.0, &poses_at_ends_[2 * n]);
+  segments_at_ends_.resize(6 * static_cast<size_t>(n));
+  for (int k = 0; k < 3; ++k) {
+    for (int i = 0; i < n; ++i) {
+      SegmentOfPose(i, poses_at_ends_[k * n + i], &segments_at_ends_[6 * i + 2 * k],
+                    &segments_at_ends_[6 * i + 2 * k + 1]);
+    }
   }
 }
 
+// SlerpPrepared(m.q0, m.q1, m.half_angle, s), bit for bit, with the sines
+// computed at construction where s allows: sin(half_angle) always (and its
+// inverse), both sines at s = 0, 0.5 and 1. At s = 0 (and s = 1) the other
+// argument is s * half_angle = +-0 (or (1 - s) * half_angle = +0), whose sine
+// is itself.
 Eigen::Quaterniond PairMotion::LocalRotation(const LinkMotion& m, double s) const {
-  return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
+  if (m.half_angle < kNlerpAngle) return SlerpPrepared(m.q0, m.q1, m.half_angle, s);
+  double sin_a, sin_b;  // sin((1 - s) * half_angle), sin(s * half_angle).
+  if (s == 0.0) {
+    sin_a = m.sin_half;  // (1 - s) * half_angle == half_angle.
+    sin_b = s * m.half_angle;
+  } else if (s == 1.0) {
+    sin_a = (1 - s) * m.half_angle;
+    sin_b = m.sin_half;  // s * half_angle == half_angle.
+  } else if (s == 0.5) {
+    sin_a = m.sin_quarter;  // (1 - s) * half_angle == s * half_angle == half_angle / 2.
+    sin_b = m.sin_quarter;
+  } else {
+    sin_a = std::sin((1 - s) * m.half_angle);
+    sin_b = std::sin(s * m.half_angle);
+  }
+  const double inv = m.inv_sin_half;
+  const Eigen::Vector4d v = sin_a * inv * m.q0.coeffs() + sin_b * inv * m.q1.coeffs();
+  Eigen::Quaterniond q;
+  q.coeffs() = v / v.norm();
+  return q;
 }
 
 LinkPose PairMotion::Compose(const LinkMotion& m, double s, const LinkPose& X_WP) const {
@@ -176,26 +262,32 @@ LinkPose PairMotion::Compose(const LinkMotion& m, double s, const LinkPose& X_WP
 
 void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
   X_WL->resize(links_.size());
+  PosesAtInto(s, X_WL->data());
+}
+
+void PairMotion::PosesAtInto(double s, LinkPose* X_WL) const {
   for (int i : order_) {
     const LinkMotion& m = links_[i];
-    (*X_WL)[i] = Compose(m, s, m.parent < 0 ? LinkPose() : (*X_WL)[m.parent]);
+    X_WL[i] = Compose(m, s, m.parent < 0 ? LinkPose() : X_WL[m.parent]);
   }
 }
 
 LinkPose PairMotion::PoseFromParent(int link, double s, const LinkPose& X_WP) const {
-  if (!poses_at_ends_[0].empty()) {  // PoseAt's look-ups (the same bits).
-    if (s == 0.0) return poses_at_ends_[0][link];
-    if (s == 0.5) return poses_at_ends_[1][link];
-    if (s == 1.0) return poses_at_ends_[2][link];
+  if (!poses_at_ends_.empty()) {  // PoseAt's look-ups (the same bits).
+    const size_t n = links_.size();
+    if (s == 0.0) return poses_at_ends_[link];
+    if (s == 0.5) return poses_at_ends_[n + link];
+    if (s == 1.0) return poses_at_ends_[2 * n + link];
   }
   return Compose(links_[link], s, X_WP);
 }
 
 LinkPose PairMotion::PoseAt(int link, double s) const {
-  if (!poses_at_ends_[0].empty()) {
-    if (s == 0.0) return poses_at_ends_[0][link];
-    if (s == 0.5) return poses_at_ends_[1][link];
-    if (s == 1.0) return poses_at_ends_[2][link];
+  if (!poses_at_ends_.empty()) {
+    const size_t n = links_.size();
+    if (s == 0.0) return poses_at_ends_[link];
+    if (s == 0.5) return poses_at_ends_[n + link];
+    if (s == 1.0) return poses_at_ends_[2 * n + link];
   }
   // Compose from the root down along the ancestors, iteratively (chains may
   // be deep). The same operations in the same order as PosesAt.
@@ -212,6 +304,12 @@ LinkPose PairMotion::PoseAt(int link, double s) const {
 }
 
 void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const {
+  const int k = s == 0.0 ? 0 : s == 0.5 ? 1 : s == 1.0 ? 2 : -1;
+  if (k >= 0 && !segments_at_ends_.empty()) {
+    *p_WA = segments_at_ends_[6 * link + 2 * k];
+    *p_WB = segments_at_ends_[6 * link + 2 * k + 1];
+    return;
+  }
   SegmentOfPose(link, PoseAt(link, s), p_WA, p_WB);
 }
 
@@ -224,10 +322,9 @@ void PairMotion::SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* 
 
 double PairMotion::SweepRadius(int link, double s0, double s1) const {
   const LinkMotion& m = links_[link];
-  const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
-  const Interval speed =
-      Interval(m.speed_bound) + Interval(m.angular_bound) * Interval(m.extent);
-  return (speed * half_width + Interval(rounding_slack_)).hi();
+  // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
+  return internal::FirstOrderGrowth(m.speed_bound, m.angular_bound, m.extent, rounding_slack_,
+                                    s0, s1);
 }
 
 void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
@@ -257,17 +354,13 @@ void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
   *p_WA = am;
   *p_WB = bm;
   const double first_order = SweepRadius(link, s0, s1);
-  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|.
-  const Interval w(m.angular_bound);
-  const Interval acc =
-      Interval(m.accel_bound) + (Interval(m.angular_accel_bound) + w * w) * Interval(m.extent);
-  const Interval width = Interval(s1) - Interval(s0);
-  const Interval chord = Interval::Hull(Norm(a1 - a0), Norm(b1 - b0));
-  // Each of the three evaluated segments is off by at most rounding_slack_.
-  const Interval second_order = Interval(chord.hi()) * Interval(0.5) +
-                                Interval(0.25) * Sqr(width) * acc +
-                                Interval(4.0) * Interval(rounding_slack_);
-  *growth = std::min(first_order, second_order.hi());
+  // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|. Each of the
+  // three evaluated segments is off by at most rounding_slack_.
+  const double chord = std::max(NormHi(a1 - a0), NormHi(b1 - b0));
+  const double second_order =
+      internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
+                                  m.extent, rounding_slack_, s0, s1);
+  *growth = std::min(first_order, second_order);
 }
 
 }  // namespace sweptccd

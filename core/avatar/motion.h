@@ -27,6 +27,22 @@ Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond&
 /// constant angular speed of Slerp per unit of s.
 double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1);
 
+namespace internal {
+
+/// The upper ends of PairMotion's two growth bounds over [s0, s1], bit for
+/// bit the interval expressions they replace (the twins in
+/// tests/core/avatar/motion_test.cc), without the lower ends. Inputs are the
+/// bounds' upper ends: non-negative and finite; 0 <= s0 <= s1 <= 1.
+/// First order: (speed + angular * extent) * (s1 - s0) / 2 + slack.
+double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
+                        double s1);
+/// Second order: chord / 2 + (s1 - s0)^2 / 4 * (accel + (angular_accel +
+/// angular^2) * extent) + 4 slack.
+double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
+                         double extent, double slack, double s0, double s1);
+
+}  // namespace internal
+
 /// The interpolated motion of every link of a skeleton between two valid poses
 /// (normalised quaternions). Immutable after construction; const methods are
 /// safe to call from several threads.
@@ -47,7 +63,8 @@ class PairMotion {
   /// exactly those, so a culled link costs O(1), not O(chain depth)). The
   /// same bits either way (the same operations in the same order).
   LinkPose PoseAt(int link, double s) const;
-  /// World segment (A, B) of a link at s.
+  /// World segment (A, B) of a link at s. At s = 0, 0.5 and 1 a look-up of
+  /// the segments computed at construction (the same bits).
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
 
   /// The link PoseAt composes `link`'s pose from (its parent with
@@ -113,26 +130,36 @@ class PairMotion {
     Eigen::Vector3d p0, p1;
     Eigen::Quaterniond q0, q1;  // q1 already sign-flipped to the shortest arc.
     double half_angle = 0;      // Angle between q0 and q1 in R^4.
+    // sin(half_angle), its inverse and sin(half_angle / 2): slerp at s = 0,
+    // 0.5 and 1 needs no other sine (SlerpPrepared's values, bit for bit).
+    double sin_half = 0, inv_sin_half = 0, sin_quarter = 0;
     Eigen::Vector3d a_L, b_L;
     double speed_bound = 0;
     double angular_bound = 0;
     double accel_bound = 0;
     double angular_accel_bound = 0;
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
+    int depth = 1;      // Links from the root to this one, both counted.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
   // One composition step of PosesAt and PoseAt: the pose of the link moving
   // by m at s, given its parent's pose (unused for a link on its own).
   LinkPose Compose(const LinkMotion& m, double s, const LinkPose& X_WP) const;
+  // PosesAt into num_links() poses at X_WL.
+  void PosesAtInto(double s, LinkPose* X_WL) const;
 
   MotionModel model_;
   std::vector<LinkMotion> links_;
   std::vector<int> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
-  // `articulated`: every link's pose at s = 0, 0.5 and 1 (PosesAt), so
-  // PoseAt at those times is a look-up; empty for `independent`.
-  std::vector<LinkPose> poses_at_ends_[3];
+  // Every link's pose at s = 0 (first n), 0.5 and 1 (PosesAt), so PoseAt at
+  // those times is a look-up.
+  std::vector<LinkPose> poses_at_ends_;
+  // Both models: every link's segment (A, B) at s = 0, 0.5 and 1, in that
+  // order, 6 per link: the whole-pair swept capsule of every link reads
+  // exactly those.
+  std::vector<Eigen::Vector3d> segments_at_ends_;
 };
 
 }  // namespace sweptccd

@@ -19,6 +19,7 @@ namespace sweptccd {
 class Interval {
  public:
   static constexpr int kLibmUlps = 4;
+  static constexpr double kFiniteMax = std::numeric_limits<double>::max();
 
   constexpr Interval() = default;
   constexpr Interval(double v) : lo_(v), hi_(v) {}  // NOLINT: implicit by design
@@ -43,6 +44,15 @@ class Interval {
   }
   friend Interval operator-(const Interval& a) { return Interval(-a.hi_, -a.lo_); }
   friend Interval operator*(const Interval& a, const Interval& b) {
+    // Both operands valid, finite and non-negative (the motion's bounds,
+    // nearly every product): rounded multiplication is monotone there, so the
+    // extreme products are lo * lo and hi * hi. The same bits as the four
+    // products below: ties can only differ in the sign of a zero, and
+    // Outward widens -0 and +0 alike.
+    if (0 <= a.lo_ && a.lo_ <= a.hi_ && a.hi_ <= kFiniteMax && 0 <= b.lo_ && b.lo_ <= b.hi_ &&
+        b.hi_ <= kFiniteMax) {
+      return Outward(a.lo_ * b.lo_, a.hi_ * b.hi_, 1);
+    }
     const double p[4] = {a.lo_ * b.lo_, a.lo_ * b.hi_, a.hi_ * b.lo_, a.hi_ * b.hi_};
     return Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
   }
@@ -118,6 +128,18 @@ inline Interval Sqrt(const Interval& x) {
   const double lo = std::max(0.0, x.lo()), hi = std::max(0.0, x.hi());
   Interval r = Interval::Outward(std::sqrt(lo), std::sqrt(hi), Interval::kLibmUlps);
   return Interval(std::max(0.0, r.lo()), r.hi());
+}
+
+/// Sqrt(Sqr(x) + Sqr(y) + Sqr(z)).hi() for points x, y, z, bit for bit (the
+/// same roundings of the upper ends), without the lower ends: the motion's
+/// bounds only ever read the upper end of a norm. Each Sqr's upper end is
+/// x * x stepped up once (for x = 0 too: Sqr clamps the lower end only).
+inline double NormUpper(double x, double y, double z) {
+  const double sum = Interval::StepUp(
+      Interval::StepUp(Interval::StepUp(x * x, 1) + Interval::StepUp(y * y, 1), 1) +
+          Interval::StepUp(z * z, 1),
+      1);
+  return Interval::StepUp(std::sqrt(std::max(0.0, sum)), Interval::kLibmUlps);
 }
 
 /// sin over an interval, using monotone pieces between the extrema.

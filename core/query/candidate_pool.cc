@@ -4,12 +4,16 @@ namespace sweptccd::internal {
 
 CandidatePool::CandidatePool(const EnvironmentTarget& target, int max_candidates,
                              int64_t* triangle_tests)
-    : target_(target), max_candidates_(max_candidates), triangle_tests_(triangle_tests) {
-  entries_.reserve(1024);
+    : target_(target), max_candidates_(max_candidates), triangle_tests_(triangle_tests) {}
+
+void CandidatePool::ReserveOnFirstUse() {
+  // Most pairs list nothing (every link culled): no 8 KiB allocation for them.
+  if (entries_.capacity() == 0) entries_.reserve(1024);
 }
 
 bool CandidatePool::CollectFromBvh(const LinkCapsule& cap, ObjectIndex object,
                                    uint32_t start_node) {
+  ReserveOnFirstUse();
   const size_t start = entries_.size();
   bool overflow = false;
   for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
@@ -47,6 +51,7 @@ bool CandidatePool::AnyWithin(const LinkCapsule& cap, ObjectIndex object, uint32
 }
 
 CandidateList CandidatePool::Refine(const CandidateList& parent, const LinkCapsule& cap) {
+  ReserveOnFirstUse();
   CandidateList list;
   list.begin = static_cast<uint32_t>(entries_.size());
   if (parent.requery) {

@@ -55,6 +55,7 @@ class CandidatePool {
   int max_candidates() const { return max_candidates_; }
 
  private:
+  void ReserveOnFirstUse();
   bool Within(const LinkCapsule& capsule, Candidate candidate) {
     ++*triangle_tests_;
     return target_.WithinCapsule(capsule, candidate);

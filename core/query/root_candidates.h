@@ -21,11 +21,14 @@ class RootCandidates {
                  CandidatePool* pool);
 
   /// Marks open every link not in `skip` (cleared by the culler already)
-  /// whose whole-pair capsule meets some primitive: the same traversal as
-  /// Collect, but a link leaves it at its first primitive (a link near the
-  /// scene costs little; a culled one as much as in Collect).
+  /// whose whole-pair capsule meets some primitive. A link leaves at its
+  /// first primitive. The traversal pairs each object's BVH with a small
+  /// tree over the links' boxes (FindDual), so the scene's upper levels are
+  /// tested against the whole avatar's box once, not against every link's;
+  /// a link is still tested against every node its own box meets, and
+  /// searched (AnyWithin) from the node where it is alone, as in Collect.
   void FindOpen(const std::vector<bool>& skip);
-  bool Open(LinkIndex link) const { return open_[link]; }
+  bool Open(LinkIndex link) const { return links_[link].open; }
   /// Collects into the pool, for every open link not in `skip` (closed
   /// already), the primitives its whole-pair capsule meets.
   void Collect(const std::vector<bool>& skip);
@@ -33,10 +36,12 @@ class RootCandidates {
   /// The link's list (requery when it had too many to list). Empty: the link
   /// is free for the whole pair.
   CandidateList ListOf(LinkIndex link) const {
-    return CandidateList{begin_[link], count_[link], static_cast<bool>(overflow_[link])};
+    const LinkRoot& r = links_[link];
+    return CandidateList{r.begin, r.count, r.overflow};
   }
   bool Empty(LinkIndex link) const {
-    return !open_[link] || (count_[link] == 0 && !overflow_[link]);
+    const LinkRoot& r = links_[link];
+    return !r.open || (r.count == 0 && !r.overflow);
   }
 
  private:
@@ -50,15 +55,37 @@ class RootCandidates {
   // Splits scratch_[first, last) at the median of the box centres along `axis`.
   void SplitLinks(size_t first, size_t last, int axis, ObjectIndex object, uint32_t env_node);
 
+  // FindOpen's tree over the links' boxes: a node holds link_order_[first,
+  // first + count) and the union of their boxes; an inner node's children
+  // are `left` and left + 1. `waiting` counts its links not found open yet.
+  struct LinkNode {
+    Aabb box;
+    uint32_t first = 0, count = 0;
+    uint32_t left = 0;  // Inner nodes only.
+    uint32_t parent = 0;
+    uint32_t waiting = 0;
+  };
+  // Fills link_nodes_[index] with link_order_[first, last) and builds its
+  // subtree (halves at the median of the box centres along the widest axis
+  // of the union, as SplitLinks).
+  void BuildLinkTree(uint32_t index, uint32_t first, uint32_t last, uint32_t parent);
+  void FindDual(uint32_t link_node, ObjectIndex object, uint32_t env_node);
+
+  // One link's whole-pair capsule, its box, its run of the pool.
+  struct LinkRoot {
+    LinkCapsule capsule;
+    Aabb box;
+    uint32_t begin = 0, count = 0;
+    bool overflow = false;
+    bool open = false;
+  };
+
   const EnvironmentTarget& target_;
   CandidatePool& pool_;
-  std::vector<LinkCapsule> capsule_;
-  std::vector<Aabb> box_;
-  std::vector<uint32_t> begin_, count_;
-  std::vector<bool> overflow_;
+  std::vector<LinkRoot> links_;  // By link index.
   std::vector<LinkIndex> scratch_;
-  std::vector<bool> open_;
-  bool finding_ = false;  // FindOpen: CollectOne only marks the link open.
+  std::vector<LinkIndex> link_order_;  // FindOpen: the links of the tree, leaf order.
+  std::vector<LinkNode> link_nodes_;
 };
 
 }  // namespace sweptccd::internal

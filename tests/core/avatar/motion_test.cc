@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <numeric>
 #include <random>
 #include <sstream>
@@ -18,6 +19,7 @@
 
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/geometry/interval.h"
 
 namespace sweptccd {
 namespace {
@@ -762,6 +764,134 @@ TEST(MotionTest, PoseAtEndsAndMiddleMatchPosesAtOnDeepChains) {
         EXPECT_LT((near.q.coeffs() - one.q.coeffs()).norm(), 1e-9);
       }
     }
+  }
+}
+
+
+// The slerp sines cached per link (s = 0, 0.5, 1 and the inverse of
+// sin(half angle) everywhere) and the segments cached at s = 0, 0.5, 1 give
+// the same bits as computing them afresh: the twin is Slerp() (fresh sines)
+// composed by hand as SPEC section 3 says, in the engine's operation order.
+TEST(MotionTest, CachedSinesAndSegmentsMatchFreshComputationBitForBit) {
+  std::mt19937_64 g(0x5117e5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::uniform_real_distribution<double> u01(0, 1);
+  std::vector<Link> links(2);
+  links[0].name = "root";
+  links[1].name = "child";
+  links[1].parent = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    for (Link& l : links) {
+      l.a_L = {u(g), u(g), u(g)};
+      l.b_L = trial % 5 == 0 ? l.a_L : Eigen::Vector3d(u(g), u(g), u(g));
+      l.radius = 0.05;
+    }
+    const Skeleton skeleton = Skeleton::FromLinks("pair", links, "test");
+    Pose pose[2];
+    for (Pose& p : pose) {
+      p.links.resize(2);
+      for (LinkPose& l : p.links) {
+        l.p = {u(g), u(g), u(g)};
+        l.q = Eigen::Quaterniond(u(g), u(g), u(g), u(g)).normalized();
+      }
+    }
+    // Small turns too (the nlerp fallback below 1e-6 rad), and sign flips.
+    if (trial % 3 == 0) {
+      for (int i = 0; i < 2; ++i) {
+        const double tiny = std::pow(10.0, -9 + 6 * u01(g));
+        pose[1].links[i].q = (pose[0].links[i].q *
+                              Eigen::Quaterniond(Eigen::AngleAxisd(tiny, Eigen::Vector3d::UnitX())))
+                                 .normalized();
+      }
+    }
+    if (trial % 4 == 1) pose[1].links[1].q.coeffs() *= -1;
+    const double random_s = u01(g);
+    for (MotionModel model : {MotionModel::kIndependent, MotionModel::kArticulated}) {
+      const PairMotion motion(skeleton, pose[0], pose[1], model);
+      for (double s : {0.0, 0.5, 1.0, random_s, 0.25}) {
+        LinkPose twin[2];
+        for (int i = 0; i < 2; ++i) {
+          const LinkPose& x0 = pose[0].links[i];
+          const LinkPose& x1 = pose[1].links[i];
+          if (model == MotionModel::kIndependent || i == 0) {
+            twin[i].p = (1 - s) * x0.p + s * x1.p;
+            twin[i].q = Slerp(x0.q, x1.q, s);
+            continue;
+          }
+          const LinkPose& k0 = pose[0].links[0];
+          const LinkPose& k1 = pose[1].links[0];
+          const Eigen::Vector3d c0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
+          const Eigen::Vector3d c1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
+          const Eigen::Quaterniond r0 = (k0.q.conjugate() * x0.q).normalized();
+          const Eigen::Quaterniond r1 = (k1.q.conjugate() * x1.q).normalized();
+          const Eigen::Vector3d c = (1 - s) * c0 + s * c1;
+          const Eigen::Quaterniond r = Slerp(r0, r1, s);
+          twin[i].q = (twin[0].q * r).normalized();
+          twin[i].p = twin[0].p + twin[0].q * c;
+        }
+        for (int i = 0; i < 2; ++i) {
+          const LinkPose got = motion.PoseAt(i, s);
+          ASSERT_EQ(got.p, twin[i].p) << "trial " << trial << " link " << i << " s " << s;
+          ASSERT_EQ(got.q.coeffs(), twin[i].q.coeffs())
+              << "trial " << trial << " link " << i << " s " << s;
+          const Eigen::Matrix3d R = twin[i].q.toRotationMatrix();
+          const Eigen::Vector3d A = twin[i].p + R * links[i].a_L;
+          const Eigen::Vector3d B = twin[i].p + R * links[i].b_L;
+          Eigen::Vector3d a, b;
+          motion.SegmentAt(i, s, &a, &b);
+          ASSERT_EQ(a, A) << "trial " << trial << " link " << i << " s " << s;
+          ASSERT_EQ(b, B) << "trial " << trial << " link " << i << " s " << s;
+        }
+      }
+    }
+  }
+}
+
+
+// The growth bounds' upper-end arithmetic against its twin, the interval
+// expressions it replaced (verbatim), bit for bit, on random non-negative
+// bounds of every magnitude (zeros and subnormals included) and intervals
+// [s0, s1] of every width (zero included).
+TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
+  std::mt19937_64 g(0x60e7);
+  std::uniform_real_distribution<double> u01(0, 1);
+  auto value = [&]() {
+    const double r = u01(g);
+    if (r < 0.1) return 0.0;
+    if (r < 0.15) return std::ldexp(u01(g), -1060);  // Subnormal.
+    if (r < 0.5) return 10 * u01(g);
+    return std::pow(10.0, -300 + 600 * u01(g)) * u01(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int k = 0; k < 1'000'000; ++k) {
+    const double speed = value(), angular = value(), extent = value(), slack = value();
+    const double accel = value(), angular_accel = value(), chord = value();
+    double s0 = u01(g), s1 = u01(g);
+    if (s1 < s0) std::swap(s0, s1);
+    const double r = u01(g);
+    if (r < 0.1) s1 = s0;
+    else if (r < 0.2) s1 = std::nextafter(s0, 2.0);
+    else if (r < 0.3) s0 = 0, s1 = 1;
+    // The expressions as PairMotion wrote them with intervals.
+    const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
+    const Interval speed_all = Interval(speed) + Interval(angular) * Interval(extent);
+    const double first = (speed_all * half_width + Interval(slack)).hi();
+    const Interval w(angular);
+    const Interval acc = Interval(accel) + (Interval(angular_accel) + w * w) * Interval(extent);
+    const Interval width = Interval(s1) - Interval(s0);
+    const double second = (Interval(chord) * Interval(0.5) + Interval(0.25) * Sqr(width) * acc +
+                           Interval(4.0) * Interval(slack))
+                              .hi();
+    ASSERT_EQ(bits(internal::FirstOrderGrowth(speed, angular, extent, slack, s0, s1)), bits(first))
+        << k;
+    ASSERT_EQ(bits(internal::SecondOrderGrowth(chord, accel, angular_accel, angular, extent, slack,
+                                               s0, s1)),
+              bits(second))
+        << k;
   }
 }
 

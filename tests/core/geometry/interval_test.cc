@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <sstream>
@@ -350,6 +351,74 @@ TEST(IntervalTest, ArithmeticIsStrictlyOutward) {
     const double p[4] = {A.lo() * B.lo(), A.lo() * B.hi(), A.hi() * B.lo(), A.hi() * B.hi()};
     EXPECT_LT((A * B).lo(), *std::min_element(p, p + 4));
     EXPECT_GT((A * B).hi(), *std::max_element(p, p + 4));
+  }
+}
+
+// NormUpper is the upper end of the interval norm of a point, bit for bit:
+// its brute-force twin is the full interval expression it replaces.
+TEST(IntervalTest, NormUpperEqualsIntervalNormBitForBit) {
+  std::mt19937_64 g(20261124);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double specials[] = {0.0, -0.0, 1.0, -1.0, std::numeric_limits<double>::denorm_min(),
+                             std::numeric_limits<double>::min(), 1e-160, 1e154, 1e155,
+                             std::numeric_limits<double>::max(), kInf, -kInf,
+                             std::numeric_limits<double>::quiet_NaN()};
+  auto pick = [&]() {
+    const double r = u01(g);
+    if (r < 0.15) return specials[std::uniform_int_distribution<int>(0, 12)(g)];
+    if (r < 0.5) return std::uniform_real_distribution<double>(-3, 3)(g);  // Avatars' metres.
+    return RandomValue(g);
+  };
+  int64_t checks = 0;
+  for (int k = 0; k < 2'000'000; ++k) {
+    const double x = pick(), y = pick(), z = pick();
+    const Interval full = Sqrt(Sqr(Interval(x)) + Sqr(Interval(y)) + Sqr(Interval(z)));
+    const double upper = NormUpper(x, y, z);
+    uint64_t a, b;
+    std::memcpy(&a, &upper, sizeof a);
+    const double want = full.hi();
+    std::memcpy(&b, &want, sizeof b);
+    ASSERT_EQ(a, b) << "x " << Num(x) << " y " << Num(y) << " z " << Num(z) << ": " << Num(upper)
+                    << " vs " << Num(want);
+    ++checks;
+  }
+  EXPECT_EQ(checks, 2'000'000);
+}
+
+// operator* takes a shortcut for valid, finite, non-negative operands; its
+// brute-force twin is the general rule (Outward of the least and greatest of
+// the four end products), compared bit for bit.
+TEST(IntervalTest, ProductShortcutEqualsFourProductRuleBitForBit) {
+  std::mt19937_64 g(0x9e0d);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double specials[] = {0.0, -0.0, 1.0, std::numeric_limits<double>::denorm_min(),
+                             std::numeric_limits<double>::min(), 1e-160, 1e154, 1e155,
+                             std::numeric_limits<double>::max(), kInf};
+  auto pick = [&]() {
+    const double r = u01(g);
+    if (r < 0.2) return specials[std::uniform_int_distribution<int>(0, 9)(g)];
+    if (r < 0.6) return std::fabs(RandomValue(g));
+    return RandomValue(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int k = 0; k < 2'000'000; ++k) {
+    double a0 = pick(), a1 = pick(), b0 = pick(), b1 = pick();
+    if (u01(g) < 0.9) {  // Mostly valid intervals; some inverted ones too.
+      if (a1 < a0) std::swap(a0, a1);
+      if (b1 < b0) std::swap(b0, b1);
+    }
+    if (u01(g) < 0.1) a1 = a0;
+    const Interval A(a0, a1), B(b0, b1);
+    const double p[4] = {a0 * b0, a0 * b1, a1 * b0, a1 * b1};
+    const Interval want =
+        Interval::Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
+    const Interval got = A * B;
+    ASSERT_EQ(bits(got.lo()), bits(want.lo())) << Describe(A) << " * " << Describe(B);
+    ASSERT_EQ(bits(got.hi()), bits(want.hi())) << Describe(A) << " * " << Describe(B);
   }
 }
 
