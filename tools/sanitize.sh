@@ -66,7 +66,7 @@ export UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1"
 #    block the driver's globals pointed to then looks leaked from a module
 #    LSan cannot name (preloading swrast_dri.so made it disappear). Sanitizer
 #    builds keep the drivers mapped (core/gpu/gl_context.cc); all end-to-end
-#    scripts then passed under ASan/UBSan, run by hand (not in CI: .ci/run).
+#    scripts then passed under ASan/UBSan (CI's step sanitizers-e2e).
 export SWEPTCCD_TEST_SCALE=${SWEPTCCD_TEST_SCALE:-0.05}
 if [ "${SANITIZE_ALL:-0}" = 1 ]; then export SWEPTCCD_TEST_SCALE=1; fi
 echo "sanitize.sh: SWEPTCCD_TEST_SCALE=$SWEPTCCD_TEST_SCALE"
