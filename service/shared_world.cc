@@ -35,26 +35,31 @@ entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
   return out;
 }
 
-entity_link_bracket_t LinkBracketOf(const world::OtherBracket& b, const SharedJob& job,
-                                    double dur) {
+// The bracket fields an entry and a per-link bracket share, as printed.
+template <typename Msg>
+void PutBracket(const world::OtherBracket& b, const SharedJob& job, Msg* out) {
   const world::PrintedBracket p =
       world::PrintBracket(b, job.pose0.utime, job.pose1.utime, job.t_from, job.t_to);
+  out->s_lo = p.s_lo;
+  out->s_hi = p.s_hi;
+  out->t_lo = p.t_lo;
+  out->t_hi = p.t_hi;
+  out->initially_colliding = b.initially_colliding;
+  out->undecided = b.undecided;
+}
+
+entity_link_bracket_t LinkBracketOf(const world::OtherBracket& b, const SharedJob& job,
+                                    double dur) {
   entity_link_bracket_t out{};
   out.link = b.link;
-  out.s_lo = p.s_lo;
-  out.s_hi = p.s_hi;
-  out.t_lo = p.t_lo;
-  out.t_hi = p.t_hi;
-  out.initially_colliding = b.initially_colliding;
-  out.undecided = b.undecided;
+  PutBracket(b, job, &out);
   out.has_witness = b.has_witness;
   if (b.has_witness) out.witness = ContactOf(b.witness, dur);
   return out;
 }
 
-}  // namespace
-
-shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+// An entry naming the job's entity and window, its result `free`.
+shared_entry_t EntryOf(const SharedJob& job) {
   shared_entry_t m{};
   m.entity = job.entity;
   m.entity_kind =
@@ -64,6 +69,13 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
   m.result = shared_entry_t::RESULT_FREE;
   m.waited_us = job.waited_us;
   m.ended_by_timeout = job.ended_by_timeout;
+  return m;
+}
+
+}  // namespace
+
+shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+  shared_entry_t m = EntryOf(job);
   const auto start = SteadyClock::now();
   try {
     // A two-entity world: A (its pair) and E (the slice of its history the
@@ -105,14 +117,8 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
     const double dur = static_cast<double>(u1 - u0);
     if (ans.contact) {
       const world::OtherBracket& b = ans.bracket;
-      const world::PrintedBracket p = world::PrintBracket(b, u0, u1, job.t_from, job.t_to);
       m.result = shared_entry_t::RESULT_CONTACT;
-      m.initially_colliding = b.initially_colliding;
-      m.undecided = b.undecided;
-      m.s_lo = p.s_lo;
-      m.s_hi = p.s_hi;
-      m.t_lo = p.t_lo;
-      m.t_hi = p.t_hi;
+      PutBracket(b, job, &m);
       if (b.has_witness) m.contacts.push_back(ContactOf(b.witness, dur));
       m.num_contacts = static_cast<int32_t>(m.contacts.size());
     }
@@ -121,14 +127,7 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
       m.num_links = static_cast<int32_t>(m.links.size());
     }
   } catch (const std::exception& e) {
-    m = shared_entry_t{};
-    m.entity = job.entity;
-    m.entity_kind =
-        job.entity_is_object ? shared_entry_t::KIND_OBJECT : shared_entry_t::KIND_AVATAR;
-    m.t_from = job.t_from;
-    m.t_to = job.t_to;
-    m.waited_us = job.waited_us;
-    m.ended_by_timeout = job.ended_by_timeout;
+    m = EntryOf(job);
     m.result = shared_entry_t::RESULT_INVALID;
     m.error = std::string("query failed: ") + e.what();
   }

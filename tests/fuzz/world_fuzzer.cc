@@ -23,12 +23,7 @@
 namespace {
 
 void WriteOrAbort(const std::string& path, const std::string& text) {
-  FILE* f = std::fopen(path.c_str(), "wb");
-  if (f == nullptr || std::fwrite(text.data(), 1, text.size(), f) != text.size() ||
-      std::fclose(f) != 0) {
-    std::perror(path.c_str());
-    std::abort();
-  }
+  sweptccd::fuzz::WriteFileOrAbort(path, text.data(), text.size());
 }
 
 // The folder of the files a world may name, one per process in /dev/shm.
