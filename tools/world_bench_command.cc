@@ -277,7 +277,7 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
   std::vector<double> env_us, whole_us;
   // The whole answer's times by record kind: every other entity cleared by
   // the broad phase; link work but no shared contact; a shared contact.
-  std::vector<double> by_kind[3];
+  std::vector<double> by_kind[3], env_by_kind[3];
   Tally tally;
   for (int a = 0; a < n_avatars; ++a) {
     for (size_t r = 0; r < w.world.avatars[a].records.size(); ++r) {
@@ -305,6 +305,7 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
       }
       tally.records_with_contact += any;
       by_kind[any ? 2 : link_work ? 1 : 0].push_back(whole_us.back());
+      env_by_kind[any ? 2 : link_work ? 1 : 0].push_back(env_us.back());
     }
   }
   const bench::Stats env = bench::Summarise(env_us), whole = bench::Summarise(whole_us);
@@ -329,6 +330,19 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
             bench::Summarise(by_kind[0]));
   PrintLine("whole: link work, no shared contact", by_kind[1].size(), bench::Summarise(by_kind[1]));
   PrintLine("whole: a shared contact", by_kind[2].size(), bench::Summarise(by_kind[2]));
+  {
+    std::vector<double> shared_us[3];
+    for (int k = 0; k < 3; ++k)
+      for (size_t i = 0; i < by_kind[k].size(); ++i) shared_us[k].push_back(by_kind[k][i] - env_by_kind[k][i]);
+    PrintLine("shared: cleared", shared_us[0].size(), bench::Summarise(shared_us[0]));
+    PrintLine("shared: link work", shared_us[1].size(), bench::Summarise(shared_us[1]));
+    PrintLine("shared: contact", shared_us[2].size(), bench::Summarise(shared_us[2]));
+  }
+  PrintLine("env-only: all others cleared by the broad phase", env_by_kind[0].size(),
+            bench::Summarise(env_by_kind[0]));
+  PrintLine("env-only: link work, no shared contact", env_by_kind[1].size(),
+            bench::Summarise(env_by_kind[1]));
+  PrintLine("env-only: a shared contact", env_by_kind[2].size(), bench::Summarise(env_by_kind[2]));
   std::printf("\n");
   PrintTarget("whole median / env-only median", env.median > 0 ? whole.median / env.median : 0, 2);
   PrintTarget("whole p99 / whole median", whole.median > 0 ? whole.p99 / whole.median : 0, 5);

@@ -31,13 +31,14 @@ Eigen::Vector3d UnitOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback
 // Another avatar: candidates are its link indices.
 class AvatarTarget : public OtherTarget {
  public:
-  AvatarTarget(const World& world, int a, int b, double scale)
-      : world_(world), a_(a), b_(b), e_(world.avatars[b]) {
+  AvatarTarget(const World& world, int a, int b, double scale, IntervalMotions* shared)
+      : world_(world), a_(a), b_(b), e_(world.avatars[b]), shared_(shared) {
     tol_ = std::ldexp((scale >= 0 ? scale : EntityScale(e_)) + 10.0, -22) + 1e-9;
   }
 
   std::vector<int> RootCandidates(int link_a) const override {
     std::vector<int> out;
+    out.reserve(static_cast<size_t>(e_.skeleton.num_links()));
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
       if (!world_.IgnoresLinkPair(a_, link_a, b_, j)) out.push_back(j);
     }
@@ -126,6 +127,7 @@ class AvatarTarget : public OtherTarget {
   // B's motion over its interval k, with its memo of poses and segments
   // (B's links at one instant share their ancestors' poses).
   MotionMemo& MemoOf(int k) const {
+    if (shared_ != nullptr) return shared_->MemoOf(k);
     auto it = memos_.find(k);
     if (it == memos_.end()) {
       const int k1 = std::min<int>(k + 1, static_cast<int>(e_.used.size()) - 1);
@@ -216,6 +218,7 @@ class AvatarTarget : public OtherTarget {
   const World& world_;
   int a_, b_;
   const AvatarEntity& e_;
+  IntervalMotions* shared_;  // B's motions when given, else motions_ and memos_.
   double tol_ = 0;
   mutable std::map<int, PairMotion> motions_;
   mutable std::map<int, MotionMemo> memos_;  // Over motions_ (same keys).
@@ -228,14 +231,12 @@ class AvatarTarget : public OtherTarget {
 class ObjectTarget : public OtherTarget {
  public:
   ObjectTarget(const World& world, int a, int o, double scale)
-      : world_(world), a_(a), o_(o), e_(world.objects[o]), bvh_(e_.mesh->object(0).bvh) {
-    const Aabb bounds = bvh_.bounds();
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
-                                   (c & 2) ? bounds.hi.y() : bounds.lo.y(),
-                                   (c & 4) ? bounds.hi.z() : bounds.lo.z());
-      rho_ = std::max(rho_, corner.norm());
-    }
+      : world_(world),
+        a_(a),
+        o_(o),
+        e_(world.objects[o]),
+        bvh_(e_.mesh->object(0).bvh),
+        rho_(ObjectRadius(bvh_)) {
     if (scale < 0) scale = EntityScale(e_);
     tol_ = e_.mesh->coordinate_tolerance() + std::ldexp(scale + 10.0, -22) + 1e-9;
   }
@@ -427,8 +428,66 @@ double WindowScale(const ObjectEntity& e, const std::vector<Piece>& pieces) {
   return scale;
 }
 
-std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale) {
-  return std::make_unique<AvatarTarget>(world, a, b, scale);
+namespace {
+
+// Padding of the broad phase's boxes: far above the rounding of a box's own
+// arithmetic (ulps of metre coordinates are ~1e-15 m) and above the
+// descent's slack (2^-22 of the scale, 16 times less).
+double BoxPad(double scale) { return 1e-6 + std::ldexp(scale + 10.0, -18); }
+
+}  // namespace
+
+Aabb AvatarMotionBox(const Skeleton& skeleton, const PairMotion& motion) {
+  const double pad = BoxPad(motion.coordinate_scale());
+  Aabb box = Aabb::Empty();
+  for (int l = 0; l < skeleton.num_links(); ++l) {
+    Eigen::Vector3d a, b;
+    double g;
+    motion.SweptCapsule(l, 0, 1, &a, &b, &g);
+    box.Grow(Aabb::OfCapsule(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
+  }
+  return box;
+}
+
+double ObjectRadius(const TriangleBvh& bvh) {
+  double rho = 0;
+  const Aabb bounds = bvh.bounds();
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
+                                 (c & 2) ? bounds.hi.y() : bounds.lo.y(),
+                                 (c & 4) ? bounds.hi.z() : bounds.lo.z());
+    rho = std::max(rho, corner.norm());
+  }
+  return rho;
+}
+
+Aabb ObjectMotionBox(const RigidSample& x0, const RigidSample& x1, double radius,
+                     double mesh_scale) {
+  const double scale =
+      std::max({mesh_scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff()});
+  return Aabb::OfCapsule(x0.p, x1.p, radius * (1 + 1e-9) + BoxPad(scale));
+}
+
+IntervalMotions::Held::Held(const AvatarEntity& e, int k, int k1)
+    : motion(e.skeleton, e.used[static_cast<size_t>(k)], e.used[static_cast<size_t>(k1)], e.motion),
+      memo(motion, /*max_times=*/64) {}
+
+IntervalMotions::IntervalMotions(const AvatarEntity& entity, size_t max_kept)
+    : entity_(entity), max_kept_(std::max<size_t>(max_kept, 1)) {}
+
+MotionMemo& IntervalMotions::MemoOf(int k) {
+  auto it = held_.find(k);
+  if (it == held_.end()) {
+    if (held_.size() >= max_kept_) held_.clear();
+    const int k1 = std::min<int>(k + 1, static_cast<int>(entity_.used.size()) - 1);
+    it = held_.emplace(k, std::make_unique<Held>(entity_, k, k1)).first;
+  }
+  return it->second->memo;
+}
+
+std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale,
+                                              IntervalMotions* motions) {
+  return std::make_unique<AvatarTarget>(world, a, b, scale, motions);
 }
 std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale) {
   return std::make_unique<ObjectTarget>(world, a, o, scale);
@@ -466,6 +525,15 @@ PrintedBracket PrintBracket(const OtherBracket& b, int64_t utime0, int64_t utime
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
                         const EntityQueryOptions& options) {
+  MotionMemo memo_a(motion_a);
+  return AnswerOther(skeleton_a, &memo_a, utime0, utime1, pieces, target, options);
+}
+
+OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t utime0,
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options) {
+  const PairMotion& motion_a = memo->motion();
+  MotionMemo& memo_a = *memo;
   OtherAnswer answer;
   if (pieces.empty()) return answer;  // No window (SplitWindow of a non-overlapping entity).
   const int num_links = skeleton_a.num_links();
@@ -480,10 +548,6 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
   std::vector<std::vector<int>> roots(num_links);
   for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
-  // A's segments and swept capsules: every link of A is halved over the same
-  // intervals, so the poses of their common ancestors are composed once.
-  MotionMemo memo_a(motion_a);
-
   std::vector<bool> done(num_links, false);
   std::vector<OtherBracket> brackets;  // In chronological order.
   auto close = [&](const OtherBracket& b) {
@@ -492,8 +556,30 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
   };
   auto searching = [&] { return options.per_link || brackets.empty(); };
 
+  // Entity-level broad phase first: A's box over the window against E's.
+  // Apart, nothing touches, at the window's start either (the boxes hold
+  // the certified swept bounds and the slack), so the answer is the same as
+  // with the start tested first, without composing E's links.
+  {
+    Aabb box_a = Aabb::Empty();
+    double s0 = s_of(tau_from), s1 = s_of(tau_to);
+    WidenS(&s0, &s1);
+    for (int l = 0; l < num_links; ++l) {
+      if (roots[l].empty()) continue;
+      Eigen::Vector3d a, b;
+      double g;
+      memo_a.SweptCapsule(l, s0, s1, &a, &b, &g);
+      box_a.Grow(Aabb::OfCapsule(a, b, skeleton_a.link(l).radius + g + tol));
+    }
+    bool overlaps = false;
+    for (const Piece& p : pieces)
+      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
+    if (!overlaps) answer.culled_by_box = true;
+    if (!overlaps) std::fill(done.begin(), done.end(), true);
+  }
+
   // Initially colliding: touching at the window's start.
-  for (int l = 0; l < num_links && searching(); ++l) {
+  for (int l = 0; l < num_links && searching() && !answer.culled_by_box; ++l) {
     if (roots[l].empty()) continue;
     Eigen::Vector3d a, b;
     memo_a.SegmentAt(l, s_of(tau_from), &a, &b);
@@ -510,25 +596,6 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
       br.witness = c;
       close(br);
     }
-  }
-
-  // Entity-level broad phase: A's box over the window against E's.
-  if (searching()) {
-    Aabb box_a = Aabb::Empty();
-    double s0 = s_of(tau_from), s1 = s_of(tau_to);
-    WidenS(&s0, &s1);
-    for (int l = 0; l < num_links; ++l) {
-      if (roots[l].empty()) continue;
-      Eigen::Vector3d a, b;
-      double g;
-      memo_a.SweptCapsule(l, s0, s1, &a, &b, &g);
-      box_a.Grow(Aabb::OfCapsule(a, b, skeleton_a.link(l).radius + g + tol));
-    }
-    bool overlaps = false;
-    for (const Piece& p : pieces)
-      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
-    if (!overlaps) answer.culled_by_box = true;
-    if (!overlaps) std::fill(done.begin(), done.end(), true);
   }
 
   // A binary heap under Later, as std::priority_queue keeps it (the same

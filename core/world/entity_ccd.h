@@ -15,10 +15,12 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <vector>
 
 #include "core/avatar/motion.h"
+#include "core/avatar/motion_memo.h"
 #include "core/geometry/bvh.h"
 #include "core/world/world.h"
 
@@ -126,14 +128,68 @@ double EntityScale(const ObjectEntity& entity);
 double WindowScale(const AvatarEntity& entity, const std::vector<Piece>& pieces);
 double WindowScale(const ObjectEntity& entity, const std::vector<Piece>& pieces);
 
+/// An avatar's motions over its sample intervals with their memos (its
+/// links' poses at the times asked), kept across answers: every pair of
+/// every other avatar whose window meets interval k asks for the same
+/// motion. At most `max_kept` intervals are kept (emptied when full), each
+/// memo with at most 64 times (callers visit intervals in time order). Not
+/// thread-safe; must outlive the targets made with it.
+class IntervalMotions {
+ public:
+  explicit IntervalMotions(const AvatarEntity& entity, size_t max_kept = 4);
+  IntervalMotions(const IntervalMotions&) = delete;
+  IntervalMotions& operator=(const IntervalMotions&) = delete;
+  /// The memo of the motion from sample k to k + 1 (k + 1 clamped).
+  MotionMemo& MemoOf(int k);
+
+ private:
+  struct Held {
+    PairMotion motion;
+    MotionMemo memo;  // Over `motion`.
+    Held(const AvatarEntity& e, int k, int k1);
+  };
+  const AvatarEntity& entity_;
+  size_t max_kept_;
+  std::map<int, std::unique_ptr<Held>> held_;
+};
+
 /// The other entity's targets; `scale` is EntityScale of it (< 0: computed
-/// here, O(samples); callers answering many pairs compute it once).
-std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale = -1);
+/// here, O(samples); callers answering many pairs compute it once). An
+/// avatar target takes B's motions from `motions` when given (B's), else
+/// keeps its own.
+std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale = -1,
+                                              IntervalMotions* motions = nullptr);
 std::unique_ptr<OtherTarget> MakeObjectTarget(const World& world, int a, int o, double scale = -1);
+
+/// The broad phase over entities. A box holds the certified swept capsule of
+/// every link (or every mesh point) over one motion, padded far above the
+/// rounding of the box itself; boxes apart mean the entities do not touch
+/// over that motion, and then the answer is `free` with no link work. (The
+/// descent could instead accept a near miss within delta, which G3 allows
+/// too: `sweptccd world` and the daemon both apply these boxes, so they
+/// agree.) Each box depends on its own motion's samples only, so a live
+/// service holding those samples computes the same bits as `sweptccd world`.
+///
+/// Every link of an avatar over `motion` (one pair or one sample interval).
+Aabb AvatarMotionBox(const Skeleton& skeleton, const PairMotion& motion);
+/// The largest distance from an object's frame origin to a point of its mesh
+/// (of its BVH's bounds), rounded up.
+double ObjectRadius(const TriangleBvh& bvh);
+/// A tracked object moving from x0 to x1 (x1 == x0 for an object with one
+/// sample): its frame origin moves on the segment, every mesh point within
+/// `radius` (ObjectRadius) of it; `mesh_scale` is the BVH's largest absolute
+/// coordinate.
+Aabb ObjectMotionBox(const RigidSample& x0, const RigidSample& x1, double radius,
+                     double mesh_scale);
 
 /// Answers A's pair (poses pose0, pose1 under `motion_a`) against `target`
 /// over `pieces` (chronological, contiguous, non-empty). Deterministic.
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, int64_t utime0,
+                        int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
+                        const EntityQueryOptions& options);
+/// The same with A's memo, which callers answering one pair against many
+/// entities keep across them (the same bits: the memo answers as the motion).
+OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
                         const EntityQueryOptions& options);
 

@@ -38,23 +38,6 @@ void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from
   (*j)["t_hi"] = p.t_hi;
 }
 
-// Every link of the skeleton over the pair, padded by `pad` metres.
-Aabb MotionBox(const Skeleton& skeleton, const PairMotion& motion, double pad) {
-  Aabb box = Aabb::Empty();
-  for (int l = 0; l < skeleton.num_links(); ++l) {
-    Eigen::Vector3d a, b;
-    double g;
-    motion.SweptCapsule(l, 0, 1, &a, &b, &g);
-    box.Grow(Aabb::OfCapsule(a, b, (skeleton.link(l).radius + g) * (1 + 1e-9) + pad));
-  }
-  return box;
-}
-
-// Padding of the broad phase's boxes: far above any rounding slack of the
-// engine (whose own bounds are tighter), so a box test never clears what
-// the exact test would keep.
-double BoxPad(double scale) { return 1e-6 + std::ldexp(scale + 10.0, -18); }
-
 }  // namespace
 
 WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& options)
@@ -66,41 +49,30 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
   for (size_t a = 0; a < w_.world.avatars.size(); ++a) {
     engines_.push_back(
         std::make_unique<CcdEngine>(w_.world.avatars[a].skeleton, w_.env, w_.env_filters[a]));
-    avatar_scale_.push_back(EntityScale(w_.world.avatars[a]));
     avatar_times_.emplace_back();
     for (const Pose& p : w_.world.avatars[a].used) avatar_times_.back().push_back(p.utime);
   }
   for (const ObjectEntity& o : w_.world.objects) {
-    object_scale_.push_back(EntityScale(o));
     object_times_.emplace_back();
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
-  for (size_t b = 0; b < w_.world.avatars.size(); ++b) {
-    const AvatarEntity& e = w_.world.avatars[b];
+  for (const AvatarEntity& e : w_.world.avatars) {
+    interval_motions_.push_back(std::make_unique<IntervalMotions>(e));
     avatar_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
-      const PairMotion m(e.skeleton, e.used[k], e.used[k1], e.motion);
-      avatar_boxes_.back().push_back(MotionBox(e.skeleton, m, BoxPad(avatar_scale_[b])));
+      avatar_boxes_.back().push_back(
+          AvatarMotionBox(e.skeleton, PairMotion(e.skeleton, e.used[k], e.used[k1], e.motion)));
     }
   }
-  for (size_t o = 0; o < w_.world.objects.size(); ++o) {
-    const ObjectEntity& e = w_.world.objects[o];
-    double rho = 0;
-    const Aabb bounds = e.mesh->object(0).bvh.bounds();
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3d corner((c & 1) ? bounds.hi.x() : bounds.lo.x(),
-                                   (c & 2) ? bounds.hi.y() : bounds.lo.y(),
-                                   (c & 4) ? bounds.hi.z() : bounds.lo.z());
-      rho = std::max(rho, corner.norm());
-    }
+  for (const ObjectEntity& e : w_.world.objects) {
+    const TriangleBvh& bvh = e.mesh->object(0).bvh;
+    const double rho = ObjectRadius(bvh);
     object_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
-      // Every mesh point is within rho of the frame origin, which moves on
-      // the straight line between the two samples.
       object_boxes_.back().push_back(
-          Aabb::OfCapsule(e.used[k].p, e.used[k1].p, rho * (1 + 1e-9) + BoxPad(object_scale_[o])));
+          ObjectMotionBox(e.used[k], e.used[k1], rho, bvh.max_abs_coordinate()));
     }
   }
 }
@@ -120,35 +92,30 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   *t_from = std::max(u0, times.front());
   *t_to = std::min(u1, times.back());
   if (*t_from > *t_to) return false;
-  // Broad phase: the boxes of E's sample intervals that the window meets.
+  const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
+  // Broad phase: A's box over the pair against E's box of each piece's
+  // sample interval.
   const std::vector<Aabb>& boxes = b >= 0 ? avatar_boxes_[b] : object_boxes_[o];
   if (box_a_ != a || box_r_ != r) {
     box_ = PairBox(a, r);
     box_a_ = a;
     box_r_ = r;
   }
-  const Aabb& box_a = box_;
   bool near = false;
-  // (At most the last box: a window that is the last sample's instant.)
-  const size_t first = static_cast<size_t>(std::clamp<std::ptrdiff_t>(
-      std::upper_bound(times.begin(), times.end(), *t_from) - times.begin() - 1, 0,
-      static_cast<std::ptrdiff_t>(boxes.size()) - 1));
-  for (size_t k = first; k < boxes.size() && times[k] <= *t_to && !near; ++k) {
-    near = box_a.Overlaps(boxes[k]);
-  }
+  for (const Piece& p : pieces) near = near || box_.Overlaps(boxes[static_cast<size_t>(p.k)]);
   if (!near) {
     *answer = OtherAnswer();
     answer->culled_by_box = true;
     return true;
   }
-  const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
-  const PairMotion& motion = RecordMotion(a, r);
+  RecordMotion(a, r);  // Sets memo_ to this record's.
   // The rounding slack from the window's samples only (WindowScale): what a
   // live service holding only those answers with too.
   const std::unique_ptr<OtherTarget> target =
-      b >= 0 ? MakeAvatarTarget(w_.world, a, b, WindowScale(w_.world.avatars[b], pieces))
+      b >= 0 ? MakeAvatarTarget(w_.world, a, b, WindowScale(w_.world.avatars[b], pieces),
+                                interval_motions_[static_cast<size_t>(b)].get())
              : MakeObjectTarget(w_.world, a, o, WindowScale(w_.world.objects[o], pieces));
-  *answer = AnswerOther(A.skeleton, motion, u0, u1, pieces, *target, entity_options_);
+  *answer = AnswerOther(A.skeleton, &*memo_, u0, u1, pieces, *target, entity_options_);
   return true;
 }
 
@@ -156,7 +123,9 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   if (!motion_ || motion_a_ != a || motion_r_ != r) {
     const AvatarEntity& A = w_.world.avatars[a];
     const PairOutcome& rec = A.records[r];
+    memo_.reset();  // Over the motion replaced next.
     motion_.emplace(A.skeleton, rec.pose0, rec.pose1, A.motion);
+    memo_.emplace(*motion_);
     motion_a_ = a;
     motion_r_ = r;
   }
@@ -164,7 +133,7 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
 }
 
 Aabb WorldAnswerer::PairBox(int a, size_t r) const {
-  return MotionBox(w_.world.avatars[a].skeleton, RecordMotion(a, r), BoxPad(avatar_scale_[a]));
+  return AvatarMotionBox(w_.world.avatars[a].skeleton, RecordMotion(a, r));
 }
 
 QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {

@@ -32,9 +32,9 @@ class WorldAnswerer {
 
   /// The `others` answer of avatar a's valid record r against avatar b or
   /// object o (exactly one of b, o is >= 0); false when E does not overlap.
-  /// The broad phase first: A's swept box over the pair against E's boxes
-  /// of the sample intervals the window meets (computed once per entity);
-  /// apart, the answer is `free` without any link work.
+  /// The broad phase first: A's AvatarMotionBox over the pair against E's
+  /// box of each piece's sample interval (computed once per entity); apart,
+  /// the answer is `free` without any link work.
   bool AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer, int64_t* t_from,
                     int64_t* t_to) const;
 
@@ -46,7 +46,6 @@ class WorldAnswerer {
   QueryOptions options_;
   EntityQueryOptions entity_options_;
   std::vector<std::unique_ptr<CcdEngine>> engines_;
-  std::vector<double> avatar_scale_, object_scale_;                // EntityScale, once.
   std::vector<std::vector<int64_t>> avatar_times_, object_times_;  // Used samples' utimes.
   // Per entity, a box holding it over each interval between used samples
   // (one box for an entity with one sample).
@@ -61,6 +60,11 @@ class WorldAnswerer {
   mutable int motion_a_ = -1;
   mutable size_t motion_r_ = 0;
   mutable std::optional<PairMotion> motion_;
+  // Over *motion_: every entity of the record asks for A's links at the
+  // same times (the window's start, its halves).
+  mutable std::optional<MotionMemo> memo_;
+  // Each avatar's motions over its sample intervals, kept across records.
+  std::vector<std::unique_ptr<IntervalMotions>> interval_motions_;
 };
 
 }  // namespace sweptccd::world
