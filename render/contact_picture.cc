@@ -344,8 +344,13 @@ ContactPicture DrawContactPicture(const ContactPictureOptions& o, const Skeleton
                  result,
                  PairMotion(skeleton, pair.pose0, pair.pose1, model),
                  Eigen::Vector3d::Unit(o.up_axis),
-                 result.contact && !result.contacts.empty()};
-  c.witness = c.has_witness ? result.contacts[0] : ContactRecord{};
+                 result.contact && !result.contacts.empty(),
+                 ContactRecord{},
+                 {},
+                 {},
+                 {},
+                 CameraView{}};
+  if (c.has_witness) c.witness = result.contacts[0];
   c.avatar = AvatarAt(skeleton, c.motion, result.contact ? result.s_lo : 0.5);
   c.avatar0 = AvatarAt(skeleton, c.motion, 0);
   c.avatar1 = AvatarAt(skeleton, c.motion, 1);

@@ -1,16 +1,23 @@
 #include "core/avatar/motion_memo.h"
 
+#include <algorithm>
 #include <cstring>
 
 namespace sweptccd {
 
 MotionMemo::MotionMemo(const PairMotion& motion, size_t max_times)
-    : motion_(motion), max_times_(max_times > 0 ? max_times : 1) {}
+    : motion_(&motion), max_times_(max_times > 0 ? max_times : 1) {}
+
+void MotionMemo::Rebind(const PairMotion& motion) {
+  motion_ = &motion;
+  times_.clear();
+  blocks_used_ = 0;
+}
 
 MotionMemo::Slot* MotionMemo::SlotsAt(double s) {
   uint64_t key;
   std::memcpy(&key, &s, sizeof key);
-  const size_t n = static_cast<size_t>(motion_.num_links());
+  const size_t n = static_cast<size_t>(motion_->num_links());
   auto it = times_.find(key);
   if (it != times_.end()) return slots_.data() + it->second * n;
   if (times_.size() >= max_times_) {
@@ -18,14 +25,14 @@ MotionMemo::Slot* MotionMemo::SlotsAt(double s) {
     blocks_used_ = 0;
   }
   const size_t block = blocks_used_++;
-  if (slots_.size() < (block + 1) * n) {
-    slots_.resize((block + 1) * n);
-  } else {
-    for (size_t i = block * n; i < (block + 1) * n; ++i) {
-      slots_[i].have_pose = false;
-      slots_[i].have_segment = false;
-    }
+  // Slots kept from earlier use are emptied (after Rebind to a motion with
+  // another link count, a block may overlap old slots and new ones).
+  const size_t kept = std::min(slots_.size(), (block + 1) * n);
+  for (size_t i = block * n; i < kept; ++i) {
+    slots_[i].have_pose = false;
+    slots_[i].have_segment = false;
   }
+  if (slots_.size() < (block + 1) * n) slots_.resize((block + 1) * n);
   times_.emplace(key, block);
   return slots_.data() + block * n;
 }
@@ -34,24 +41,28 @@ void MotionMemo::ComposePose(Slot* slots, int link, double s) {
   // Up to the first ancestor already composed (or the chain's top), then
   // down: each step is PoseAt's, from the parent's pose as PoseAt has it.
   chain_.clear();
-  for (int k = link; k >= 0 && !slots[k].have_pose; k = motion_.motion_parent(k)) {
+  for (int k = link; k >= 0 && !slots[k].have_pose; k = motion_->motion_parent(k)) {
     chain_.push_back(k);
   }
   for (size_t i = chain_.size(); i-- > 0;) {
     const int k = chain_[i];
-    const int parent = motion_.motion_parent(k);
+    const int parent = motion_->motion_parent(k);
     Slot& slot = slots[k];
-    slot.pose = motion_.PoseFromParent(k, s, parent >= 0 ? slots[parent].pose : LinkPose());
+    slot.pose = motion_->PoseFromParent(k, s, parent >= 0 ? slots[parent].pose : LinkPose());
     slot.have_pose = true;
   }
 }
 
 void MotionMemo::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) {
+  if (s == 0.0 || s == 0.5 || s == 1.0) {
+    motion_->SegmentAt(link, s, p_WA, p_WB);  // A look-up there (the same bits).
+    return;
+  }
   Slot* slots = SlotsAt(s);
   Slot& slot = slots[link];
   if (!slot.have_segment) {
     if (!slot.have_pose) ComposePose(slots, link, s);
-    motion_.SegmentOfPose(link, slot.pose, &slot.a, &slot.b);
+    motion_->SegmentOfPose(link, slot.pose, &slot.a, &slot.b);
     slot.have_segment = true;
   }
   *p_WA = slot.a;
@@ -65,7 +76,7 @@ void MotionMemo::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p
   SegmentAt(link, s0, &a0, &b0);
   SegmentAt(link, s1, &a1, &b1);
   SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
-  motion_.SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
+  motion_->SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
 }
 
 }  // namespace sweptccd

@@ -23,7 +23,10 @@ class MotionMemo {
  public:
   explicit MotionMemo(const PairMotion& motion, size_t max_times = 1024);
 
-  const PairMotion& motion() const { return motion_; }
+  const PairMotion& motion() const { return *motion_; }
+  /// Forgets every time and answers for `motion` from now on, keeping the
+  /// memory (a caller answering pair after pair allocates once).
+  void Rebind(const PairMotion& motion);
 
   /// As PairMotion::SegmentAt (the same bits).
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB);
@@ -44,7 +47,7 @@ class MotionMemo {
   // Fills slots[link].pose, and that of each ancestor not yet there.
   void ComposePose(Slot* slots, int link, double s);
 
-  const PairMotion& motion_;
+  const PairMotion* motion_;
   size_t max_times_;
   // Time -> its block of num_links() slots in slots_. Blocks are reused
   // after the memo is emptied (no allocation per time once warm).

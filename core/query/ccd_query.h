@@ -105,6 +105,11 @@ class CcdEngine {
   /// Preconditions: both poses valid (ValidateAndNormalizePose) and
   /// pose1.utime > pose0.utime; options valid (ValidateQueryOptions).
   QueryResult Query(const Pose& pose0, const Pose& pose1, const QueryOptions& options) const;
+  /// The same, given the pair's motion, which callers that need it too (the
+  /// shared world's parts) build once: PairMotion(skeleton, pose0, pose1,
+  /// options.motion) of this engine's skeleton. The same answer.
+  QueryResult Query(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
+                    const QueryOptions& options) const;
 
   /// Exact separation of `link` at s (distance to the nearest unfiltered
   /// triangle minus the radius), searching only within `search_radius` of the

@@ -7,10 +7,12 @@
 namespace sweptccd::internal {
 
 QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
-                   const QueryOptions& options)
+                   const QueryOptions& options, const PairMotion* motion)
     : options_(options),
       num_links_(engine.skeleton().num_links()),
-      motion_(engine.skeleton(), pose0, pose1, options.motion),
+      motion_(motion != nullptr
+                  ? *motion
+                  : own_motion_.emplace(engine.skeleton(), pose0, pose1, options.motion)),
       target_(engine.skeleton(), engine.environment(), engine.filter()),
       bounds_(engine.skeleton(), motion_, SweptBounds::Tolerance(engine.environment(), motion_)),
       slicer_(pose0.utime, pose1.utime, options.eps_s),

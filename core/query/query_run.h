@@ -19,8 +19,10 @@ namespace sweptccd::internal {
 /// engine's skeleton, environment and filter, and to the options.
 class QueryRun {
  public:
+  /// `motion`: the pair's motion when the caller has it (built from the
+  /// engine's skeleton, pose0, pose1 and options.motion), else built here.
   QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
-           const QueryOptions& options);
+           const QueryOptions& options, const PairMotion* motion = nullptr);
 
   QueryResult Run();
 
@@ -49,7 +51,8 @@ class QueryRun {
 
   const QueryOptions& options_;
   const int num_links_;
-  PairMotion motion_;
+  std::optional<PairMotion> own_motion_;  // When the caller gave none.
+  const PairMotion& motion_;
   EnvironmentTarget target_;
   SweptBounds bounds_;
   TimeSlicer slicer_;

@@ -477,12 +477,22 @@ IntervalMotions::IntervalMotions(const AvatarEntity& entity, size_t max_kept)
 
 MotionMemo& IntervalMotions::MemoOf(int k) {
   auto it = held_.find(k);
-  if (it == held_.end()) {
-    if (held_.size() >= max_kept_) held_.clear();
-    const int k1 = std::min<int>(k + 1, static_cast<int>(entity_.used.size()) - 1);
-    it = held_.emplace(k, std::make_unique<Held>(entity_, k, k1)).first;
+  if (it != held_.end()) return it->second->memo;
+  const int k1 = std::min<int>(k + 1, static_cast<int>(entity_.used.size()) - 1);
+  std::unique_ptr<Held> held;
+  if (held_.size() >= max_kept_) {
+    // Full: the interval farthest from k goes, its memo's memory reused.
+    auto far = std::prev(held_.end());
+    if (k - held_.begin()->first >= far->first - k) far = held_.begin();
+    held = std::move(far->second);
+    held_.erase(far);
+    held->motion = PairMotion(entity_.skeleton, entity_.used[static_cast<size_t>(k)],
+                              entity_.used[static_cast<size_t>(k1)], entity_.motion);
+    held->memo.Rebind(held->motion);
+  } else {
+    held = std::make_unique<Held>(entity_, k, k1);
   }
-  return it->second->memo;
+  return held_.emplace(k, std::move(held)).first->second->memo;
 }
 
 std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale,

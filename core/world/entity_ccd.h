@@ -131,7 +131,7 @@ double WindowScale(const ObjectEntity& entity, const std::vector<Piece>& pieces)
 /// An avatar's motions over its sample intervals with their memos (its
 /// links' poses at the times asked), kept across answers: every pair of
 /// every other avatar whose window meets interval k asks for the same
-/// motion. At most `max_kept` intervals are kept (emptied when full), each
+/// motion. At most `max_kept` intervals are kept (the farthest goes), each
 /// memo with at most 64 times (callers visit intervals in time order). Not
 /// thread-safe; must outlive the targets made with it.
 class IntervalMotions {
@@ -141,6 +141,9 @@ class IntervalMotions {
   IntervalMotions& operator=(const IntervalMotions&) = delete;
   /// The memo of the motion from sample k to k + 1 (k + 1 clamped).
   MotionMemo& MemoOf(int k);
+  /// That motion (valid until MemoOf or MotionOf asks for an interval not
+  /// kept while this one is the farthest).
+  const PairMotion& MotionOf(int k) { return MemoOf(k).motion(); }
 
  private:
   struct Held {

@@ -119,16 +119,40 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   return true;
 }
 
-const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
-  if (!motion_ || motion_a_ != a || motion_r_ != r) {
-    const AvatarEntity& A = w_.world.avatars[a];
-    const PairOutcome& rec = A.records[r];
-    memo_.reset();  // Over the motion replaced next.
-    motion_.emplace(A.skeleton, rec.pose0, rec.pose1, A.motion);
-    memo_.emplace(*motion_);
-    motion_a_ = a;
-    motion_r_ = r;
+namespace {
+
+bool SamePose(const Pose& x, const Pose& y) {
+  if (x.utime != y.utime || x.links.size() != y.links.size()) return false;
+  for (size_t i = 0; i < x.links.size(); ++i) {
+    if (x.links[i].p != y.links[i].p || !x.links[i].q.coeffs().cwiseEqual(y.links[i].q.coeffs()).all())
+      return false;
   }
+  return true;
+}
+
+}  // namespace
+
+const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
+  if (motion_ != nullptr && motion_a_ == a && motion_r_ == r) return *motion_;
+  const AvatarEntity& A = w_.world.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const std::vector<int64_t>& times = avatar_times_[a];
+  const size_t k = static_cast<size_t>(
+      std::lower_bound(times.begin(), times.end(), rec.pose0.utime) - times.begin());
+  if (k + 1 < times.size() && SamePose(A.used[k], rec.pose0) &&
+      SamePose(A.used[k + 1], rec.pose1)) {
+    motion_ = &interval_motions_[static_cast<size_t>(a)]->MotionOf(static_cast<int>(k));
+  } else {
+    own_motion_.emplace(A.skeleton, rec.pose0, rec.pose1, A.motion);
+    motion_ = &*own_motion_;
+  }
+  if (memo_) {
+    memo_->Rebind(*motion_);  // Its memory kept from record to record.
+  } else {
+    memo_.emplace(*motion_);
+  }
+  motion_a_ = a;
+  motion_r_ = r;
   return *motion_;
 }
 
@@ -142,7 +166,7 @@ QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
   const PairOutcome& rec = A.records[r];
   QueryOptions options = options_;
   options.motion = A.motion;  // Each avatar moves by its own model.
-  return engines_[a]->Query(rec.pose0, rec.pose1, options);
+  return engines_[a]->Query(RecordMotion(a, r), rec.pose0, rec.pose1, options);
 }
 
 std::string WorldAnswerer::RecordJson(int a, size_t r) const {

@@ -59,7 +59,11 @@ class WorldAnswerer {
   const PairMotion& RecordMotion(int a, size_t r) const;
   mutable int motion_a_ = -1;
   mutable size_t motion_r_ = 0;
-  mutable std::optional<PairMotion> motion_;
+  // The record's motion: A's interval motion when the record is the pair of
+  // A's used samples k, k + 1 (built once for A's record and for every
+  // other avatar's window that meets it), else own_motion_.
+  mutable const PairMotion* motion_ = nullptr;
+  mutable std::optional<PairMotion> own_motion_;
   // Over *motion_: every entity of the record asks for A's links at the
   // same times (the window's start, its halves).
   mutable std::optional<MotionMemo> memo_;

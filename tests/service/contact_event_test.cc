@@ -83,7 +83,9 @@ TEST(ContactEventTest, CarriesTheNumbersOfTheCliRecord) {
     EXPECT_EQ(ev.result, expected);
     EXPECT_EQ(ev.initially_colliding, j["initially_colliding"].get<bool>());
     EXPECT_EQ(ev.undecided, j["undecided"].get<bool>());
-    if (!contact) EXPECT_FALSE(ev.initially_colliding || ev.undecided);
+    if (!contact) {
+      EXPECT_FALSE(ev.initially_colliding || ev.undecided);
+    }
     if (contact) {
       EXPECT_EQ(ev.s_lo, j["s_lo"].get<double>());
       EXPECT_EQ(ev.s_hi, j["s_hi"].get<double>());

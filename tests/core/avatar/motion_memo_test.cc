@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -81,6 +82,69 @@ TEST(MotionMemoTest, SegmentsAndSweptCapsulesMatchPairMotionBitForBit) {
       motion.SweptCapsule(link, lo, hi, &ta, &tb, &tg);
       ASSERT_TRUE(SameBits(a, ta) && SameBits(b, tb) && SameBits(g, tg))
           << "trial " << trial << " link " << link << " [" << lo << ", " << hi << "]";
+    }
+  }
+}
+
+// One memo rebound from motion to motion (as the shared world keeps one per
+// record): every answer after Rebind is the new motion's, bit for bit, none
+// left over from the old one (the same times are asked of both).
+// Skeletons of different link counts, so that a block of slots after
+// Rebind overlaps slots of the old motion and new ones (a regression: those
+// old slots once kept their composed poses).
+TEST(MotionMemoTest, ReboundMemoAnswersForTheNewMotion) {
+  Rng rng(0x3e3012);
+  std::vector<Skeleton> skeletons;
+  for (int k = 0; k < 40; ++k) skeletons.push_back(RandomSkeleton(&rng, 1 + rng.I(9), rng.I(3)));
+  std::vector<PairMotion> motions;
+  for (const Skeleton& sk : skeletons) {
+    const int n = sk.num_links();
+    motions.emplace_back(sk, RandomPose(&rng, n, 1.0), RandomPose(&rng, n, 1.0),
+                         rng.P(0.7) ? MotionModel::kArticulated : MotionModel::kIndependent);
+  }
+  const std::vector<double> times = {0.0, 0.25, 0.5, 0.75, 1.0, 0.125, 0.375, 0.8, 0.9};
+  MotionMemo memo(motions[0], 1 + static_cast<size_t>(rng.I(8)));
+  for (size_t m = 0; m < motions.size(); ++m) {
+    if (m > 0) memo.Rebind(motions[m]);
+    ASSERT_EQ(&memo.motion(), &motions[m]);
+    const int n = motions[m].num_links();
+    for (int ask = 0; ask < 100; ++ask) {
+      const int link = rng.I(n);
+      const double s0 = times[static_cast<size_t>(rng.I(static_cast<int>(times.size())))];
+      const double s1 = times[static_cast<size_t>(rng.I(static_cast<int>(times.size())))];
+      const double lo = std::min(s0, s1), hi = std::max(s0, s1);
+      Eigen::Vector3d a, b, ta, tb;
+      double g, tg;
+      memo.SegmentAt(link, s0, &a, &b);
+      motions[m].SegmentAt(link, s0, &ta, &tb);
+      ASSERT_TRUE(SameBits(a, ta) && SameBits(b, tb)) << "motion " << m << " link " << link;
+      memo.SweptCapsule(link, lo, hi, &a, &b, &g);
+      motions[m].SweptCapsule(link, lo, hi, &ta, &tb, &tg);
+      ASSERT_TRUE(SameBits(a, ta) && SameBits(b, tb) && SameBits(g, tg))
+          << "motion " << m << " link " << link << " [" << lo << ", " << hi << "]";
+    }
+  }
+}
+
+// The smallest case of that regression: a 7-link motion's segments at one
+// time fill slots 0-6; rebound to a 4-link motion, its second time's block
+// is slots 4-7, of which 4-6 held the old motion's segments.
+TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSegments) {
+  Rng rng(0x3e3013);
+  const Skeleton seven = RandomSkeleton(&rng, 7, 0), four = RandomSkeleton(&rng, 4, 0);
+  const PairMotion m7(seven, RandomPose(&rng, 7, 1.0), RandomPose(&rng, 7, 1.0),
+                      MotionModel::kArticulated);
+  const PairMotion m4(four, RandomPose(&rng, 4, 1.0), RandomPose(&rng, 4, 1.0),
+                      MotionModel::kArticulated);
+  MotionMemo memo(m7);
+  Eigen::Vector3d a, b, ta, tb;
+  for (int l = 0; l < 7; ++l) memo.SegmentAt(l, 0.3, &a, &b);
+  memo.Rebind(m4);
+  for (double s : {0.3, 0.7}) {
+    for (int l = 0; l < 4; ++l) {
+      memo.SegmentAt(l, s, &a, &b);
+      m4.SegmentAt(l, s, &ta, &tb);
+      EXPECT_TRUE(SameBits(a, ta) && SameBits(b, tb)) << "link " << l << " s " << s;
     }
   }
 }

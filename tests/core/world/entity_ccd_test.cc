@@ -25,7 +25,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/geometry/distance.h"
@@ -588,17 +590,31 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
       w.objects.push_back(std::move(O));
     }
     QueryOptions qo;
-    const WorldAnswerer answerer(lw, qo);
     EntityQueryOptions eo;
+    // The records avatar by avatar, then in reverse time order from a fresh
+    // answerer (its memos and kept interval motions see other orders).
+    std::vector<std::pair<int, size_t>> order;
     for (int a = 0; a < 4; ++a) {
-      for (size_t r = 0; r < w.avatars[a].records.size(); ++r) {
+      for (size_t r = 0; r < w.avatars[a].records.size(); ++r) order.emplace_back(a, r);
+    }
+    std::vector<std::pair<int, size_t>> reversed = order;
+    std::sort(reversed.begin(), reversed.end(), [&](const auto& x, const auto& y) {
+      return w.avatars[x.first].records[x.second].pose1.utime >
+             w.avatars[y.first].records[y.second].pose1.utime;
+    });
+    order.insert(order.end(), reversed.begin(), reversed.end());
+    std::optional<WorldAnswerer> answerer;
+    for (size_t i = 0; i < order.size(); ++i) {
+      if (i == 0 || i == reversed.size()) answerer.emplace(lw, qo);
+      const auto [a, r] = order[i];
+      {
         const PairOutcome& rec = w.avatars[a].records[r];
         for (int e = 0; e < 6; ++e) {
           const int b = e < 4 ? e : -1, o = e < 4 ? -1 : e - 4;
           if (b == a) continue;
           OtherAnswer via_world;
           int64_t t_from, t_to;
-          if (!answerer.AnswerEntity(a, r, b, o, &via_world, &t_from, &t_to)) continue;
+          if (!answerer->AnswerEntity(a, r, b, o, &via_world, &t_from, &t_to)) continue;
           std::vector<int64_t> times;
           if (b >= 0) {
             for (const Pose& p : w.avatars[b].used) times.push_back(p.utime);
@@ -606,16 +622,31 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
             for (const RigidSample& x : w.objects[o].used) times.push_back(x.utime);
           }
           const PairMotion motion(w.avatars[a].skeleton, rec.pose0, rec.pose1, w.avatars[a].motion);
-          const auto target = b >= 0 ? MakeAvatarTarget(w, a, b) : MakeObjectTarget(w, a, o);
-          const OtherAnswer direct =
-              AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime,
-                          SplitWindow(rec.pose0.utime, t_from, t_to, times), *target, eo);
+          const std::vector<Piece> pieces = SplitWindow(rec.pose0.utime, t_from, t_to, times);
+          // Fresh: the target's own motions, a memo for this answer alone.
+          const auto target =
+              b >= 0 ? MakeAvatarTarget(w, a, b, WindowScale(w.avatars[b], pieces))
+                     : MakeObjectTarget(w, a, o, WindowScale(w.objects[o], pieces));
+          const OtherAnswer direct = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
+                                                 rec.pose1.utime, pieces, *target, eo);
           ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
-          culled += via_world.culled_by_box;
-          contacts += direct.contact;
+          culled += i < reversed.size() && via_world.culled_by_box;
+          contacts += i < reversed.size() && direct.contact;
+          if (!via_world.culled_by_box) {
+            // Not cleared: the same descent, bit for bit.
+            EXPECT_EQ(via_world.intervals, direct.intervals);
+            EXPECT_EQ(via_world.culled_by_box, direct.culled_by_box);
+          }
           if (direct.contact) {
             EXPECT_EQ(via_world.bracket.tau_lo, direct.bracket.tau_lo);
             EXPECT_EQ(via_world.bracket.tau_hi, direct.bracket.tau_hi);
+            EXPECT_EQ(via_world.bracket.initially_colliding, direct.bracket.initially_colliding);
+            EXPECT_EQ(via_world.bracket.witness.link, direct.bracket.witness.link);
+            EXPECT_EQ(via_world.bracket.witness.other_link, direct.bracket.witness.other_link);
+            EXPECT_EQ(via_world.bracket.witness.triangle, direct.bracket.witness.triangle);
+            EXPECT_EQ(via_world.bracket.witness.point_link, direct.bracket.witness.point_link);
+            EXPECT_EQ(via_world.bracket.witness.point_other, direct.bracket.witness.point_other);
+            EXPECT_EQ(via_world.bracket.witness.separation, direct.bracket.witness.separation);
           }
         }
       }
@@ -624,6 +655,65 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
   std::printf("%d culled by the world's boxes, %d contacts\n", culled, contacts);
   EXPECT_GT(culled, 50);
   EXPECT_GT(contacts, 10);
+}
+
+// The broad phase's boxes against dense sampling: every link's capsule (its
+// segment at 401 instants, 11 points along it, grown by the radius along
+// each axis) lies in AvatarMotionBox; every mesh vertex, moved by the
+// object's motion at those instants, lies in ObjectMotionBox.
+TEST(EntityCcdWorld, MotionBoxesHoldDenseSamples) {
+  Rng rng(9100);
+  int points = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const Skeleton sk = RandomSkeleton(rng, 1 + rng.I(8), true);
+    const MotionModel model = rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+    const Pose p0 = RandomPose(rng, sk.num_links(), 0, Vector3d(rng.Box(3.0)), 0.5);
+    const Pose p1 = rng.P(0.1) ? p0 : NextPose(rng, p0, 11'111, rng.U(0, 0.5));
+    const PairMotion motion(sk, p0, p1, model);
+    const Aabb box = AvatarMotionBox(sk, motion);
+    for (int i = 0; i <= 400; ++i) {
+      for (int l = 0; l < sk.num_links(); ++l) {
+        Vector3d a, b;
+        motion.SegmentAt(l, i / 400.0, &a, &b);
+        for (int f = 0; f <= 10; ++f) {
+          const Vector3d x = a + (b - a) * (f / 10.0);
+          for (int axis = 0; axis < 3; ++axis) {
+            for (double sign : {-1.0, 1.0}) {
+              const Vector3d y = x + sign * sk.link(l).radius * Vector3d::Unit(axis);
+              ASSERT_TRUE((y.array() >= box.lo.array()).all() && (y.array() <= box.hi.array()).all())
+                  << "trial " << trial << " link " << l << " s " << i / 400.0;
+              ++points;
+            }
+          }
+        }
+      }
+    }
+    Environment mesh;
+    mesh.AddMesh(RandomMesh(rng, rng.P(0.3)), "mesh");
+    const TriangleBvh& bvh = mesh.object(0).bvh;
+    RigidSample x0, x1;
+    x0.p = rng.Box(3.0);
+    x0.q = rng.Quat();
+    x1.p = rng.P(0.1) ? x0.p : Vector3d(x0.p + rng.Box(1.0));
+    x1.q = rng.P(0.1) ? x0.q : rng.Quat();
+    const RigidMotion m(x0, x1);
+    const Aabb obox = ObjectMotionBox(x0, x1, ObjectRadius(bvh), bvh.max_abs_coordinate());
+    for (int i = 0; i <= 400; ++i) {
+      const Vector3d c = m.PositionAt(i / 400.0);
+      const Eigen::Matrix3d R = m.RotationAt(i / 400.0).toRotationMatrix();
+      for (uint32_t t = 0; t < static_cast<uint32_t>(bvh.num_triangles()); ++t) {
+        Vector3d ta, tb, tc;
+        bvh.Triangle(t, &ta, &tb, &tc);
+        for (const Vector3d& v : {ta, tb, tc}) {
+          const Vector3d y = c + R * v;
+          ASSERT_TRUE((y.array() >= obox.lo.array()).all() && (y.array() <= obox.hi.array()).all())
+              << "trial " << trial << " s " << i / 400.0;
+          ++points;
+        }
+      }
+    }
+  }
+  EXPECT_GT(points, 1'000'000);
 }
 
 // Regression: an entity whose last sample is the pair's first instant
