@@ -327,7 +327,7 @@ bool SharedWorld::Covered(const Entity& e, const Entry& entry) {
   // A sample strictly after utime1: the window [t_from, utime1] and every
   // sample the offline answer uses for it (SplitWindow stops at the first
   // sample at or after t_to) are in.
-  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair.pose1.utime;
+  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair->pose1.utime;
 }
 
 bool SharedWorld::Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,
@@ -352,7 +352,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
                           SharedJob* job) const {
   const size_t n = e.size();
   if (n == 0) return false;
-  const int64_t u0 = entry.pair.pose0.utime, u1 = entry.pair.pose1.utime;
+  const int64_t u0 = entry.pair->pose0.utime, u1 = entry.pair->pose1.utime;
   const int64_t t_from = std::max(u0, e.utime(0));
   const int64_t t_to = std::min(u1, e.utime(n - 1));
   if (t_from > t_to) return false;  // No overlap: no entry (as offline).
@@ -368,12 +368,12 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   }
   // f is SplitWindow's first interval. Pieces over the slice from f are E's
   // intervals f + k, whose boxes are those of the whole history.
-  job->cleared_by_box = options_.broad_phase && !Near(e, entry.box_a, f, t_from, t_to);
+  job->cleared_by_box = options_.broad_phase && !Near(e, entry.pair->box_a, f, t_from, t_to);
   job->client_id = entry.a;
-  job->pair = entry.pair.pair;
-  job->seq0 = entry.pair.seq0;
-  job->seq1 = entry.pair.seq1;
-  job->receive_utime = entry.pair.receive_utime;
+  job->pair = entry.pair->pair;
+  job->seq0 = entry.pair->seq0;
+  job->seq1 = entry.pair->seq1;
+  job->receive_utime = entry.pair->receive_utime;
   job->skeleton_a = entry.skeleton_a;
   job->motion_a = entry.motion_a;
   if (job->cleared_by_box) {
@@ -381,8 +381,8 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
     job->pose0.utime = u0;
     job->pose1.utime = u1;
   } else {
-    job->pose0 = entry.pair.pose0;
-    job->pose1 = entry.pair.pose1;
+    job->pose0 = entry.pair->pose0;
+    job->pose1 = entry.pair->pose1;
   }
   job->entity = e.id;
   job->entity_is_object = e.is_object;
@@ -402,7 +402,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->t_to = t_to;
   // The window may reach before the oldest sample kept: then it is cut too.
   job->ended_by_timeout = cut || (e.evicted && e.utime(0) > u0);
-  job->waited_us = MicrosSince(entry.pair.receive_time, cut ? now : e.last_sample_time);
+  job->waited_us = MicrosSince(entry.pair->receive_time, cut ? now : e.last_sample_time);
   return true;
 }
 
@@ -434,7 +434,11 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
   const auto it = entities_.find(id);
   if (it == entities_.end() || it->second.is_object) return;
   const Entity& a = it->second;
-  const Aabb box_a = world::AvatarMotionBox(
+  // One copy of the pair and its box for all its entries: an entry then
+  // allocates nothing of its own.
+  auto shared = std::make_shared<SharedPair>();
+  static_cast<PosePair&>(*shared) = pair;
+  shared->box_a = world::AvatarMotionBox(
       *a.skeleton, PairMotion(*a.skeleton, pair.pose0, pair.pose1, a.motion));
   for (const std::string& other : order_) {
     if (other == id) continue;
@@ -442,8 +446,7 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.a = id;
     entry.skeleton_a = a.skeleton;
     entry.motion_a = a.motion;
-    entry.pair = pair;
-    entry.box_a = box_a;
+    entry.pair = shared;
     entry.e = other;
     entry.created = now;
     pending_.push_back(std::move(entry));

@@ -175,12 +175,14 @@ class SharedWorld {
       return is_object ? object_samples[k].utime : avatar_samples[k].utime;
     }
   };
+  struct SharedPair : PosePair {
+    Aabb box_a;  // A over the pair (AvatarMotionBox).
+  };
   struct Entry {
     std::string a;  // The avatar whose pair it is.
     std::shared_ptr<const Skeleton> skeleton_a;
     MotionModel motion_a = MotionModel::kArticulated;
-    PosePair pair;
-    Aabb box_a;  // A over the pair (AvatarMotionBox), once per pair.
+    std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
     std::string e;
     Time created;
   };
