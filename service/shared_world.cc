@@ -77,6 +77,10 @@ shared_entry_t EntryOf(const SharedJob& job) {
 shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
   shared_entry_t m = EntryOf(job);
   const auto start = SteadyClock::now();
+  if (job.cleared_by_box) {
+    m.compute_us = std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+    return m;
+  }
   try {
     // A two-entity world: A (its pair) and E (the slice of its history the
     // window uses). Index 0 is A; E is avatar 1 or object 0.
@@ -176,6 +180,9 @@ void SharedWorld::AddObject(const std::string& id, std::shared_ptr<const Environ
   e.id = id;
   e.is_object = true;
   e.mesh = std::move(mesh);
+  const TriangleBvh& bvh = e.mesh->object(0).bvh;
+  e.radius = world::ObjectRadius(bvh);
+  e.mesh_scale = bvh.max_abs_coordinate();
   e.last_heard = now;
   e.last_sample_time = now;
   entities_.emplace(id, std::move(e));
@@ -198,7 +205,19 @@ int64_t SharedWorld::history_size(const std::string& id) const {
   return it == entities_.end() ? 0 : static_cast<int64_t>(it->second.size());
 }
 
+Aabb SharedWorld::IntervalBox(const Entity& e, size_t k0, size_t k1) {
+  if (e.is_object) {
+    return world::ObjectMotionBox(e.object_samples[k0], e.object_samples[k1], e.radius,
+                                  e.mesh_scale);
+  }
+  return world::AvatarMotionBox(
+      *e.skeleton, PairMotion(*e.skeleton, e.avatar_samples[k0], e.avatar_samples[k1], e.motion));
+}
+
 void SharedWorld::Append(Entity* e, Time now) {
+  // The new sample closes an interval: its box, on the receiving thread,
+  // once, rather than once per entry that uses it.
+  if (e->size() >= 2) e->boxes.push_back(IntervalBox(*e, e->size() - 2, e->size() - 1));
   e->last_heard = now;
   e->last_sample_time = now;
   while (static_cast<int>(e->size()) > options_.max_history) {
@@ -207,6 +226,7 @@ void SharedWorld::Append(Entity* e, Time now) {
     } else {
       e->avatar_samples.pop_front();
     }
+    e->boxes.pop_front();  // One fewer than the samples, so one is there.
     e->evicted = true;
   }
 }
@@ -221,6 +241,7 @@ void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const P
     Settle(
         id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
     e.avatar_samples.clear();
+    e.boxes.clear();
     e.evicted = false;
   }
   e.has_stream = true;
@@ -289,6 +310,7 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
     Settle(
         msg.object_id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
     e.object_samples.clear();
+    e.boxes.clear();
     e.evicted = false;
   }
   e.has_stream = true;
@@ -305,14 +327,32 @@ bool SharedWorld::Covered(const Entity& e, const Entry& entry) {
   // A sample strictly after utime1: the window [t_from, utime1] and every
   // sample the offline answer uses for it (SplitWindow stops at the first
   // sample at or after t_to) are in.
-  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair.pose1.utime;
+  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair->pose1.utime;
+}
+
+bool SharedWorld::Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,
+                       int64_t t_to) {
+  const size_t n = e.size();
+  if (n == 1) return box_a.Overlaps(IntervalBox(e, 0, 0));
+  // The intervals of SplitWindow's pieces, walked in place over the deque
+  // (no times vector, no pieces) by the same rule: from `first`, skipping a
+  // boundary instant of a longer window; one piece for an instant window.
+  for (size_t k = first; k + 1 < n && e.utime(k) <= t_to; ++k) {
+    const int64_t lo = std::max(t_from, e.utime(k));
+    const int64_t hi = std::min(t_to, e.utime(k + 1));
+    if (lo > hi) continue;
+    if (lo == hi && t_from < t_to) continue;
+    if (box_a.Overlaps(e.boxes[k])) return true;
+    if (t_from == t_to) break;
+  }
+  return false;
 }
 
 bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time now,
                           SharedJob* job) const {
   const size_t n = e.size();
   if (n == 0) return false;
-  const int64_t u0 = entry.pair.pose0.utime, u1 = entry.pair.pose1.utime;
+  const int64_t u0 = entry.pair->pose0.utime, u1 = entry.pair->pose1.utime;
   const int64_t t_from = std::max(u0, e.utime(0));
   const int64_t t_to = std::min(u1, e.utime(n - 1));
   if (t_from > t_to) return false;  // No overlap: no entry (as offline).
@@ -326,15 +366,24 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
     if (f == n - 1) --f;
     if (l == f) ++l;
   }
+  // f is SplitWindow's first interval. Pieces over the slice from f are E's
+  // intervals f + k, whose boxes are those of the whole history.
+  job->cleared_by_box = options_.broad_phase && !Near(e, entry.pair->box_a, f, t_from, t_to);
   job->client_id = entry.a;
-  job->pair = entry.pair.pair;
-  job->seq0 = entry.pair.seq0;
-  job->seq1 = entry.pair.seq1;
-  job->receive_utime = entry.pair.receive_utime;
+  job->pair = entry.pair->pair;
+  job->seq0 = entry.pair->seq0;
+  job->seq1 = entry.pair->seq1;
+  job->receive_utime = entry.pair->receive_utime;
   job->skeleton_a = entry.skeleton_a;
   job->motion_a = entry.motion_a;
-  job->pose0 = entry.pair.pose0;
-  job->pose1 = entry.pair.pose1;
+  if (job->cleared_by_box) {
+    // Only the utimes are read (SharedMessageOf, the pair's batch key).
+    job->pose0.utime = u0;
+    job->pose1.utime = u1;
+  } else {
+    job->pose0 = entry.pair->pose0;
+    job->pose1 = entry.pair->pose1;
+  }
   job->entity = e.id;
   job->entity_is_object = e.is_object;
   job->skeleton_e = e.skeleton;
@@ -342,7 +391,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->mesh_e = e.mesh;
   job->avatar_samples.clear();
   job->object_samples.clear();
-  for (size_t k = f; k <= l; ++k) {
+  for (size_t k = f; k <= l && !job->cleared_by_box; ++k) {
     if (e.is_object) {
       job->object_samples.push_back(e.object_samples[k]);
     } else {
@@ -353,7 +402,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->t_to = t_to;
   // The window may reach before the oldest sample kept: then it is cut too.
   job->ended_by_timeout = cut || (e.evicted && e.utime(0) > u0);
-  job->waited_us = MicrosSince(entry.pair.receive_time, cut ? now : e.last_sample_time);
+  job->waited_us = MicrosSince(entry.pair->receive_time, cut ? now : e.last_sample_time);
   return true;
 }
 
@@ -369,6 +418,7 @@ void SharedWorld::Settle(const std::string& id, Pred pred, bool cut, Time now,
       SharedJob job;
       if (MakeJob(e, *x, cut, now, &job)) {
         if (job.ended_by_timeout) ++entries_cut_;
+        if (job.cleared_by_box) ++entries_cleared_;
         due->push_back(std::move(job));
       }
       continue;
@@ -384,13 +434,19 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
   const auto it = entities_.find(id);
   if (it == entities_.end() || it->second.is_object) return;
   const Entity& a = it->second;
+  // One copy of the pair and its box for all its entries: an entry then
+  // allocates nothing of its own.
+  auto shared = std::make_shared<SharedPair>();
+  static_cast<PosePair&>(*shared) = pair;
+  shared->box_a = world::AvatarMotionBox(
+      *a.skeleton, PairMotion(*a.skeleton, pair.pose0, pair.pose1, a.motion));
   for (const std::string& other : order_) {
     if (other == id) continue;
     Entry entry;
     entry.a = id;
     entry.skeleton_a = a.skeleton;
     entry.motion_a = a.motion;
-    entry.pair = pair;
+    entry.pair = shared;
     entry.e = other;
     entry.created = now;
     pending_.push_back(std::move(entry));

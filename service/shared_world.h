@@ -48,6 +48,9 @@ struct SharedWorldOptions {
   /// pending list cuts its oldest entry.
   int max_history = 4096;
   int max_pending = 4096;
+  /// The broad phase (SharedJob::cleared_by_box). Off only to test that the
+  /// entries it clears are those the full answer finds `free`.
+  bool broad_phase = true;
 };
 
 /// One (pair of avatar A, other entity E) entry, due: everything its answer
@@ -70,13 +73,19 @@ struct SharedJob {
   int64_t t_from = 0, t_to = 0;  // The window, utimes.
   int64_t waited_us = 0;
   bool ended_by_timeout = false;
+  /// The broad phase of `sweptccd world` (WorldAnswerer::AnswerEntity)
+  /// cleared it: A's box over the pair is apart from E's box of every
+  /// interval the window uses, so the entry is `free` with no link work.
+  /// Such a job carries no samples, and of pose0 and pose1 only the utimes.
+  bool cleared_by_box = false;
 };
 
 /// Answers one due entry (AnswerOther of core/world over the job's slice,
 /// WindowScale for its slack): one entry of a shared_contact_t, with
 /// per-link brackets when options.per_link. Pure and deterministic (but for
-/// compute_us); any thread. Never throws (a failure is RESULT_INVALID with
-/// `error`).
+/// compute_us); any thread. A job cleared_by_box is answered `free` at
+/// once, as `sweptccd world` answers it. Never throws (a failure is
+/// RESULT_INVALID with `error`).
 shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options);
 
 /// The message that carries the entries of `job`'s pair: the pair's fields
@@ -137,6 +146,8 @@ class SharedWorld {
   /// because more than max_pending waited.
   int64_t entries_cut() const { return entries_cut_; }
   int64_t entries_overflowed() const { return entries_overflowed_; }
+  /// Entries the broad phase cleared (jobs made cleared_by_box).
+  int64_t entries_cleared() const { return entries_cleared_; }
   int64_t history_size(const std::string& id) const;
 
  private:
@@ -150,6 +161,12 @@ class SharedWorld {
     int64_t session = 0, last_seq = 0;
     std::deque<Pose> avatar_samples;  // Strictly increasing utimes.
     std::deque<world::RigidSample> object_samples;
+    // boxes[k]: the entity over its samples k -> k+1 (AvatarMotionBox or
+    // ObjectMotionBox, as WorldAnswerer makes them), made once when sample
+    // k+1 arrives so that an entry costs box tests only; one fewer than
+    // the samples, evicted and cleared with them.
+    std::deque<Aabb> boxes;
+    double radius = 0, mesh_scale = 0;  // An object: ObjectRadius, its BVH's scale.
     bool evicted = false;  // The history dropped older samples of this stream.
     Time last_heard;       // Registration, then every used sample.
     Time last_sample_time;  // Receipt of the newest sample.
@@ -158,14 +175,25 @@ class SharedWorld {
       return is_object ? object_samples[k].utime : avatar_samples[k].utime;
     }
   };
+  struct SharedPair : PosePair {
+    Aabb box_a;  // A over the pair (AvatarMotionBox).
+  };
   struct Entry {
     std::string a;  // The avatar whose pair it is.
     std::shared_ptr<const Skeleton> skeleton_a;
     MotionModel motion_a = MotionModel::kArticulated;
-    PosePair pair;
+    std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
     std::string e;
     Time created;
   };
+
+  // E's box over its samples k0 -> k1 (k1 == k0 for a one-sample entity).
+  static Aabb IntervalBox(const Entity& e, size_t k0, size_t k1);
+  // Whether E's box of some interval the window [t_from, t_to] uses (the
+  // pieces of SplitWindow over E's samples, the first at `first`) overlaps
+  // A's box.
+  static bool Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,
+                   int64_t t_to);
 
   // Whether entry's window is settled by E's samples now (covered).
   static bool Covered(const Entity& e, const Entry& entry);
@@ -183,6 +211,7 @@ class SharedWorld {
   std::deque<Entry> pending_;       // Oldest first.
   int64_t entries_cut_ = 0;
   int64_t entries_overflowed_ = 0;
+  int64_t entries_cleared_ = 0;
 };
 
 }  // namespace sweptccd

@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cstdio>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -511,6 +512,315 @@ TEST(SharedWorld, BadObjectPosesAreRefusedAndDisturbNothing) {
   EXPECT_TRUE(due.empty());
   EXPECT_EQ(reason(ObjectPose("box", 200, 2, {0, 0, 0}, q)), "used");
   EXPECT_EQ(live.history_size("box"), 2);
+}
+
+
+// The entry of a cleared job against the full answer of the same job: all
+// but compute_us.
+void ExpectSameEntry(const shared_entry_t& cleared, const shared_entry_t& full) {
+  EXPECT_EQ(cleared.entity, full.entity);
+  EXPECT_EQ(cleared.entity_kind, full.entity_kind);
+  EXPECT_EQ(cleared.t_from, full.t_from);
+  EXPECT_EQ(cleared.t_to, full.t_to);
+  EXPECT_EQ(+cleared.result, +full.result) << full.error;
+  EXPECT_EQ(cleared.initially_colliding, full.initially_colliding);
+  EXPECT_EQ(cleared.undecided, full.undecided);
+  EXPECT_EQ(cleared.s_lo, full.s_lo);
+  EXPECT_EQ(cleared.s_hi, full.s_hi);
+  EXPECT_EQ(cleared.t_lo, full.t_lo);
+  EXPECT_EQ(cleared.t_hi, full.t_hi);
+  EXPECT_EQ(cleared.num_contacts, full.num_contacts);
+  EXPECT_EQ(cleared.contacts.size(), full.contacts.size());
+  EXPECT_EQ(cleared.num_links, full.num_links);
+  EXPECT_EQ(cleared.links.size(), full.links.size());
+  EXPECT_EQ(cleared.waited_us, full.waited_us);
+  EXPECT_EQ(cleared.ended_by_timeout, full.ended_by_timeout);
+  EXPECT_EQ(cleared.error, full.error);
+}
+
+TEST(SharedWorld, AFarEntityIsClearedByTheBoxesAndAnsweredFree) {
+  SharedWorldOptions on, off;
+  off.broad_phase = false;
+  std::vector<SharedJob> due[2];
+  Walker alice(5, {0, 0, 0}), bob(6, {5, 0, 0});
+  const Pose b0 = bob.Next(1'000'000), b1 = bob.Next(1'012'000), b2 = bob.Next(1'024'000);
+  const Pose a0 = alice.Next(1'005'000), a1 = alice.Next(1'016'000);
+  int i = 0;
+  for (const SharedWorldOptions& so : {on, off}) {
+    SharedWorld live(so);
+    live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0));
+    live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
+    for (const Pose& b : {b0, b1, b2}) live.OnAvatarSample("bob", 1, b, At(b.utime), &due[i]);
+    live.OnAvatarSample("alice", 1, a0, At(a0.utime), &due[i]);
+    live.OnAvatarSample("alice", 1, a1, At(a1.utime), &due[i]);
+    PosePair p;
+    p.pair = 0, p.seq0 = 0, p.seq1 = 1, p.pose0 = a0, p.pose1 = a1;
+    p.receive_time = At(a1.utime);
+    live.AddPair("alice", p, At(a1.utime + 100), &due[i]);
+    EXPECT_EQ(live.entries_cleared(), i == 0 ? 1 : 0);
+    ++i;
+  }
+  ASSERT_EQ(due[0].size(), 1u);
+  ASSERT_EQ(due[1].size(), 1u);
+  const SharedJob& cleared = due[0][0];
+  const SharedJob& full = due[1][0];
+  EXPECT_TRUE(cleared.cleared_by_box);
+  EXPECT_FALSE(full.cleared_by_box);
+  EXPECT_TRUE(cleared.avatar_samples.empty()) << "a cleared job copies no samples";
+  EXPECT_TRUE(cleared.pose0.links.empty());
+  EXPECT_EQ(full.avatar_samples.size(), 3u) << "the window spans two of bob's intervals";
+  EXPECT_EQ(cleared.pose0.utime, a0.utime);
+  EXPECT_EQ(cleared.pose1.utime, a1.utime);
+  EXPECT_EQ(SharedMessageOf(cleared).utime0, SharedMessageOf(full).utime0);
+  EXPECT_EQ(SharedMessageOf(cleared).utime1, SharedMessageOf(full).utime1);
+  for (bool per_link : {false, true}) {
+    world::EntityQueryOptions eo;
+    eo.per_link = per_link;
+    const shared_entry_t c = AnswerSharedJob(cleared, eo), f = AnswerSharedJob(full, eo);
+    EXPECT_EQ(+c.result, +shared_entry_t::RESULT_FREE);
+    EXPECT_GE(c.compute_us, 0.0);
+    ExpectSameEntry(c, f);
+  }
+}
+
+// A window that ends at one of E's samples does not use E's interval
+// after it (SplitWindow skips that boundary instant): bob far until that
+// sample and moving onto alice only after it leaves the entry cleared.
+TEST(SharedWorld, TheIntervalAfterTheWindowDoesNotKeepAnEntry) {
+  SharedWorld live{SharedWorldOptions{}};
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0));
+  live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
+  Walker alice(5, {0, 0, 0}), bob(6, {5, 0, 0});
+  std::vector<SharedJob> due;
+  const Pose a0 = alice.Next(1'002'000), a1 = alice.Next(1'010'000);
+  Pose b2 = bob.Next(1'020'000);
+  for (LinkPose& l : b2.links) l.p.x() -= 5;  // Onto alice.
+  for (const Pose& b : {bob.Next(1'000'000), bob.Next(1'010'000), b2}) {
+    live.OnAvatarSample("bob", 1, b, At(b.utime), &due);
+  }
+  live.OnAvatarSample("alice", 1, a0, At(a0.utime), &due);
+  live.OnAvatarSample("alice", 1, a1, At(a1.utime), &due);
+  PosePair p;
+  p.pair = 0, p.seq0 = 0, p.seq1 = 1, p.pose0 = a0, p.pose1 = a1;
+  p.receive_time = At(a1.utime);
+  live.AddPair("alice", p, At(a1.utime), &due);
+  ASSERT_EQ(due.size(), 1u);
+  EXPECT_EQ(due[0].t_to, 1'010'000);
+  EXPECT_TRUE(due[0].cleared_by_box);
+  // And a window one microsecond longer uses that interval: kept.
+  const Pose a2 = alice.Next(1'010'001);
+  live.OnAvatarSample("alice", 1, a2, At(a2.utime), &due);
+  p.pair = 1, p.seq0 = 1, p.seq1 = 2, p.pose0 = a1, p.pose1 = a2;
+  live.AddPair("alice", p, At(a2.utime), &due);
+  ASSERT_EQ(due.size(), 2u);
+  EXPECT_FALSE(due[1].cleared_by_box);
+}
+
+// WorldAnswerer::AnswerEntity's broad phase, computed anew from the world:
+// whether A's box over record r overlaps E's box of an interval of a piece.
+bool NearOffline(const world::World& w, int a, size_t r, const std::string& entity) {
+  const world::AvatarEntity& A = w.avatars[a];
+  const PairOutcome& rec = A.records[r];
+  const Aabb box_a =
+      world::AvatarMotionBox(A.skeleton, PairMotion(A.skeleton, rec.pose0, rec.pose1, A.motion));
+  std::vector<int64_t> times;
+  std::function<Aabb(size_t, size_t)> box_e;
+  for (const world::AvatarEntity& e : w.avatars) {
+    if (e.id != entity) continue;
+    for (const Pose& p : e.used) times.push_back(p.utime);
+    box_e = [&e](size_t k0, size_t k1) {
+      return world::AvatarMotionBox(e.skeleton,
+                                    PairMotion(e.skeleton, e.used[k0], e.used[k1], e.motion));
+    };
+  }
+  for (const world::ObjectEntity& e : w.objects) {
+    if (e.id != entity) continue;
+    for (const world::RigidSample& x : e.used) times.push_back(x.utime);
+    const TriangleBvh& bvh = e.mesh->object(0).bvh;
+    box_e = [&e, &bvh](size_t k0, size_t k1) {
+      return world::ObjectMotionBox(e.used[k0], e.used[k1], world::ObjectRadius(bvh),
+                                    bvh.max_abs_coordinate());
+    };
+  }
+  const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
+  const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
+  for (const world::Piece& p : world::SplitWindow(u0, t_from, t_to, times)) {
+    const size_t k = static_cast<size_t>(p.k);
+    if (box_a.Overlaps(box_e(k, std::min(k + 1, times.size() - 1)))) return true;
+  }
+  return false;
+}
+
+// Random scenes: alice (A) and bob at random rates, a one-sample avatar and
+// a box, each near alice or far, drifting so that some windows are near in
+// one of E's intervals only. Fed alike to a world with the broad phase and
+// one without: a cleared job's full answer is `free` (so the cleared entry
+// equals it), and a job is cleared exactly when `sweptccd world` culls the
+// same entry by its boxes.
+void RunBroadPhase(uint64_t seed, int* cleared_jobs, int* kept_jobs, int* split_cleared) {
+  SCOPED_TRACE("seed " + std::to_string(seed));
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  const std::vector<std::string> ids = {"alice", "bob", "solo", "box"};
+  const int64_t start = 1'000'000, end = 1'400'000;
+  auto random_center = [&]() -> Eigen::Vector3d {
+    const Eigen::Vector3d dir =
+        Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+    return dir * (u(rng) < 0.4 ? 0.3 * u(rng) : 0.4 + 1.2 * u(rng));
+  };
+  auto random_drift = [&]() -> Eigen::Vector3d {  // Metres per second.
+    if (u(rng) < 0.5) return Eigen::Vector3d::Zero();
+    return Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 6.0;
+  };
+  Eigen::Vector3d center[4], drift[4];
+  center[0] = Eigen::Vector3d::Zero();
+  drift[0] = Eigen::Vector3d::Zero();
+  for (int e = 1; e < 4; ++e) center[e] = random_center(), drift[e] = random_drift();
+  const int64_t period[4] = {5'000 + static_cast<int64_t>(45'000 * u(rng)),
+                             4'000 + static_cast<int64_t>(40'000 * u(rng)), 0,
+                             8'000 + static_cast<int64_t>(60'000 * u(rng))};
+  Walker walkers[3] = {Walker(seed * 7 + 1, center[0]), Walker(seed * 7 + 2, center[1]),
+                       Walker(seed * 7 + 3, center[2])};
+  auto pose_of = [&](int e, int64_t t) {
+    Pose p = walkers[e].Next(t);
+    for (LinkPose& l : p.links) l.p += drift[e] * (static_cast<double>(t - start) * 1e-6);
+    return p;
+  };
+  std::vector<Arrival> arrivals;
+  std::vector<Pose> used[3];
+  std::vector<world::RigidSample> box_used;
+  for (int e = 0; e < 4; ++e) {
+    int64_t seq = 0;
+    const int64_t delay = static_cast<int64_t>(30'000 * u(rng));
+    std::vector<int64_t> times;
+    if (e == 2) {
+      times.push_back(start + static_cast<int64_t>((end - start) * u(rng)));
+    } else {
+      for (int64_t t = start + static_cast<int64_t>(period[e] * u(rng)); t <= end; t += period[e]) {
+        times.push_back(t);
+      }
+    }
+    for (const int64_t t : times) {
+      Arrival a{t + delay, e, {}, {}};
+      if (e < 3) {
+        a.pose = pose_of(e, t);
+        used[e].push_back(a.pose);
+      } else {
+        const Eigen::Vector3d p = center[3] + drift[3] * (static_cast<double>(t - start) * 1e-6) +
+                                  0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+        const Eigen::Quaterniond q(Eigen::AngleAxisd(6.0 * u(rng), Eigen::Vector3d::UnitY()));
+        a.object = ObjectPose("box", t, ++seq, p, q);
+        world::RigidSample x;
+        const double v[7] = {p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z()};
+        ASSERT_EQ(world::MakeRigidSample(t, v, &x), "");
+        box_used.push_back(x);
+      }
+      arrivals.push_back(a);
+    }
+  }
+  std::stable_sort(arrivals.begin(), arrivals.end(),
+                   [](const Arrival& x, const Arrival& y) { return x.at_us < y.at_us; });
+
+  Offline off;
+  for (int e = 0; e < 3; ++e) off.AddAvatar(ids[e], used[e]);
+  world::ObjectEntity box;
+  box.id = "box";
+  box.mesh = Cube(0.1);
+  box.used = box_used;
+  off.w.world.objects.push_back(box);
+  QueryOptions qo;
+  qo.per_link = true;
+  off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
+  world::EntityQueryOptions eo;
+  eo.eps_s = qo.eps_s;
+  eo.delta_m = qo.delta_m;
+  eo.max_intervals = qo.max_intervals;
+  eo.per_link = true;
+
+  SharedWorldOptions so[2];
+  so[0].silence_timeout_us = so[1].silence_timeout_us = 100'000;
+  so[1].broad_phase = false;
+  std::vector<SharedJob> due[2];
+  for (int w = 0; w < 2; ++w) {
+    SharedWorld live(so[w]);
+    for (int e = 0; e < 3; ++e) live.AddAvatar(ids[e], Arm(), MotionModel::kArticulated, At(0));
+    live.AddObject("box", Cube(0.1), At(0));
+    int64_t pairs[2] = {0, 0};
+    std::optional<Pose> last[2];
+    for (const Arrival& a : arrivals) {
+      if (a.entity == 3) {
+        ASSERT_FALSE(live.OnObjectPose(a.object, 10'000'000, At(a.at_us), &due[w]).has_value());
+        continue;
+      }
+      live.OnAvatarSample(ids[a.entity], 1, a.pose, At(a.at_us), &due[w]);
+      if (a.entity == 2) continue;  // solo makes no pairs.
+      if (last[a.entity]) {
+        PosePair p;
+        p.pair = pairs[a.entity]++;
+        p.seq0 = p.pair, p.seq1 = p.pair + 1;
+        p.pose0 = *last[a.entity];
+        p.pose1 = a.pose;
+        p.receive_time = At(a.at_us);
+        live.AddPair(ids[a.entity], p, At(a.at_us), &due[w]);
+      }
+      last[a.entity] = a.pose;
+    }
+    live.CutAll(At(end + 1'000'000), &due[w]);
+  }
+  ASSERT_EQ(due[0].size(), due[1].size());
+  std::map<std::pair<int, int64_t>, std::map<std::string, json>> others;
+  for (size_t i = 0; i < due[0].size(); ++i) {
+    const SharedJob& job = due[0][i];
+    const SharedJob& full = due[1][i];
+    ASSERT_EQ(job.client_id, full.client_id);
+    ASSERT_EQ(job.pair, full.pair);
+    ASSERT_EQ(job.entity, full.entity);
+    ASSERT_FALSE(full.cleared_by_box);
+    const int a = job.client_id == "alice" ? 0 : 1;
+    auto& rec = others[{a, job.pair}];
+    if (rec.empty()) rec = off.Others(a, static_cast<size_t>(job.pair));
+    const json& o = rec.at(job.entity);
+    SCOPED_TRACE(job.client_id + " pair " + std::to_string(job.pair) + " vs " + job.entity);
+    // WorldAnswerer::AnswerEntity's rule over the whole offline streams (its
+    // stats say culled_by_box also when AnswerOther's own box test culls).
+    EXPECT_EQ(job.cleared_by_box,
+              !NearOffline(off.w.world, a, static_cast<size_t>(job.pair), job.entity))
+        << "cut " << job.ended_by_timeout << " window " << job.t_from << ".." << job.t_to;
+    if (job.cleared_by_box) EXPECT_TRUE(o["stats"]["culled_by_box"].get<bool>());
+    const shared_entry_t m = AnswerSharedJob(job, eo);
+    ExpectEqualToOffline(job, m, o);
+    ExpectLinksEqualToOffline(job, m, o);
+    if (!job.cleared_by_box) {
+      ++*kept_jobs;
+      continue;
+    }
+    ++*cleared_jobs;
+    *split_cleared += (full.avatar_samples.size() + full.object_samples.size()) > 2;
+    world::EntityQueryOptions plain = eo;
+    plain.per_link = false;
+    const shared_entry_t f = AnswerSharedJob(full, plain);
+    EXPECT_EQ(+f.result, +shared_entry_t::RESULT_FREE) << "the boxes cleared a contact";
+    ExpectSameEntry(AnswerSharedJob(job, plain), f);
+    const shared_entry_t fl = AnswerSharedJob(full, eo);
+    EXPECT_EQ(+fl.result, +shared_entry_t::RESULT_FREE);
+    for (const entity_link_bracket_t& b : fl.links) {
+      EXPECT_FALSE(b.has_witness) << "link " << b.link;
+      EXPECT_FALSE(b.initially_colliding) << "link " << b.link;
+    }
+  }
+}
+
+TEST(SharedWorld, TheBroadPhaseClearsExactlyWhatTheWorldCommandCulls) {
+  int cleared = 0, kept = 0, split = 0;
+  for (uint64_t seed = 1; seed <= 24; ++seed) {
+    RunBroadPhase(seed, &cleared, &kept, &split);
+    if (HasFatalFailure()) return;
+  }
+  std::printf("%d entries cleared by the boxes (%d over several intervals), %d kept\n", cleared,
+              split, kept);
+  EXPECT_GT(cleared, 200);
+  EXPECT_GT(kept, 200);
+  EXPECT_GT(split, 20);
 }
 
 }  // namespace
