@@ -786,7 +786,9 @@ void RunBroadPhase(uint64_t seed, int* cleared_jobs, int* kept_jobs, int* split_
     EXPECT_EQ(job.cleared_by_box,
               !NearOffline(off.w.world, a, static_cast<size_t>(job.pair), job.entity))
         << "cut " << job.ended_by_timeout << " window " << job.t_from << ".." << job.t_to;
-    if (job.cleared_by_box) EXPECT_TRUE(o["stats"]["culled_by_box"].get<bool>());
+    if (job.cleared_by_box) {
+      EXPECT_TRUE(o["stats"]["culled_by_box"].get<bool>());
+    }
     const shared_entry_t m = AnswerSharedJob(job, eo);
     ExpectEqualToOffline(job, m, o);
     ExpectLinksEqualToOffline(job, m, o);
