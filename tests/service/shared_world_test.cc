@@ -94,6 +94,20 @@ struct Arrival {
   object_pose_t object;
 };
 
+// The object sample the daemon makes of a pose (p, q) at t.
+world::RigidSample SampleOf(int64_t t, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
+  world::RigidSample x;
+  const double v[7] = {p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z()};
+  EXPECT_EQ(world::MakeRigidSample(t, v, &x), "");
+  return x;
+}
+
+// In the order they reach the daemon (ties as generated).
+void SortByArrival(std::vector<Arrival>* arrivals) {
+  std::stable_sort(arrivals->begin(), arrivals->end(),
+                   [](const Arrival& x, const Arrival& y) { return x.at_us < y.at_us; });
+}
+
 // The offline world of the same samples, and its answerer.
 struct Offline {
   world::LoadedWorld w;
@@ -223,16 +237,12 @@ void RunClientsAtDifferentRates(bool far_tail) {
                  0.2 * (Eigen::Vector3d(0.1, 0.25, 0) - box_p);
         const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3 * n(rng), Eigen::Vector3d::UnitX()));
         a.object = ObjectPose("box", t, ++seq, box_p, q);
-        world::RigidSample x;
-        const double v[7] = {box_p.x(), box_p.y(), box_p.z(), q.w(), q.x(), q.y(), q.z()};
-        ASSERT_EQ(world::MakeRigidSample(t, v, &x), "");
-        box_used.push_back(x);
+        box_used.push_back(SampleOf(t, box_p, q));
       }
       arrivals.push_back(a);
     }
   }
-  std::stable_sort(arrivals.begin(), arrivals.end(),
-                   [](const Arrival& x, const Arrival& y) { return x.at_us < y.at_us; });
+  SortByArrival(&arrivals);
 
   Offline off;
   off.AddAvatar("alice", used[0]);
@@ -710,16 +720,12 @@ void RunBroadPhase(uint64_t seed, int* cleared_jobs, int* kept_jobs, int* split_
                                   0.02 * Eigen::Vector3d(u(rng), u(rng), u(rng));
         const Eigen::Quaterniond q(Eigen::AngleAxisd(6.0 * u(rng), Eigen::Vector3d::UnitY()));
         a.object = ObjectPose("box", t, ++seq, p, q);
-        world::RigidSample x;
-        const double v[7] = {p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z()};
-        ASSERT_EQ(world::MakeRigidSample(t, v, &x), "");
-        box_used.push_back(x);
+        box_used.push_back(SampleOf(t, p, q));
       }
       arrivals.push_back(a);
     }
   }
-  std::stable_sort(arrivals.begin(), arrivals.end(),
-                   [](const Arrival& x, const Arrival& y) { return x.at_us < y.at_us; });
+  SortByArrival(&arrivals);
 
   Offline off;
   for (int e = 0; e < 3; ++e) off.AddAvatar(ids[e], used[e]);
