@@ -438,8 +438,18 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
   // allocates nothing of its own.
   auto shared = std::make_shared<SharedPair>();
   static_cast<PosePair&>(*shared) = pair;
-  shared->box_a = world::AvatarMotionBox(
-      *a.skeleton, PairMotion(*a.skeleton, pair.pose0, pair.pose1, a.motion));
+  // A's box over the pair: the box of A's history interval holding the same
+  // two poses when there is one (made as the second arrived), else made here.
+  // (Searched from the newest sample: the pair is at or near the end.)
+  size_t k = a.size();
+  while (k > 0 && a.utime(k - 1) > pair.pose0.utime) --k;
+  if (k > 0 && k < a.size() && SamePose(a.avatar_samples[k - 1], pair.pose0) &&
+      SamePose(a.avatar_samples[k], pair.pose1)) {
+    shared->box_a = a.boxes[k - 1];
+  } else {
+    shared->box_a = world::AvatarMotionBox(
+        *a.skeleton, PairMotion(*a.skeleton, pair.pose0, pair.pose1, a.motion));
+  }
   for (const std::string& other : order_) {
     if (other == id) continue;
     Entry entry;

@@ -295,4 +295,14 @@ std::optional<PairOutcome> PosePairer::Feed(std::optional<Pose> pose, const std:
   return out;
 }
 
+bool SamePose(const Pose& x, const Pose& y) {
+  if (x.utime != y.utime || x.links.size() != y.links.size()) return false;
+  for (size_t i = 0; i < x.links.size(); ++i) {
+    if (x.links[i].p != y.links[i].p || x.links[i].q.coeffs() != y.links[i].q.coeffs()) {
+      return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace sweptccd

@@ -119,6 +119,11 @@ class PoseLineReader {
 /// Serialises a pose as one SPEC pose line (no newline).
 std::string PoseToJsonLine(const Pose& pose);
 
+/// Whether two poses hold the same numbers, bit for bit (utime, every link's
+/// position and quaternion; -0.0 equals 0.0): a motion built from either is
+/// the same.
+bool SamePose(const Pose& x, const Pose& y);
+
 /// What one pose line yields under the pairing rule of SPEC section 2.
 struct PairOutcome {
   int64_t pair = 0;          // k - 1 for the k-th counted line.

@@ -119,19 +119,6 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   return true;
 }
 
-namespace {
-
-bool SamePose(const Pose& x, const Pose& y) {
-  if (x.utime != y.utime || x.links.size() != y.links.size()) return false;
-  for (size_t i = 0; i < x.links.size(); ++i) {
-    if (x.links[i].p != y.links[i].p || !x.links[i].q.coeffs().cwiseEqual(y.links[i].q.coeffs()).all())
-      return false;
-  }
-  return true;
-}
-
-}  // namespace
-
 const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   if (motion_ != nullptr && motion_a_ == a && motion_r_ == r) return *motion_;
   const AvatarEntity& A = w_.world.avatars[a];
