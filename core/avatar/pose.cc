@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -298,7 +299,10 @@ std::optional<PairOutcome> PosePairer::Feed(std::optional<Pose> pose, const std:
 bool SamePose(const Pose& x, const Pose& y) {
   if (x.utime != y.utime || x.links.size() != y.links.size()) return false;
   for (size_t i = 0; i < x.links.size(); ++i) {
-    if (x.links[i].p != y.links[i].p || x.links[i].q.coeffs() != y.links[i].q.coeffs()) {
+    // Bits, not values: -0.0 and 0.0 may round on to different zeros.
+    if (std::memcmp(x.links[i].p.data(), y.links[i].p.data(), 3 * sizeof(double)) != 0 ||
+        std::memcmp(x.links[i].q.coeffs().data(), y.links[i].q.coeffs().data(),
+                    4 * sizeof(double)) != 0) {
       return false;
     }
   }

@@ -120,8 +120,8 @@ class PoseLineReader {
 std::string PoseToJsonLine(const Pose& pose);
 
 /// Whether two poses hold the same numbers, bit for bit (utime, every link's
-/// position and quaternion; -0.0 equals 0.0): a motion built from either is
-/// the same.
+/// position and quaternion; -0.0 is not 0.0): a motion built from either is
+/// the same, bit for bit.
 bool SamePose(const Pose& x, const Pose& y);
 
 /// What one pose line yields under the pairing rule of SPEC section 2.

@@ -684,5 +684,36 @@ TEST(FindPoseProblemTest, WrongLinkCountAndTheCliWording) {
   EXPECT_EQ(ValidateAndNormalizePose(&pose, 2), "link 1: position beyond 1e9 m");
 }
 
+// SamePose decides whether a kept motion may stand for a pair's: equal
+// only when every number is, one changed bit anywhere makes them differ.
+TEST(PoseTest, SamePoseComparesEveryNumber) {
+  Pose x;
+  x.utime = 1000;
+  x.links.resize(3);
+  for (int i = 0; i < 3; ++i) {
+    x.links[i].p = Eigen::Vector3d(0.1 * i, -0.2, 0.3);
+    x.links[i].q = Eigen::Quaterniond(Eigen::AngleAxisd(0.2 * i, Eigen::Vector3d::UnitZ()));
+  }
+  EXPECT_TRUE(SamePose(x, x));
+  Pose y = x;
+  y.utime += 1;
+  EXPECT_FALSE(SamePose(x, y));
+  y = x;
+  y.links.pop_back();
+  EXPECT_FALSE(SamePose(x, y));
+  for (int i = 0; i < 3; ++i) {
+    for (int c = 0; c < 7; ++c) {
+      y = x;
+      double& v = c < 3 ? y.links[i].p[c] : y.links[i].q.coeffs()[c - 3];
+      v = std::nextafter(v, 2.0);
+      EXPECT_FALSE(SamePose(x, y)) << "link " << i << " number " << c;
+    }
+  }
+  y = x;
+  x.links[0].p.x() = 0.0;
+  y.links[0].p.x() = -0.0;
+  EXPECT_FALSE(SamePose(x, y));  // Equal values, other bits: motions may differ in zeros.
+}
+
 }  // namespace
 }  // namespace sweptccd
