@@ -356,11 +356,23 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   const int64_t t_from = std::max(u0, e.utime(0));
   const int64_t t_to = std::min(u1, e.utime(n - 1));
   if (t_from > t_to) return false;  // No overlap: no entry (as offline).
-  // f: the last sample at or before t_from; l: the first at or after t_to.
-  size_t f = 0;
-  while (f + 1 < n && e.utime(f + 1) <= t_from) ++f;
-  size_t l = f;
-  while (l + 1 < n && e.utime(l) < t_to) ++l;
+  // f: the last sample at or before t_from; l: the first at or after t_to
+  // (else the last). Binary searches: this runs per entry on the service's
+  // lock, and a history holds up to max_history samples.
+  const auto count_before = [&](int64_t t, bool or_at) {  // Samples before t (or at).
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+      const size_t mid = lo + (hi - lo) / 2;
+      if (e.utime(mid) < t || (or_at && e.utime(mid) == t)) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    return lo;
+  };
+  size_t f = count_before(t_from, true) - 1;  // utime(0) <= t_from: at least one.
+  size_t l = std::max(f, std::min(count_before(t_to, false), n - 1));
   if (n >= 2) {
     // SplitWindow's pieces use samples k and k+1 (k clamped to n - 2).
     if (f == n - 1) --f;
