@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <map>
 #include <unordered_map>
 #include <utility>
@@ -32,7 +33,14 @@ Eigen::Vector3d UnitOr(const Eigen::Vector3d& v, const Eigen::Vector3d& fallback
 class AvatarTarget : public OtherTarget {
  public:
   AvatarTarget(const World& world, int a, int b, double scale, IntervalMotions* shared)
-      : world_(world), a_(a), b_(b), e_(world.avatars[b]), shared_(shared) {
+      : world_(world),
+        a_(a),
+        b_(b),
+        e_(world.avatars[b]),
+        own_(shared != nullptr ? nullptr
+                               : std::make_unique<IntervalMotions>(
+                                     e_, std::numeric_limits<size_t>::max())),
+        motions_(shared != nullptr ? shared : own_.get()) {
     tol_ = std::ldexp((scale >= 0 ? scale : EntityScale(e_)) + 10.0, -22) + 1e-9;
   }
 
@@ -126,18 +134,7 @@ class AvatarTarget : public OtherTarget {
  private:
   // B's motion over its interval k, with its memo of poses and segments
   // (B's links at one instant share their ancestors' poses).
-  MotionMemo& MemoOf(int k) const {
-    if (shared_ != nullptr) return shared_->MemoOf(k);
-    auto it = memos_.find(k);
-    if (it == memos_.end()) {
-      const int k1 = std::min<int>(k + 1, static_cast<int>(e_.used.size()) - 1);
-      const PairMotion& m =
-          motions_.emplace(k, PairMotion(e_.skeleton, e_.used[k], e_.used[k1], e_.motion))
-              .first->second;
-      it = memos_.emplace(k, MotionMemo(m)).first;
-    }
-    return it->second;
-  }
+  MotionMemo& MemoOf(int k) const { return motions_->MemoOf(k); }
 
   // B's swept capsule of link j over [s0, s1] of its interval k, as
   // PairMotion::SweptCapsule computes it. Every link of A asks for the same
@@ -218,10 +215,10 @@ class AvatarTarget : public OtherTarget {
   const World& world_;
   int a_, b_;
   const AvatarEntity& e_;
-  IntervalMotions* shared_;  // B's motions when given, else motions_ and memos_.
+  // B's motions: the caller's, else own_ (every interval of this answer kept).
+  std::unique_ptr<IntervalMotions> own_;
+  IntervalMotions* motions_;
   double tol_ = 0;
-  mutable std::map<int, PairMotion> motions_;
-  mutable std::map<int, MotionMemo> memos_;  // Over motions_ (same keys).
   mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
   mutable std::unordered_map<SweptKey, std::vector<InstantLink>, SweptKeyHash> instants_;
 };
