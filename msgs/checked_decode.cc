@@ -179,7 +179,7 @@ std::string CheckWire(const status_t*, const void* data, size_t size, const Wire
   r.Fixed("queue_depth", 4);
   r.Fixed("dropped_total, rejected_unattributed, rejections_suppressed", 3 * 8);
   r.Fixed("instance, live_joined, live_left, live_expired", 4 * 8);
-  r.Fixed("shared_messages..shared_overflowed", 5 * 8);
+  r.Fixed("shared_messages..shared_cleared", 6 * 8);
   r.Fixed("shared_pending, shared_ready", 2 * 4);
   r.Fixed("object_poses_received..object_poses_rate_limited", 3 * 8);
   r.Fixed("mac", kMac);

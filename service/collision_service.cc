@@ -619,6 +619,7 @@ status_t CollisionService::Status() const {
   s.shared_by_timeout = shared_by_timeout_;
   s.shared_dropped = shared_dropped_;
   s.shared_overflowed = shared_ ? shared_->entries_overflowed() : 0;
+  s.shared_cleared = shared_ ? shared_->entries_cleared() : 0;
   s.shared_pending = shared_ ? static_cast<int32_t>(shared_->pending()) : 0;
   s.shared_ready = static_cast<int32_t>(shared_ready_entries_);
   s.object_poses_received = object_poses_received_;

@@ -415,6 +415,7 @@ class Monitor {
                 {"shared_by_timeout", s.shared_by_timeout},
                 {"shared_dropped", s.shared_dropped},
                 {"shared_overflowed", s.shared_overflowed},
+                {"shared_cleared", s.shared_cleared},
                 {"shared_pending", s.shared_pending},
                 {"shared_ready", s.shared_ready},
                 {"object_poses_received", s.object_poses_received},
@@ -429,9 +430,9 @@ class Monitor {
           s.dropped_total, s.rejected_unattributed, s.rejections_suppressed));
       Show(fmt::format(
           "status shared messages {} entries {} by_timeout {} dropped {} overflowed {} "
-          "pending {} ready {} object_poses {} rejected {} rate_limited {}",
+          "cleared {} pending {} ready {} object_poses {} rejected {} rate_limited {}",
           s.shared_messages, s.shared_entries, s.shared_by_timeout, s.shared_dropped,
-          s.shared_overflowed, s.shared_pending, s.shared_ready, s.object_poses_received,
+          s.shared_overflowed, s.shared_cleared, s.shared_pending, s.shared_ready, s.object_poses_received,
           s.object_poses_rejected, s.object_poses_rate_limited));
     }
   }

@@ -140,6 +140,7 @@ void Fill(status_t& m) {
   m.shared_by_timeout = 17;
   m.shared_dropped = 18;
   m.shared_overflowed = 19;
+  m.shared_cleared = 25;
   m.shared_pending = 20;
   m.shared_ready = 21;
   m.object_poses_received = 22;

@@ -698,6 +698,43 @@ TEST_F(CollisionServiceTest, SharedEntriesDueTogetherArePublishedAsOneMessage) {
   }
 }
 
+// status_t.shared_cleared counts the entries the broad phase cleared: every
+// entry between the far client (20 m away along x) and the two others, none
+// between the two near ones; each cleared entry is published `free`.
+TEST_F(CollisionServiceTest, TheStatusCountsTheEntriesTheBroadPhaseCleared) {
+  ServiceOptions options;
+  options.num_workers = 2;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.silence_timeout_ms = 3'600'000;
+  options.shared_world = true;
+  auto service = MakeWith({"a", "near", "far"}, options);
+  for (int64_t k = 0; k < 5; ++k) {
+    tracker_pose_t far = Sample("far", k);
+    for (auto& x : far.position) x[0] += 20.0;
+    service->OnPose(Sample("a", k));
+    service->OnPose(Sample("near", k));
+    service->OnPose(far);
+    service->WaitUntilIdle();
+  }
+  service->Stop();
+  int64_t with_far = 0, without_far = 0;
+  for (const auto& x : publisher_.shared()) {
+    if (x.client_id == "far" || x.entry.entity == "far") {
+      ++with_far;
+      EXPECT_EQ(x.entry.result, +shared_entry_t::RESULT_FREE) << x.client_id << " " << x.pair;
+    } else {
+      ++without_far;
+    }
+  }
+  EXPECT_EQ(with_far, 4 * 4) << "4 pairs of each client, far against 2, 2 against far";
+  EXPECT_EQ(without_far, 4 * 2);
+  const status_t s = service->Status();
+  EXPECT_EQ(s.shared_cleared, with_far);
+  EXPECT_EQ(s.shared_entries, with_far + without_far);
+}
+
 // The shared world (docs/SERVICE.md "Shared world"): two clients whose
 // streams interleave and a tracked object; every pair answered once against
 // each overlapping entity, after its environment part; what the last samples
