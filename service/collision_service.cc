@@ -129,7 +129,8 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     entity_options_.per_link = options_.query.per_link;
     const SteadyClock::time_point now = SteadyClock::now();
     for (const auto& c : clients_) {
-      shared_->AddAvatar(c->config.client_id, c->config.skeleton, c->config.motion, now);
+      shared_->AddAvatar(c->config.client_id, c->config.skeleton, c->config.motion, now,
+                         c->config.eps_s, c->config.delta_m);
     }
     for (const TrackedObjectConfig& o : options_.objects) {
       if (!IsValidClientId(o.object_id)) {
@@ -733,7 +734,8 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   clients_.push_back(client);
   client_index_[id] = client;
   if (shared_) {
-    shared_->AddAvatar(id, client->config.skeleton, client->config.motion, SteadyClock::now());
+    shared_->AddAvatar(id, client->config.skeleton, client->config.motion, SteadyClock::now(),
+                       client->config.eps_s, client->config.delta_m);
   }
   ++live_joined_;
   return {join_reply_t::REASON_ACCEPTED, "", client->assigned_session, client->key};

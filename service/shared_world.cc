@@ -74,7 +74,10 @@ shared_entry_t EntryOf(const SharedJob& job) {
 
 }  // namespace
 
-shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& given) {
+  world::EntityQueryOptions options = given;
+  if (job.eps_s > 0) options.eps_s = job.eps_s;
+  if (job.delta_m > 0) options.delta_m = job.delta_m;
   shared_entry_t m = EntryOf(job);
   const auto start = SteadyClock::now();
   if (job.cleared_by_box) {
@@ -161,12 +164,14 @@ SharedWorld::SharedWorld(SharedWorldOptions options) : options_(options) {
 }
 
 void SharedWorld::AddAvatar(const std::string& id, std::shared_ptr<const Skeleton> skeleton,
-                            MotionModel motion, Time now) {
-  SWEPTCCD_CHECK(!Has(id) && skeleton);
+                            MotionModel motion, Time now, double eps_s, double delta_m) {
+  SWEPTCCD_CHECK(!Has(id) && skeleton && eps_s >= 0 && delta_m >= 0);
   Entity e;
   e.id = id;
   e.skeleton = std::move(skeleton);
   e.motion = motion;
+  e.eps_s = eps_s;
+  e.delta_m = delta_m;
   e.last_heard = now;
   e.last_sample_time = now;
   entities_.emplace(id, std::move(e));
@@ -388,6 +393,8 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->receive_utime = entry.pair->receive_utime;
   job->skeleton_a = entry.skeleton_a;
   job->motion_a = entry.motion_a;
+  job->eps_s = entry.eps_s;
+  job->delta_m = entry.delta_m;
   if (job->cleared_by_box) {
     // Only the utimes are read (SharedMessageOf, the pair's batch key).
     job->pose0.utime = u0;
@@ -468,6 +475,8 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.a = id;
     entry.skeleton_a = a.skeleton;
     entry.motion_a = a.motion;
+    entry.eps_s = a.eps_s;
+    entry.delta_m = a.delta_m;
     entry.pair = shared;
     entry.e = other;
     entry.created = now;

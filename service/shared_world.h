@@ -62,6 +62,9 @@ struct SharedJob {
   int64_t receive_utime = 0;  // When A's pose seq1 was received (service clock).
   std::shared_ptr<const Skeleton> skeleton_a;
   MotionModel motion_a = MotionModel::kArticulated;
+  /// A's own tolerances (a live client's join, ClientConfig): 0 takes the
+  /// options AnswerSharedJob is given (the service's).
+  double eps_s = 0, delta_m = 0;
   Pose pose0, pose1;
   std::string entity;  // E's id.
   bool entity_is_object = false;
@@ -82,7 +85,9 @@ struct SharedJob {
 
 /// Answers one due entry (AnswerOther of core/world over the job's slice,
 /// WindowScale for its slack): one entry of a shared_contact_t, with
-/// per-link brackets when options.per_link. Pure and deterministic (but for
+/// per-link brackets when options.per_link. A's tolerances (job.eps_s,
+/// job.delta_m) replace options' where set: A's record is answered to A's
+/// tolerances, as its environment part is. Pure and deterministic (but for
 /// compute_us); any thread. A job cleared_by_box is answered `free` at
 /// once, as `sweptccd world` answers it. Never throws (a failure is
 /// RESULT_INVALID with `error`).
@@ -99,10 +104,12 @@ class SharedWorld {
   /// Throws InputError on options out of range.
   explicit SharedWorld(SharedWorldOptions options);
 
-  /// Registers an avatar (a configured client, or a live client on join).
-  /// Precondition: the id is not registered.
+  /// Registers an avatar (a configured client, or a live client on join)
+  /// with its own tolerances (0: the service's; they answer the entries of
+  /// its own pairs). Precondition: the id is not registered; eps_s and
+  /// delta_m >= 0.
   void AddAvatar(const std::string& id, std::shared_ptr<const Skeleton> skeleton,
-                 MotionModel motion, Time now);
+                 MotionModel motion, Time now, double eps_s = 0, double delta_m = 0);
   /// Registers a tracked object (configured only). Precondition: the id is
   /// not registered; `mesh` holds one object.
   void AddObject(const std::string& id, std::shared_ptr<const Environment> mesh, Time now);
@@ -156,6 +163,7 @@ class SharedWorld {
     bool is_object = false;
     std::shared_ptr<const Skeleton> skeleton;
     MotionModel motion = MotionModel::kArticulated;
+    double eps_s = 0, delta_m = 0;  // An avatar's own tolerances (0: the service's).
     std::shared_ptr<const Environment> mesh;
     bool has_stream = false;
     int64_t session = 0, last_seq = 0;
@@ -182,6 +190,7 @@ class SharedWorld {
     std::string a;  // The avatar whose pair it is.
     std::shared_ptr<const Skeleton> skeleton_a;
     MotionModel motion_a = MotionModel::kArticulated;
+    double eps_s = 0, delta_m = 0;  // A's.
     std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
     std::string e;
     Time created;

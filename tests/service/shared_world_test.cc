@@ -359,6 +359,89 @@ TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
   RunClientsAtDifferentRates(false);
 }
 
+// A client's own tolerances (its join's eps_s and delta_m) answer the
+// entries of its own pairs, as they answer its environment part: alice joins
+// with eps 2 ms and delta 5 mm, bob with the service's. Every entry equals
+// `sweptccd world` run with the tolerances of the record's avatar, and
+// alice's coarser eps shows in her brackets (so the test fails if it is not
+// carried).
+TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
+  constexpr double kEps = 2e-3, kDelta = 5e-3;
+  const std::string ids[2] = {"alice", "bob"};
+  Walker walkers[2] = {Walker(31, {0, 0, 0}), Walker(32, {0.12, 0.05, 0})};
+  std::vector<Pose> used[2];
+  SharedWorld live(SharedWorldOptions{});
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0), kEps, kDelta);
+  live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
+  std::vector<SharedJob> due;
+  int64_t pairs[2] = {0, 0};
+  for (int k = 0; k < 60; ++k) {
+    for (int e = 0; e < 2; ++e) {
+      const int64_t t = 1'000'000 + k * 11'111 + e * 3'000;
+      const Pose pose = walkers[e].Next(t);
+      live.OnAvatarSample(ids[e], 1, pose, At(t), &due);
+      if (!used[e].empty()) {
+        PosePair p;
+        p.pair = pairs[e]++;
+        p.seq0 = p.pair, p.seq1 = p.pair + 1;
+        p.pose0 = used[e].back();
+        p.pose1 = pose;
+        p.receive_time = At(t);
+        live.AddPair(ids[e], p, At(t), &due);
+      }
+      used[e].push_back(pose);
+    }
+  }
+  live.CutAll(At(3'000'000), &due);
+
+  // Offline: the same world, answered once with alice's tolerances and once
+  // with the service's.
+  Offline off;
+  off.AddAvatar("alice", used[0]);
+  off.AddAvatar("bob", used[1]);
+  QueryOptions service_q, alice_q;
+  alice_q.eps_s = kEps;
+  alice_q.delta_m = kDelta;
+  off.answerer = std::make_unique<world::WorldAnswerer>(off.w, service_q);
+  const world::WorldAnswerer alice_answerer(off.w, alice_q);
+  world::EntityQueryOptions eo;  // The service's, as CollisionService passes them.
+  eo.eps_s = service_q.eps_s;
+  eo.delta_m = service_q.delta_m;
+  eo.max_intervals = service_q.max_intervals;
+
+  int compared = 0, alice_contacts = 0, coarse = 0, bob_contacts = 0;
+  for (const SharedJob& job : due) {
+    if (job.ended_by_timeout) continue;
+    const bool alice = job.client_id == "alice";
+    EXPECT_EQ(job.eps_s, alice ? kEps : 0.0);
+    EXPECT_EQ(job.delta_m, alice ? kDelta : 0.0);
+    const shared_entry_t m = AnswerSharedJob(job, eo);
+    const json record = json::parse((alice ? alice_answerer : *off.answerer)
+                                        .RecordJson(alice ? 0 : 1, static_cast<size_t>(job.pair)));
+    for (const json& o : record["others"]) {
+      if (o["entity"] == job.entity) {
+        ExpectEqualToOffline(job, m, o);
+        ++compared;
+      }
+    }
+    if (m.result != shared_entry_t::RESULT_CONTACT) continue;
+    const double width_s = (m.t_hi - m.t_lo) * 1e-6;
+    if (alice) {
+      ++alice_contacts;
+      EXPECT_LE(width_s, kEps);
+      coarse += !m.initially_colliding && width_s > service_q.eps_s;
+    } else {
+      ++bob_contacts;
+      EXPECT_LE(width_s, service_q.eps_s);
+    }
+  }
+  std::printf("%d entries compared; contacts: alice %d (%d wider than the service's eps), bob %d\n",
+              compared, alice_contacts, coarse, bob_contacts);
+  EXPECT_GT(compared, 100);
+  EXPECT_GT(bob_contacts, 5);
+  EXPECT_GT(coarse, 0) << "alice's eps must show in some bracket";
+}
+
 // Regression: the slack of `sweptccd world` once scaled with the entity's
 // whole stream, which a live service cannot know; 1000 km at the end made
 // every earlier window's answer differ from the live one.
