@@ -94,4 +94,18 @@ kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
 grep -q "unknown_object" "$work/daemon.log"
+# Per-link mode (query.per_link): a second daemon, the same world played
+# again; every entry's per-link brackets equal `sweptccd world --per-link`.
+"$sweptccd" world --world "$work/world.json" --per-link --output "$work/offline_links.jsonl"
+sed 's/^shared_world: true$/shared_world: true\nquery: {per_link: true}/' "$work/sweptccd.yaml" \
+  > "$work/sweptccd_links.yaml"
+grep -q "per_link: true" "$work/sweptccd_links.yaml"
+"$service" --config "$work/sweptccd_links.yaml" 2> "$work/daemon_links.log" &
+daemon=$!
+wait_for "$work/daemon_links.log" ready
+"$tool" --key "$work/room.key" play "$url" "$work" "$work/offline_links.jsonl" \
+  | tee "$work/play_links.out"
+grep -q "per-link brackets" "$work/play_links.out"
+kill -TERM $daemon
+wait $daemon
 echo "e2e_shared_world: passed"

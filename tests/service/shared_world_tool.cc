@@ -220,12 +220,50 @@ struct Receiver {
   }
 };
 
+// Per-link brackets compared (offline written with --per-link).
+int g_link_brackets = 0;
+
 // The differences between a live entry and the offline one ("" if none).
+// When the offline entry has `links` (sweptccd world --per-link), the live
+// entry's per-link brackets are compared too, each field bit for bit.
 std::string Diff(const LiveEntry& s, const json& o) {
   std::string d;
   auto eq = [&](const char* what, double live, double off) {
     if (!(live == off)) d += std::string(" ") + what;
   };
+  if (o.contains("links")) {
+    const json& links = o["links"];
+    if (s.links.size() != links.size() || s.num_links != static_cast<int32_t>(s.links.size())) {
+      return d + " links";
+    }
+    for (size_t i = 0; i < s.links.size(); ++i) {
+      const entity_link_bracket_t& b = s.links[i];
+      const json& w = links[i];
+      eq("links.link", b.link, w["link"].get<double>());
+      eq("links.s_lo", b.s_lo, w["s_lo"].get<double>());
+      eq("links.s_hi", b.s_hi, w["s_hi"].get<double>());
+      eq("links.t_lo", b.t_lo, w["t_lo"].get<double>());
+      eq("links.t_hi", b.t_hi, w["t_hi"].get<double>());
+      if (b.initially_colliding != w["initially_colliding"].get<bool>()) d += " links.initially";
+      if (b.undecided != w["undecided"].get<bool>()) d += " links.undecided";
+      if (static_cast<bool>(b.has_witness) != w.contains("contact")) {
+        d += " links.witness";
+      } else if (b.has_witness) {
+        const json& c = w["contact"];
+        eq("links.witness.link", b.witness.link, c["link"].get<double>());
+        eq("links.witness.s", b.witness.s, c["s"].get<double>());
+        eq("links.witness.separation", b.witness.separation, c["separation"].get<double>());
+        for (int k = 0; k < 3; ++k) {
+          eq("links.witness.point_link", b.witness.point_link[k], c["point_link"][k].get<double>());
+          eq("links.witness.point_other", b.witness.point_other[k],
+             c["point_other"][k].get<double>());
+        }
+      }
+      ++g_link_brackets;
+    }
+  } else if (!s.links.empty()) {
+    d += " links (none offline)";
+  }
   eq("t_from", static_cast<double>(s.t_from), o["window"][0].get<double>());
   eq("t_to", static_cast<double>(s.t_to), o["window"][1].get<double>());
   const bool contact = o["result"] == "contact";
@@ -480,16 +518,26 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
     std::printf("FAIL: %d messages did not decode or verify\n", rx.bad);
     ++failures;
   }
-  // The run must compare something real: most entries, some contacts.
+  // The run must compare something real: most entries, some contacts (and,
+  // in per-link mode, some per-link brackets).
   if (compared < expect.min_compared || contacts < expect.min_contacts) {
     std::printf("FAIL: only %d entries compared (%d contacts)\n", compared, contacts);
     ++failures;
   }
+  bool offline_per_link = false;
+  for (const auto& [key, entries] : offline) {
+    for (const auto& [entity, o] : entries) offline_per_link = offline_per_link || o.contains("links");
+  }
+  if (offline_per_link && g_link_brackets < expect.min_contacts) {
+    std::printf("FAIL: per-link mode, only %d per-link brackets compared\n", g_link_brackets);
+    ++failures;
+  }
   std::printf(
       "shared_world_tool: %zu pairs, %zu shared entries in %lld messages: %d equal to sweptccd "
-      "world (%d contacts), %d ended by timeout, %d of merged pairs, %d waited; %d failures\n",
+      "world (%d contacts, %d per-link brackets), %d ended by timeout, %d of merged pairs, %d "
+      "waited; %d failures\n",
       rx.contacts.size(), rx.shared.size(), static_cast<long long>(rx.shared_messages), compared,
-      contacts, cut, merged, waited, failures);
+      contacts, g_link_brackets, cut, merged, waited, failures);
   return failures == 0 ? 0 : 1;
 }
 
