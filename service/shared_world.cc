@@ -329,10 +329,19 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
 }
 
 bool SharedWorld::Covered(const Entity& e, const Entry& entry) {
-  // A sample strictly after utime1: the window [t_from, utime1] and every
-  // sample the offline answer uses for it (SplitWindow stops at the first
-  // sample at or after t_to) are in.
-  return e.size() > 0 && e.utime(e.size() - 1) > entry.pair->pose1.utime;
+  // The window [t_from, utime1] and every sample the offline answer uses for
+  // it are in once E has a sample at or after utime1: SplitWindow's pieces
+  // end with E's interval into its first sample at or after t_to, and skip
+  // that sample's instant (a boundary instant of a longer window), so
+  // nothing after it is read. So a sample stamped at utime1 itself covers
+  // (trackers that stamp every body at the same frame times get their
+  // shared answer in that frame, not the next), except for a window that is
+  // one instant (E's first sample at utime1): its one piece lies in E's
+  // interval after that sample, which needs the next sample.
+  if (e.size() == 0) return false;
+  const int64_t newest = e.utime(e.size() - 1), u1 = entry.pair->pose1.utime;
+  if (newest > u1) return true;
+  return newest == u1 && std::max(entry.pair->pose0.utime, e.utime(0)) < u1;
 }
 
 bool SharedWorld::Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,

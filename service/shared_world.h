@@ -13,7 +13,8 @@
 // daemon's steady clock, from the receipt of messages.
 //
 // Equality with `sweptccd world`: an entry answered because the entity
-// covered the window (a sample strictly after the pair's utime1) is given
+// covered the window (a sample at or after the pair's utime1; after it for a
+// window of one instant, Covered) is given
 // exactly the samples the offline answer uses (WindowScale, SplitWindow over
 // the same slice), so it is bit-equal to the offline entry on the same
 // samples. Entries ended by the timeout, or whose window starts before the

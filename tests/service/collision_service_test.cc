@@ -670,7 +670,19 @@ TEST_F(CollisionServiceTest, SharedEntriesDueTogetherArePublishedAsOneMessage) {
     if (m.client_id == "a") of_a.push_back(m);
   }
   ASSERT_EQ(of_a.size(), 1u) << "one message for a's pair";
-  EXPECT_EQ(publisher_.shared_messages().size(), before + 1);
+  // And a's sample 1, stamped at the utime1 of b's and c's pair 0, covers
+  // their windows against a: one message each.
+  const std::vector<shared_contact_t> all = publisher_.shared_messages();
+  ASSERT_EQ(all.size(), before + 3);
+  std::set<std::string> newly;
+  for (size_t i = before; i < all.size(); ++i) {
+    if (all[i].client_id == "a") continue;
+    EXPECT_EQ(all[i].pair, 0) << all[i].client_id;
+    ASSERT_EQ(all[i].entries.size(), 1u) << all[i].client_id;
+    EXPECT_EQ(all[i].entries[0].entity, "a") << all[i].client_id;
+    newly.insert(all[i].client_id);
+  }
+  EXPECT_EQ(newly, (std::set<std::string>{"b", "c"}));
   const shared_contact_t& m = of_a[0];
   EXPECT_EQ(m.seq0, 0);
   EXPECT_EQ(m.seq1, 1);

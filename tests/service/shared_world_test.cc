@@ -359,6 +359,102 @@ TEST(SharedWorld, ClientsAtDifferentRatesAndAnObjectEqualTheOfflineWorld) {
   RunClientsAtDifferentRates(false);
 }
 
+// Trackers that stamp every body at the same frame times (one mocap system):
+// a sample stamped at the pair's utime1 covers the window, so each entry is
+// due in the frame of its pair, when the last of A's pose and E's sample of
+// that frame arrives, not one frame later; every entry still equals the
+// offline one. The exception is a window of one instant (bob's first sample
+// at alice's utime1): it waits for bob's next sample.
+TEST(SharedWorld, SamplesStampedAtTheSameFrameCoverInThatFrame) {
+  constexpr int64_t kFrame = 11'111;
+  const std::string ids[2] = {"alice", "bob"};
+  Walker walkers[2] = {Walker(41, {0, 0, 0}), Walker(42, {0.1, 0.05, 0})};
+  std::vector<Pose> used[2];
+  std::vector<world::RigidSample> box_used;
+  SharedWorld live(SharedWorldOptions{});
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0));
+  live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
+  live.AddObject("box", Cube(0.08), At(0));
+  std::vector<SharedJob> due;
+  std::vector<int> due_frame;  // The frame in which each job became due.
+  int64_t pairs[2] = {0, 0};
+  constexpr int kFrames = 40;
+  for (int f = 0; f < kFrames; ++f) {
+    const int64_t t = 1'000'000 + f * kFrame;
+    // In each frame: alice, the box, then bob (bob from frame 1 on).
+    for (int who : {0, 2, 1}) {
+      if (who == 1 && f == 0) continue;
+      if (who == 2) {
+        const Eigen::Vector3d p(0.05 * std::sin(0.3 * f), 0.2, 0.02 * f - 0.3);
+        const Eigen::Quaterniond q(Eigen::AngleAxisd(0.2 * f, Eigen::Vector3d::UnitX()));
+        ASSERT_FALSE(live.OnObjectPose(ObjectPose("box", t, f + 1, p, q), 10'000'000, At(t), &due)
+                         .has_value());
+        box_used.push_back(SampleOf(t, p, q));
+      } else {
+        const Pose pose = walkers[who].Next(t);
+        live.OnAvatarSample(ids[who], 1, pose, At(t), &due);
+        if (!used[who].empty()) {
+          PosePair p;
+          p.pair = pairs[who]++;
+          p.seq0 = p.pair, p.seq1 = p.pair + 1;
+          p.pose0 = used[who].back();
+          p.pose1 = pose;
+          p.receive_time = At(t);
+          live.AddPair(ids[who], p, At(t), &due);
+        }
+        used[who].push_back(pose);
+      }
+      due_frame.resize(due.size(), f);
+    }
+  }
+  const size_t answered_live = due.size();
+  live.CutAll(At(2'000'000), &due);
+
+  Offline off;
+  off.AddAvatar("alice", used[0]);
+  off.AddAvatar("bob", used[1]);
+  world::ObjectEntity box;
+  box.id = "box";
+  box.mesh = Cube(0.08);
+  box.used = box_used;
+  off.w.world.objects.push_back(box);
+  QueryOptions qo;
+  off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
+  world::EntityQueryOptions eo;
+  eo.eps_s = qo.eps_s;
+  eo.delta_m = qo.delta_m;
+  eo.max_intervals = qo.max_intervals;
+
+  int same_frame = 0, instant = 0, contacts = 0;
+  for (size_t i = 0; i < answered_live; ++i) {
+    const SharedJob& job = due[i];
+    ASSERT_FALSE(job.ended_by_timeout);
+    const int a = job.client_id == "alice" ? 0 : 1;
+    // The frame of the pair's second pose: alice's pair k ends in frame
+    // k + 1, bob's (from frame 1) in frame k + 2.
+    const int pair_frame = static_cast<int>(job.pair) + 1 + a;
+    if (job.t_from == job.t_to) {
+      ++instant;
+      EXPECT_EQ(due_frame[i], pair_frame + 1) << "an instant window waits for the next sample";
+    } else {
+      ++same_frame;
+      EXPECT_EQ(due_frame[i], pair_frame) << job.client_id << " pair " << job.pair << " vs "
+                                          << job.entity;
+    }
+    const shared_entry_t m = AnswerSharedJob(job, eo);
+    contacts += m.result == shared_entry_t::RESULT_CONTACT;
+    ExpectEqualToOffline(job, m, off.Others(a, static_cast<size_t>(job.pair)).at(job.entity));
+  }
+  // Alice's pairs against bob and the box, bob's against alice and the box;
+  // only the last frame's pairs are left for the cut.
+  EXPECT_EQ(instant, 1) << "alice's pair 0 against bob";
+  EXPECT_GT(same_frame, 4 * (kFrames - 3));
+  EXPECT_GT(contacts, 5);
+  EXPECT_EQ(due.size() - answered_live, 0u) << "every frame's entries were due in their frame";
+  std::printf("%d entries due in their own frame, %d instant, %d contacts\n", same_frame, instant,
+              contacts);
+}
+
 // A client's own tolerances (its join's eps_s and delta_m) answer the
 // entries of its own pairs, as they answer its environment part: alice joins
 // with eps 2 ms and delta 5 mm, bob with the service's. Every entry equals
