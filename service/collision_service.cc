@@ -28,6 +28,11 @@ double MicrosBetween(SteadyClock::time_point a, SteadyClock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
 
+// What a client's configuration changes in the shared world's answers.
+AvatarAnswerOptions AnswerOptionsOf(const ClientConfig& c) {
+  return AvatarAnswerOptions{c.eps_s, c.delta_m, c.entity_rules};
+}
+
 }  // namespace
 
 CollisionService::Client::Client(ClientConfig c, const Environment& env,
@@ -130,7 +135,7 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
     const SteadyClock::time_point now = SteadyClock::now();
     for (const auto& c : clients_) {
       shared_->AddAvatar(c->config.client_id, c->config.skeleton, c->config.motion, now,
-                         c->config.eps_s, c->config.delta_m);
+                         AnswerOptionsOf(c->config));
     }
     for (const TrackedObjectConfig& o : options_.objects) {
       if (!IsValidClientId(o.object_id)) {
@@ -735,7 +740,7 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   client_index_[id] = client;
   if (shared_) {
     shared_->AddAvatar(id, client->config.skeleton, client->config.motion, SteadyClock::now(),
-                       client->config.eps_s, client->config.delta_m);
+                       AnswerOptionsOf(client->config));
   }
   ++live_joined_;
   return {join_reply_t::REASON_ACCEPTED, "", client->assigned_session, client->key};

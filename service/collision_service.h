@@ -46,6 +46,10 @@ struct ClientConfig {
   /// Per-client tolerances (a live client's join): 0 takes ServiceOptions::query's.
   double eps_s = 0;
   double delta_m = 0;
+  /// The shared world's filters of this avatar (SPEC 8 "Filters", resolved:
+  /// link indices, -1 for "*"): a rule of either avatar applies to both
+  /// avatars' answers for that pair of links.
+  std::vector<world::EntityRule> entity_rules;
 };
 
 /// A tracked object (SPEC section 8): configured, never joined.

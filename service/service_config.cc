@@ -215,7 +215,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       const std::string where = at + "clients[" + std::to_string(i) + "]";
       const YAML::Node e = clients[i];
       if (!e.IsMap()) throw InputError(where + ": expected a mapping");
-      CheckKeys(e, {"id", "skeleton", "motion", "filter", "ignore"}, where);
+      CheckKeys(e, {"id", "skeleton", "motion", "filter", "ignore", "ignore_entities"}, where);
       ClientSpec spec;
       if (!e["id"]) throw InputError(where + ": missing 'id'");
       if (!e["skeleton"]) throw InputError(where + ": missing 'skeleton'");
@@ -229,6 +229,31 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       }
       if (e["filter"]) spec.filter_path = Resolve(base_dir, Get<std::string>(e["filter"], where + ".filter"));
       if (e["ignore"]) spec.ignore_rules = StringList(e["ignore"], where + ".ignore");
+      if (const YAML::Node rules = e["ignore_entities"]) {
+        if (!rules.IsSequence()) throw InputError(where + ".ignore_entities: expected a list");
+        for (size_t k = 0; k < rules.size(); ++k) {
+          const std::string rw = where + ".ignore_entities[" + std::to_string(k) + "]";
+          const YAML::Node r = rules[k];
+          if (!r.IsMap()) {
+            throw InputError(rw + ": expected {link: L, entity: ID} or {link: L, entity: ID, "
+                                  "other_link: M}");
+          }
+          CheckKeys(r, {"link", "entity", "other_link"}, rw);
+          if (!r["link"] || !r["entity"]) throw InputError(rw + ": needs 'link' and 'entity'");
+          EntityRuleSpec rule;
+          rule.link = Get<std::string>(r["link"], rw + ".link");
+          rule.entity = Get<std::string>(r["entity"], rw + ".entity");
+          if (r["other_link"]) rule.other_link = Get<std::string>(r["other_link"], rw + ".other_link");
+          if (!IsValidClientId(rule.entity)) {
+            throw InputError(rw + ".entity: '" + EscapeForDisplay(rule.entity) +
+                             "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
+          }
+          if (rule.link.empty() || (r["other_link"] && rule.other_link.empty())) {
+            throw InputError(rw + ": a link is a name, an index or \"*\", not empty");
+          }
+          spec.ignore_entities.push_back(rule);
+        }
+      }
       c.clients.push_back(spec);
     }
   }
@@ -279,6 +304,10 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   std::set<std::string> ids;
   for (const ClientSpec& s : c.clients) {
+    if (!s.ignore_entities.empty() && !c.shared_world) {
+      throw InputError("configuration: client '" + EscapeForDisplay(s.id) +
+                       "' has ignore_entities, which need shared_world: true");
+    }
     if (!IsValidClientId(s.id)) {
       throw InputError("configuration: client id '" + EscapeForDisplay(s.id) +
                        "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");

@@ -14,12 +14,23 @@
 
 namespace sweptccd {
 
+/// One shared-world filter of a client (SPEC 8 "Filters"), as written:
+/// `{link: L, entity: ID[, other_link: M]}`. L and M are link names, "*",
+/// or indices (a name first, then an index); resolved against the
+/// skeletons when the daemon loads (daemon.cc, LoadClients).
+struct EntityRuleSpec {
+  std::string link;
+  std::string entity;
+  std::string other_link;  // Empty: none given (every link of ID).
+};
+
 struct ClientSpec {
   std::string id;
   std::string skeleton_path;
   MotionModel motion = MotionModel::kArticulated;
   std::string filter_path;                // Optional collision filter JSON.
   std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
+  std::vector<EntityRuleSpec> ignore_entities;  // The shared world's filters.
 };
 
 /// A tracked object (SPEC section 8; docs/SERVICE.md "Shared world"):

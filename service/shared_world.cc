@@ -112,6 +112,8 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
       w.avatars.push_back(std::move(e));
     }
     w.rules.assign(w.avatars.size(), {});
+    if (job.rules_a) w.rules[0] = *job.rules_a;
+    if (job.rules_e && !job.entity_is_object) w.rules[1] = *job.rules_e;
     const int64_t u0 = job.pose0.utime, u1 = job.pose1.utime;
     const std::vector<world::Piece> pieces = world::SplitWindow(u0, job.t_from, job.t_to, times);
     const PairMotion motion(w.avatars[0].skeleton, job.pose0, job.pose1, job.motion_a);
@@ -164,14 +166,17 @@ SharedWorld::SharedWorld(SharedWorldOptions options) : options_(options) {
 }
 
 void SharedWorld::AddAvatar(const std::string& id, std::shared_ptr<const Skeleton> skeleton,
-                            MotionModel motion, Time now, double eps_s, double delta_m) {
-  SWEPTCCD_CHECK(!Has(id) && skeleton && eps_s >= 0 && delta_m >= 0);
+                            MotionModel motion, Time now, const AvatarAnswerOptions& own) {
+  SWEPTCCD_CHECK(!Has(id) && skeleton && own.eps_s >= 0 && own.delta_m >= 0);
   Entity e;
   e.id = id;
   e.skeleton = std::move(skeleton);
   e.motion = motion;
-  e.eps_s = eps_s;
-  e.delta_m = delta_m;
+  e.eps_s = own.eps_s;
+  e.delta_m = own.delta_m;
+  if (!own.rules.empty()) {
+    e.rules = std::make_shared<const std::vector<world::EntityRule>>(own.rules);
+  }
   e.last_heard = now;
   e.last_sample_time = now;
   entities_.emplace(id, std::move(e));
@@ -404,6 +409,8 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->motion_a = entry.motion_a;
   job->eps_s = entry.eps_s;
   job->delta_m = entry.delta_m;
+  job->rules_a = entry.rules_a;
+  job->rules_e = e.is_object ? nullptr : e.rules;
   if (job->cleared_by_box) {
     // Only the utimes are read (SharedMessageOf, the pair's batch key).
     job->pose0.utime = u0;
@@ -486,6 +493,7 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.motion_a = a.motion;
     entry.eps_s = a.eps_s;
     entry.delta_m = a.delta_m;
+    entry.rules_a = a.rules;
     entry.pair = shared;
     entry.e = other;
     entry.created = now;

@@ -66,6 +66,9 @@ struct SharedJob {
   /// A's own tolerances (a live client's join, ClientConfig): 0 takes the
   /// options AnswerSharedJob is given (the service's).
   double eps_s = 0, delta_m = 0;
+  /// The filters of A and of E (an avatar; SPEC 8 "Filters"): either one's
+  /// rule applies to the pair of links. Null: none.
+  std::shared_ptr<const std::vector<world::EntityRule>> rules_a, rules_e;
   Pose pose0, pose1;
   std::string entity;  // E's id.
   bool entity_is_object = false;
@@ -98,6 +101,13 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
 /// set, no entries yet, utime and mac unset. Any thread.
 shared_contact_t SharedMessageOf(const SharedJob& job);
 
+/// What an avatar's own configuration changes in the answers of the shared
+/// world (ClientConfig).
+struct AvatarAnswerOptions {
+  double eps_s = 0, delta_m = 0;         // Its tolerances; 0: the service's.
+  std::vector<world::EntityRule> rules;  // Its filters (SPEC 8), resolved.
+};
+
 class SharedWorld {
  public:
   using Time = SteadyClock::time_point;
@@ -106,11 +116,11 @@ class SharedWorld {
   explicit SharedWorld(SharedWorldOptions options);
 
   /// Registers an avatar (a configured client, or a live client on join)
-  /// with its own tolerances (0: the service's; they answer the entries of
-  /// its own pairs). Precondition: the id is not registered; eps_s and
-  /// delta_m >= 0.
+  /// with what its own configuration changes in the answers: its tolerances
+  /// (they answer the entries of its own pairs) and its filters.
+  /// Precondition: the id is not registered; tolerances >= 0.
   void AddAvatar(const std::string& id, std::shared_ptr<const Skeleton> skeleton,
-                 MotionModel motion, Time now, double eps_s = 0, double delta_m = 0);
+                 MotionModel motion, Time now, const AvatarAnswerOptions& own = {});
   /// Registers a tracked object (configured only). Precondition: the id is
   /// not registered; `mesh` holds one object.
   void AddObject(const std::string& id, std::shared_ptr<const Environment> mesh, Time now);
@@ -165,6 +175,7 @@ class SharedWorld {
     std::shared_ptr<const Skeleton> skeleton;
     MotionModel motion = MotionModel::kArticulated;
     double eps_s = 0, delta_m = 0;  // An avatar's own tolerances (0: the service's).
+    std::shared_ptr<const std::vector<world::EntityRule>> rules;  // Its filters; null: none.
     std::shared_ptr<const Environment> mesh;
     bool has_stream = false;
     int64_t session = 0, last_seq = 0;
@@ -192,6 +203,7 @@ class SharedWorld {
     std::shared_ptr<const Skeleton> skeleton_a;
     MotionModel motion_a = MotionModel::kArticulated;
     double eps_s = 0, delta_m = 0;  // A's.
+    std::shared_ptr<const std::vector<world::EntityRule>> rules_a;
     std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
     std::string e;
     Time created;

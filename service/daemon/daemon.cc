@@ -14,7 +14,10 @@
 #include <cstdint>
 #include <cstring>
 #include <lcm/lcm-cpp.hpp>
+#include <map>
 #include <mutex>
+#include <set>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -56,6 +59,63 @@ std::shared_ptr<const Environment> LoadEnvironment(const ServiceConfig& config) 
   return env;
 }
 
+// A link of a filter rule (EntityRuleSpec): a link name first, then "*" (-1),
+// then an index. Throws InputError naming the rule and the skeleton.
+int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std::string& where) {
+  const int found = skeleton.FindLink(key);
+  if (found >= 0) return found;
+  if (key == "*") return -1;
+  if (key.find_first_not_of("0123456789") == std::string::npos && key.size() <= 9) {
+    const int index = std::stoi(key);
+    if (index < skeleton.num_links()) return index;
+  }
+  throw InputError(where + ": no link '" + EscapeForDisplay(key) + "' in skeleton '" +
+                   EscapeForDisplay(skeleton.name()) + "' (" + std::to_string(skeleton.num_links()) +
+                   " links; give a link name, an index or \"*\")");
+}
+
+// The shared world's filters of every configured client, resolved against
+// the skeletons (an other_link of a client that is not configured: an index
+// or "*" only, as its skeleton is not known here).
+void ResolveEntityRules(const ServiceConfig& config, std::vector<ClientConfig>* clients) {
+  std::map<std::string, const Skeleton*> skeletons;
+  for (const ClientConfig& c : *clients) skeletons[c.client_id] = c.skeleton.get();
+  std::set<std::string> objects;
+  for (const ObjectSpec& o : config.objects) objects.insert(o.id);
+  for (size_t i = 0; i < clients->size(); ++i) {
+    ClientConfig& cc = (*clients)[i];
+    const std::vector<EntityRuleSpec>& specs = config.clients[i].ignore_entities;
+    for (size_t k = 0; k < specs.size(); ++k) {
+      const EntityRuleSpec& r = specs[k];
+      const std::string where = "configuration: clients[" + std::to_string(i) + "] ('" +
+                                cc.client_id + "') ignore_entities[" + std::to_string(k) + "]";
+      world::EntityRule rule;
+      rule.link = ResolveRuleLink(r.link, *cc.skeleton, where + ".link");
+      rule.entity = r.entity;
+      if (!r.other_link.empty()) {
+        if (objects.count(r.entity)) {
+          throw InputError(where + ": other_link given for object '" + r.entity +
+                           "' (objects have no links)");
+        }
+        const auto other = skeletons.find(r.entity);
+        if (other != skeletons.end()) {
+          rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
+        } else if (r.other_link == "*") {
+          rule.other_link = -1;
+        } else if (r.other_link.find_first_not_of("0123456789") == std::string::npos &&
+                   r.other_link.size() <= 9) {
+          rule.other_link = std::stoi(r.other_link);
+        } else {
+          throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
+                           "' names a link of '" + r.entity +
+                           "', which is not a configured client; give an index or \"*\"");
+        }
+      }
+      cc.entity_rules.push_back(rule);
+    }
+  }
+}
+
 std::vector<ClientConfig> LoadClients(const ServiceConfig& config, const Environment& env) {
   std::vector<ClientConfig> clients;
   for (const ClientSpec& spec : config.clients) {
@@ -71,6 +131,7 @@ std::vector<ClientConfig> LoadClients(const ServiceConfig& config, const Environ
     for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, env);
     clients.push_back(std::move(cc));
   }
+  ResolveEntityRules(config, &clients);
   return clients;
 }
 

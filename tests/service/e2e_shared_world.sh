@@ -27,8 +27,8 @@ workers: 2
 silence_timeout_ms: 300
 shared_world: true
 clients:
-  - {id: alice, skeleton: arm.json}
-  - {id: bob, skeleton: arm.json}
+  - {id: alice, skeleton: arm.json, ignore_entities: [{link: upper, entity: cup}]}
+  - {id: bob, skeleton: arm.json, ignore_entities: [{link: fore, entity: alice, other_link: fore}]}
 objects:
   - {id: cup, mesh: cube.obj}
 security: {room_key: room.key}

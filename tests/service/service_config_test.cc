@@ -206,6 +206,50 @@ TEST(ServiceConfigTest, MaxMeshBytesAndMaxLinks) {
 }
 
 // The shared world: tracked objects (id, mesh, key) and the switch.
+// The shared world's filters (SPEC 8 "Filters") of a configured client:
+// parsed as written (resolved against the skeletons when the daemon loads);
+// every malformed rule refused with one line naming it.
+TEST(ServiceConfigTest, IgnoreEntitiesParseAndBadRulesAreRefused) {
+  const std::string head = R"(
+environment: [room.ply]
+security: {room_key: room.key}
+shared_world: true
+)";
+  const ServiceConfig c = ParseServiceConfig(
+      head + "clients: [{id: alice, skeleton: a.json, ignore_entities: [{link: rhand, entity: "
+             "cup}, {link: \"*\", entity: bob, other_link: 3}]}]\n",
+      "cfg.yaml", "/base");
+  ASSERT_EQ(c.clients.size(), 1u);
+  ASSERT_EQ(c.clients[0].ignore_entities.size(), 2u);
+  EXPECT_EQ(c.clients[0].ignore_entities[0].link, "rhand");
+  EXPECT_EQ(c.clients[0].ignore_entities[0].entity, "cup");
+  EXPECT_EQ(c.clients[0].ignore_entities[0].other_link, "");
+  EXPECT_EQ(c.clients[0].ignore_entities[1].link, "*");
+  EXPECT_EQ(c.clients[0].ignore_entities[1].other_link, "3");
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+  auto with = [&](const std::string& rules) {
+    return head + "clients: [{id: alice, skeleton: a.json, ignore_entities: " + rules + "}]\n";
+  };
+  EXPECT_NE(RefusalOf(with("{link: a, entity: b}")).find("ignore_entities: expected a list"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(with("[rhand]")).find("ignore_entities[0]: expected {link"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(with("[{link: rhand}]")).find("needs 'link' and 'entity'"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(with("[{link: rhand, entity: cup, colour: red}]")).find("colour"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(with("[{link: rhand, entity: \"bad id\"}]")).find("id rule"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(with("[{link: \"\", entity: cup}]")).find("not empty"), std::string::npos);
+  const std::string off = R"(
+environment: [room.ply]
+security: {room_key: room.key}
+clients: [{id: alice, skeleton: a.json, ignore_entities: [{link: rhand, entity: cup}]}]
+)";
+  EXPECT_NE(RefusalOf(off).find("ignore_entities, which need shared_world: true"),
+            std::string::npos);
+}
+
 TEST(ServiceConfigTest, TrackedObjectsParseAndShareTheIdSpace) {
   const std::string base = R"(
 environment: [room.ply]

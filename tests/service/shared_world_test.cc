@@ -455,6 +455,87 @@ TEST(SharedWorld, SamplesStampedAtTheSameFrameCoverInThatFrame) {
               contacts);
 }
 
+// Filters (SPEC 8 "Filters") in the daemon: alice ignores bob with her
+// forearm and the box with her upper arm; bob ignores alice's upper arm with
+// his upper arm (a rule of either avatar applies to both answers). Every
+// entry equals `sweptccd world` with the same rules, and differs from the
+// unfiltered answer somewhere (so the test fails if a rule is not carried).
+TEST(SharedWorld, FiltersOfEitherAvatarApplyToTheSharedAnswers) {
+  constexpr int64_t kFrame = 11'111;
+  const std::string ids[2] = {"alice", "bob"};
+  Walker walkers[2] = {Walker(51, {0, 0, 0}), Walker(52, {0.1, 0.05, 0})};
+  std::vector<Pose> used[2];
+  std::vector<world::RigidSample> box_used;
+  AvatarAnswerOptions alice_own, bob_own;
+  alice_own.rules = {world::EntityRule{1, "bob", -1}, world::EntityRule{0, "box", -1}};
+  bob_own.rules = {world::EntityRule{0, "alice", 0}};
+  SharedWorld live(SharedWorldOptions{});
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0), alice_own);
+  live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0), bob_own);
+  live.AddObject("box", Cube(0.08), At(0));
+  std::vector<SharedJob> due;
+  int64_t pairs[2] = {0, 0};
+  for (int f = 0; f < 40; ++f) {
+    const int64_t t = 1'000'000 + f * kFrame;
+    const Eigen::Vector3d p(0.05 * std::sin(0.3 * f), 0.2, 0.02 * f - 0.3);
+    const Eigen::Quaterniond q(Eigen::AngleAxisd(0.2 * f, Eigen::Vector3d::UnitX()));
+    ASSERT_FALSE(
+        live.OnObjectPose(ObjectPose("box", t, f + 1, p, q), 10'000'000, At(t), &due).has_value());
+    box_used.push_back(SampleOf(t, p, q));
+    for (int who = 0; who < 2; ++who) {
+      const Pose pose = walkers[who].Next(t + 2'000 * who);
+      live.OnAvatarSample(ids[who], 1, pose, At(t + 2'000 * who), &due);
+      if (!used[who].empty()) {
+        PosePair pp;
+        pp.pair = pairs[who]++;
+        pp.seq0 = pp.pair, pp.seq1 = pp.pair + 1;
+        pp.pose0 = used[who].back();
+        pp.pose1 = pose;
+        pp.receive_time = At(t + 2'000 * who);
+        live.AddPair(ids[who], pp, At(t + 2'000 * who), &due);
+      }
+      used[who].push_back(pose);
+    }
+  }
+  auto offline = [&](bool with_rules) {
+    auto off = std::make_unique<Offline>();
+    off->AddAvatar("alice", used[0]);
+    off->AddAvatar("bob", used[1]);
+    world::ObjectEntity box;
+    box.id = "box";
+    box.mesh = Cube(0.08);
+    box.used = box_used;
+    off->w.world.objects.push_back(box);
+    if (with_rules) off->w.world.rules = {alice_own.rules, bob_own.rules};
+    off->answerer = std::make_unique<world::WorldAnswerer>(off->w, QueryOptions{});
+    return off;
+  };
+  const auto filtered = offline(true), unfiltered = offline(false);
+  QueryOptions qo;
+  world::EntityQueryOptions eo;
+  eo.eps_s = qo.eps_s;
+  eo.delta_m = qo.delta_m;
+  eo.max_intervals = qo.max_intervals;
+  int compared = 0, changed = 0, contacts = 0;
+  for (const SharedJob& job : due) {
+    ASSERT_FALSE(job.ended_by_timeout);
+    const int a = job.client_id == "alice" ? 0 : 1;
+    const shared_entry_t m = AnswerSharedJob(job, eo);
+    const size_t r = static_cast<size_t>(job.pair);
+    ExpectEqualToOffline(job, m, filtered->Others(a, r).at(job.entity));
+    ++compared;
+    contacts += m.result == shared_entry_t::RESULT_CONTACT;
+    json with = filtered->Others(a, r).at(job.entity), without = unfiltered->Others(a, r).at(job.entity);
+    with.erase("stats"), without.erase("stats");  // Work counts, not the answer.
+    changed += with != without;
+  }
+  std::printf("%d entries compared, %d contacts, %d changed by the filters\n", compared, contacts,
+              changed);
+  EXPECT_GT(compared, 100);
+  EXPECT_GT(contacts, 5) << "some links still touch";
+  EXPECT_GT(changed, 5) << "the filters must change some answers";
+}
+
 // A client's own tolerances (its join's eps_s and delta_m) answer the
 // entries of its own pairs, as they answer its environment part: alice joins
 // with eps 2 ms and delta 5 mm, bob with the service's. Every entry equals
@@ -467,7 +548,7 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
   Walker walkers[2] = {Walker(31, {0, 0, 0}), Walker(32, {0.12, 0.05, 0})};
   std::vector<Pose> used[2];
   SharedWorld live(SharedWorldOptions{});
-  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0), kEps, kDelta);
+  live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0), {kEps, kDelta, {}});
   live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0));
   std::vector<SharedJob> due;
   int64_t pairs[2] = {0, 0};

@@ -158,13 +158,18 @@ int Write(const std::string& dir) {
     if (bob_ticks.Takes(t)) to.push_back({"sim_bob.jsonl", Eigen::Vector3d(0.25, 0.05, 0)});
     return to;
   });
+  // The filters are those of e2e_shared_world.sh's configuration.
   WriteText(dir + "/sim_world.json", R"({
-  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "sim_alice.jsonl"},
-              {"id": "bob", "skeleton": "arm.json", "poses": "sim_bob.jsonl"}],
+  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "sim_alice.jsonl",
+               "ignore": [{"link": "upper", "entity": "cup"}]},
+              {"id": "bob", "skeleton": "arm.json", "poses": "sim_bob.jsonl",
+               "ignore": [{"link": "fore", "entity": "alice", "other_link": "fore"}]}],
   "env": ["floor.obj"]})");
   WriteText(dir + "/world.json", R"({
-  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "alice.jsonl"},
-              {"id": "bob", "skeleton": "arm.json", "poses": "bob.jsonl"}],
+  "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "alice.jsonl",
+               "ignore": [{"link": "upper", "entity": "cup"}]},
+              {"id": "bob", "skeleton": "arm.json", "poses": "bob.jsonl",
+               "ignore": [{"link": "fore", "entity": "alice", "other_link": "fore"}]}],
   "objects": [{"id": "cup", "mesh": "cube.obj", "poses": "cup.jsonl"}],
   "env": ["floor.obj"]})");
   return 0;

@@ -166,5 +166,34 @@ TEST(DaemonTest, RefusesWhatItCannotBuild) {
   }
 }
 
+// The shared world's filters are resolved against the skeletons at start:
+// one line naming the rule and the link for each that cannot be; a rule
+// with names that resolve starts.
+TEST(DaemonTest, RefusesFiltersItCannotResolve) {
+  ServiceConfig config = MemqConfig("entity_rules");
+  config.shared_world = true;
+  auto refusal = [&](EntityRuleSpec rule) -> std::string {
+    ServiceConfig c = config;
+    c.clients[0].ignore_entities = {rule};
+    try {
+      Daemon daemon(c);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  const std::string no_link = refusal({"elbow", "b", ""});
+  EXPECT_NE(no_link.find("ignore_entities[0].link: no link 'elbow'"), std::string::npos) << no_link;
+  const std::string no_other = refusal({"0", "b", "wrist"});
+  EXPECT_NE(no_other.find("other_link: no link 'wrist'"), std::string::npos) << no_other;
+  const std::string out_of_range = refusal({"7", "b", ""});
+  EXPECT_NE(out_of_range.find("no link '7'"), std::string::npos) << out_of_range;
+  const std::string unknown_by_name = refusal({"*", "someone", "wrist"});
+  EXPECT_NE(unknown_by_name.find("not a configured client; give an index"), std::string::npos)
+      << unknown_by_name;
+  EXPECT_EQ(refusal({"1", "b", "0"}), "");
+  EXPECT_EQ(refusal({"*", "someone_later", "3"}), "") << "a live client's id, by index";
+}
+
 }  // namespace
 }  // namespace sweptccd
