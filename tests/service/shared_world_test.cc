@@ -142,6 +142,41 @@ struct Offline {
   }
 };
 
+// Avatar `id`'s next sample `pose`, received at its utime: the sample, then
+// the pair it closes with the previous one of *used (index *pairs).
+void Feed(SharedWorld* live, const std::string& id, const Pose& pose, std::vector<Pose>* used,
+          int64_t* pairs, std::vector<SharedJob>* due) {
+  live->OnAvatarSample(id, 1, pose, At(pose.utime), due);
+  if (!used->empty()) {
+    PosePair p;
+    p.pair = (*pairs)++;
+    p.seq0 = p.pair, p.seq1 = p.pair + 1;
+    p.pose0 = used->back();
+    p.pose1 = pose;
+    p.receive_time = At(pose.utime);
+    live->AddPair(id, p, At(pose.utime), due);
+  }
+  used->push_back(pose);
+}
+
+// The entity options CollisionService derives from its query options.
+world::EntityQueryOptions EntityOptionsOf(const QueryOptions& q) {
+  world::EntityQueryOptions eo;
+  eo.eps_s = q.eps_s;
+  eo.delta_m = q.delta_m;
+  eo.max_intervals = q.max_intervals;
+  return eo;
+}
+
+// A tracked box (Cube(0.08)) with these samples, in the offline world.
+void AddBox(Offline* off, const std::vector<world::RigidSample>& used) {
+  world::ObjectEntity box;
+  box.id = "box";
+  box.mesh = Cube(0.08);
+  box.used = used;
+  off->w.world.objects.push_back(box);
+}
+
 void ExpectEqualToOffline(const SharedJob& job, const shared_entry_t& live, const json& off) {
   SCOPED_TRACE(job.client_id + " pair " + std::to_string(job.pair) + " vs " + live.entity);
   EXPECT_EQ(live.t_from, off["window"][0].get<int64_t>());
@@ -247,17 +282,10 @@ void RunClientsAtDifferentRates(bool far_tail) {
   Offline off;
   off.AddAvatar("alice", used[0]);
   off.AddAvatar("bob", used[1]);
-  world::ObjectEntity box;
-  box.id = "box";
-  box.mesh = Cube(0.08);
-  box.used = box_used;
-  off.w.world.objects.push_back(box);
+  AddBox(&off, box_used);
   QueryOptions qo;
   off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
-  world::EntityQueryOptions eo;
-  eo.eps_s = qo.eps_s;
-  eo.delta_m = qo.delta_m;
-  eo.max_intervals = qo.max_intervals;
+  const world::EntityQueryOptions eo = EntityOptionsOf(qo);
   // The same in per-link mode (every 4th entry, to bound the test's time).
   QueryOptions qo_links = qo;
   qo_links.per_link = true;
@@ -391,18 +419,7 @@ TEST(SharedWorld, SamplesStampedAtTheSameFrameCoverInThatFrame) {
                          .has_value());
         box_used.push_back(SampleOf(t, p, q));
       } else {
-        const Pose pose = walkers[who].Next(t);
-        live.OnAvatarSample(ids[who], 1, pose, At(t), &due);
-        if (!used[who].empty()) {
-          PosePair p;
-          p.pair = pairs[who]++;
-          p.seq0 = p.pair, p.seq1 = p.pair + 1;
-          p.pose0 = used[who].back();
-          p.pose1 = pose;
-          p.receive_time = At(t);
-          live.AddPair(ids[who], p, At(t), &due);
-        }
-        used[who].push_back(pose);
+        Feed(&live, ids[who], walkers[who].Next(t), &used[who], &pairs[who], &due);
       }
       due_frame.resize(due.size(), f);
     }
@@ -413,17 +430,10 @@ TEST(SharedWorld, SamplesStampedAtTheSameFrameCoverInThatFrame) {
   Offline off;
   off.AddAvatar("alice", used[0]);
   off.AddAvatar("bob", used[1]);
-  world::ObjectEntity box;
-  box.id = "box";
-  box.mesh = Cube(0.08);
-  box.used = box_used;
-  off.w.world.objects.push_back(box);
+  AddBox(&off, box_used);
   QueryOptions qo;
   off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
-  world::EntityQueryOptions eo;
-  eo.eps_s = qo.eps_s;
-  eo.delta_m = qo.delta_m;
-  eo.max_intervals = qo.max_intervals;
+  const world::EntityQueryOptions eo = EntityOptionsOf(qo);
 
   int same_frame = 0, instant = 0, contacts = 0;
   for (size_t i = 0; i < answered_live; ++i) {
@@ -483,39 +493,21 @@ TEST(SharedWorld, FiltersOfEitherAvatarApplyToTheSharedAnswers) {
         live.OnObjectPose(ObjectPose("box", t, f + 1, p, q), 10'000'000, At(t), &due).has_value());
     box_used.push_back(SampleOf(t, p, q));
     for (int who = 0; who < 2; ++who) {
-      const Pose pose = walkers[who].Next(t + 2'000 * who);
-      live.OnAvatarSample(ids[who], 1, pose, At(t + 2'000 * who), &due);
-      if (!used[who].empty()) {
-        PosePair pp;
-        pp.pair = pairs[who]++;
-        pp.seq0 = pp.pair, pp.seq1 = pp.pair + 1;
-        pp.pose0 = used[who].back();
-        pp.pose1 = pose;
-        pp.receive_time = At(t + 2'000 * who);
-        live.AddPair(ids[who], pp, At(t + 2'000 * who), &due);
-      }
-      used[who].push_back(pose);
+      Feed(&live, ids[who], walkers[who].Next(t + 2'000 * who), &used[who], &pairs[who], &due);
     }
   }
   auto offline = [&](bool with_rules) {
     auto off = std::make_unique<Offline>();
     off->AddAvatar("alice", used[0]);
     off->AddAvatar("bob", used[1]);
-    world::ObjectEntity box;
-    box.id = "box";
-    box.mesh = Cube(0.08);
-    box.used = box_used;
-    off->w.world.objects.push_back(box);
+    AddBox(off.get(), box_used);
     if (with_rules) off->w.world.rules = {alice_own.rules, bob_own.rules};
     off->answerer = std::make_unique<world::WorldAnswerer>(off->w, QueryOptions{});
     return off;
   };
   const auto filtered = offline(true), unfiltered = offline(false);
   QueryOptions qo;
-  world::EntityQueryOptions eo;
-  eo.eps_s = qo.eps_s;
-  eo.delta_m = qo.delta_m;
-  eo.max_intervals = qo.max_intervals;
+  const world::EntityQueryOptions eo = EntityOptionsOf(qo);
   int compared = 0, changed = 0, contacts = 0;
   for (const SharedJob& job : due) {
     ASSERT_FALSE(job.ended_by_timeout);
@@ -555,18 +547,7 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
   for (int k = 0; k < 60; ++k) {
     for (int e = 0; e < 2; ++e) {
       const int64_t t = 1'000'000 + k * 11'111 + e * 3'000;
-      const Pose pose = walkers[e].Next(t);
-      live.OnAvatarSample(ids[e], 1, pose, At(t), &due);
-      if (!used[e].empty()) {
-        PosePair p;
-        p.pair = pairs[e]++;
-        p.seq0 = p.pair, p.seq1 = p.pair + 1;
-        p.pose0 = used[e].back();
-        p.pose1 = pose;
-        p.receive_time = At(t);
-        live.AddPair(ids[e], p, At(t), &due);
-      }
-      used[e].push_back(pose);
+      Feed(&live, ids[e], walkers[e].Next(t), &used[e], &pairs[e], &due);
     }
   }
   live.CutAll(At(3'000'000), &due);
@@ -581,10 +562,7 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
   alice_q.delta_m = kDelta;
   off.answerer = std::make_unique<world::WorldAnswerer>(off.w, service_q);
   const world::WorldAnswerer alice_answerer(off.w, alice_q);
-  world::EntityQueryOptions eo;  // The service's, as CollisionService passes them.
-  eo.eps_s = service_q.eps_s;
-  eo.delta_m = service_q.delta_m;
-  eo.max_intervals = service_q.max_intervals;
+  const world::EntityQueryOptions eo = EntityOptionsOf(service_q);
 
   int compared = 0, alice_contacts = 0, coarse = 0, bob_contacts = 0;
   for (const SharedJob& job : due) {
@@ -997,10 +975,7 @@ void RunBroadPhase(uint64_t seed, int* cleared_jobs, int* kept_jobs, int* split_
   QueryOptions qo;
   qo.per_link = true;
   off.answerer = std::make_unique<world::WorldAnswerer>(off.w, qo);
-  world::EntityQueryOptions eo;
-  eo.eps_s = qo.eps_s;
-  eo.delta_m = qo.delta_m;
-  eo.max_intervals = qo.max_intervals;
+  world::EntityQueryOptions eo = EntityOptionsOf(qo);
   eo.per_link = true;
 
   SharedWorldOptions so[2];
