@@ -14,7 +14,7 @@ constexpr size_t kMinString = 5;          // int32 length + the NUL.
 constexpr size_t kEntityLinkBracket = 4 + 32 + 3 + kEntityContact;  // entity_link_bracket_t.
 // shared_entry_t with empty strings and no contacts nor links.
 constexpr size_t kMinSharedEntry = kMinString + 1 + 2 * 8 + 1 + kMinString + 2 + 4 * 8 + 4 + 4 +
-                                   8 + 1 + 8;
+                                   8 + 1 + 8 + 8;
 
 // A cursor over untrusted bytes. The first failure sticks: later reads do
 // nothing and return zeros, so a walker reads as a plain list of fields.
@@ -269,7 +269,7 @@ std::string CheckWire(const shared_contact_t*, const void* data, size_t size,
     r.Fixed("entries[].contacts", static_cast<size_t>(contacts) * kEntityContact);
     const int32_t links = r.Count("entries[].num_links", limits.max_links, kEntityLinkBracket);
     r.Fixed("entries[].links", static_cast<size_t>(links) * kEntityLinkBracket);
-    r.Fixed("entries[].waited_us..compute_us", 8 + 1 + 8);
+    r.Fixed("entries[].waited_us..queue_us", 8 + 1 + 8 + 8);
   }
   r.Fixed("mac", kMac);
   return r.Finish();

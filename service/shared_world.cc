@@ -80,8 +80,14 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
   if (job.delta_m > 0) options.delta_m = job.delta_m;
   shared_entry_t m = EntryOf(job);
   const auto start = SteadyClock::now();
+  // A job made outside SharedWorld (tests) has no due time: no wait.
+  const double queue_us =
+      job.due_time == SteadyClock::time_point{}
+          ? 0.0
+          : std::chrono::duration<double, std::micro>(start - job.due_time).count();
   if (job.cleared_by_box) {
     m.compute_us = std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+    m.queue_us = queue_us;
     return m;
   }
   try {
@@ -141,6 +147,7 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
     m.error = std::string("query failed: ") + e.what();
   }
   m.compute_us = std::chrono::duration<double, std::micro>(SteadyClock::now() - start).count();
+  m.queue_us = queue_us;
   return m;
 }
 
@@ -438,6 +445,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   // The window may reach before the oldest sample kept: then it is cut too.
   job->ended_by_timeout = cut || (e.evicted && e.utime(0) > u0);
   job->waited_us = MicrosSince(entry.pair->receive_time, cut ? now : e.last_sample_time);
+  job->due_time = now;
   return true;
 }
 

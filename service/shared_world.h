@@ -80,6 +80,8 @@ struct SharedJob {
   int64_t t_from = 0, t_to = 0;  // The window, utimes.
   int64_t waited_us = 0;
   bool ended_by_timeout = false;
+  /// When it became due (MakeJob): shared_entry_t.queue_us runs from here.
+  SteadyClock::time_point due_time;
   /// The broad phase of `sweptccd world` (WorldAnswerer::AnswerEntity)
   /// cleared it: A's box over the pair is apart from E's box of every
   /// interval the window uses, so the entry is `free` with no link work.

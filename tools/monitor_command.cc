@@ -299,6 +299,7 @@ class Monitor {
              {"waited_us", s.waited_us},
              {"ended_by_timeout", static_cast<bool>(s.ended_by_timeout)},
              {"compute_us", s.compute_us},
+             {"queue_us", s.queue_us},
              {"entry", index},
              {"entries_in_message", n},
              {"utime", m.utime}};

@@ -242,6 +242,7 @@ void Fill(shared_entry_t& m) {
   m.waited_us = 4321;
   m.ended_by_timeout = 1;
   m.compute_us = 17.25;
+  m.queue_us = 40.5;
 }
 
 void Fill(shared_contact_t& m) {

@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
+#include <map>
 #include <set>
 #include <thread>
 #include <tuple>
@@ -745,6 +747,45 @@ TEST_F(CollisionServiceTest, TheStatusCountsTheEntriesTheBroadPhaseCleared) {
   const status_t s = service->Status();
   EXPECT_EQ(s.shared_cleared, with_far);
   EXPECT_EQ(s.shared_entries, with_far + without_far);
+}
+
+// shared_entry_t.queue_us is the wait for a worker: an entry that becomes
+// due while the only worker is held for 30 ms says at least that; one
+// answered with the worker free says less.
+TEST_F(CollisionServiceTest, SharedQueueTimeIsTheWaitForAWorker) {
+  ServiceOptions options;
+  options.num_workers = 1;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.silence_timeout_ms = 3'600'000;
+  options.shared_world = true;
+  auto service = MakeWith({"a", "b"}, options);
+  for (int64_t k = 0; k < 2; ++k) {
+    service->OnPose(Sample("a", k));
+    service->WaitUntilIdle();
+  }
+  service->OnPose(Sample("b", 0));
+  service->WaitUntilIdle();
+  publisher_.CloseGate();
+  const int entered = publisher_.entered();
+  service->OnPose(Sample("a", 2));
+  publisher_.WaitEntered(entered + 1);  // The worker is held on a's pair (1, 2).
+  service->OnPose(Sample("b", 1));      // Covers a's pair 0 against b: due now.
+  std::this_thread::sleep_for(std::chrono::milliseconds(30));
+  publisher_.OpenGate();
+  service->WaitUntilIdle();
+  service->OnPose(Sample("b", 2));  // Covers a's pair 1, with the worker free.
+  service->WaitUntilIdle();
+  std::map<int64_t, double> queue_of_a;  // Pair: queue_us against b.
+  for (const auto& x : publisher_.shared()) {
+    if (x.client_id == "a" && x.entry.entity == "b") queue_of_a[x.pair] = x.entry.queue_us;
+  }
+  ASSERT_EQ(queue_of_a.count(0), 1u);
+  ASSERT_EQ(queue_of_a.count(1), 1u);
+  EXPECT_GE(queue_of_a[0], 30'000.0);
+  EXPECT_LT(queue_of_a[1], queue_of_a[0]);
+  service->Stop();
 }
 
 // The shared world (docs/SERVICE.md "Shared world"): two clients whose

@@ -240,6 +240,11 @@ class CapturingPublisher : public Publisher {
     std::unique_lock<std::mutex> lock(mutex_);
     cv_.wait(lock, [&] { return entered_ >= n; });
   }
+  // How many times PublishContact has been entered.
+  int entered() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return entered_;
+  }
   void ThrowOnContact(bool on) {
     std::lock_guard<std::mutex> lock(mutex_);
     throw_on_contact_ = on;
