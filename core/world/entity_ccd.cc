@@ -13,6 +13,7 @@
 #include "core/geometry/distance.h"
 #include "core/geometry/segment_gap.h"
 #include "core/query/ccd_query.h"
+#include "core/world/link_sweep_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -64,6 +65,24 @@ class AvatarTarget : public OtherTarget {
       box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
     }
     return box;
+  }
+
+  // As PieceBox, link by link, stopping as soon as the union meets `box`
+  // (B's links not needed are not composed; those composed are kept for
+  // Cull, which asks for the same intervals at the root items).
+  bool PieceBoxMeets(const Piece& piece, double tau0, double tau1,
+                     const Aabb& box_a) const override {
+    MotionMemo& m = MemoOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    Aabb box = Aabb::Empty();
+    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
+      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
+      if (box_a.Overlaps(box)) return true;
+    }
+    return false;
   }
 
   void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
@@ -130,6 +149,12 @@ class AvatarTarget : public OtherTarget {
   }
 
   double tolerance() const override { return tol_; }
+
+  bool LinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const override {
+    const std::vector<Aabb>& held = motions_->LinkBoxesOf(piece.k);
+    boxes->assign(held.begin(), held.end());
+    return true;
+  }
 
  private:
   // B's motion over its interval k, with its memo of poses and segments
@@ -486,10 +511,20 @@ MotionMemo& IntervalMotions::MemoOf(int k) {
     held->motion = PairMotion(entity_.skeleton, entity_.used[static_cast<size_t>(k)],
                               entity_.used[static_cast<size_t>(k1)], entity_.motion);
     held->memo.Rebind(held->motion);
+    held->link_boxes.clear();
   } else {
     held = std::make_unique<Held>(entity_, k, k1);
   }
   return held_.emplace(k, std::move(held)).first->second->memo;
+}
+
+const std::vector<Aabb>& IntervalMotions::LinkBoxesOf(int k) {
+  MemoOf(k);
+  Held& held = *held_.at(k);
+  if (held.link_boxes.empty() && entity_.skeleton.num_links() > 0) {
+    held.link_boxes = LinkSweepBoxes(entity_.skeleton, held.motion, 0.0);
+  }
+  return held.link_boxes;
 }
 
 std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale,
@@ -555,6 +590,47 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
 
   std::vector<std::vector<int>> roots(num_links);
   for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+
+  // Link-level broad phase (link_sweep_boxes.h): the candidates of A's link
+  // l over piece p, cands[l * num_pieces + p], are its roots less E's links
+  // whose box over p's sample interval is apart from l's box over the pair.
+  // Every Cull and Nearest of the descent would drop those (their boxes lie
+  // inside these), so the descent's answer is unchanged; when none is left
+  // anywhere, it is `free` (every item culled, none past the work limit,
+  // none touching at the start) with no pose composed.
+  const size_t num_pieces = pieces.size();
+  std::vector<std::vector<int>> cands;  // Empty: the target has no link boxes.
+  {
+    std::vector<std::vector<Aabb>> boxes_e(num_pieces);
+    bool have = true;
+    for (size_t p = 0; p < num_pieces && have; ++p) have = target.LinkBoxes(pieces[p], &boxes_e[p]);
+    if (have) {
+      const std::vector<Aabb> boxes_a = LinkSweepBoxes(skeleton_a, motion_a, 2 * tol);
+      cands.resize(static_cast<size_t>(num_links) * num_pieces);
+      int64_t root_items = 0;
+      bool any = false;
+      for (int l = 0; l < num_links; ++l) {
+        if (roots[l].empty()) continue;
+        for (size_t p = 0; p < num_pieces; ++p) {
+          std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces + p];
+          for (int j : roots[l]) {
+            if (!BoxesApart(boxes_a[static_cast<size_t>(l)], boxes_e[p][static_cast<size_t>(j)])) {
+              c.push_back(j);
+            }
+          }
+          any = any || !c.empty();
+          ++root_items;
+        }
+      }
+      if (!any && root_items <= options.max_intervals) {
+        answer.culled_by_box = true;
+        return answer;
+      }
+    }
+  }
+  auto cands_of = [&](int l, size_t p) -> const std::vector<int>& {
+    return cands.empty() ? roots[l] : cands[static_cast<size_t>(l) * num_pieces + p];
+  };
   std::vector<bool> done(num_links, false);
   std::vector<OtherBracket> brackets;  // In chronological order.
   auto close = [&](const OtherBracket& b) {
@@ -580,7 +656,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     }
     bool overlaps = false;
     for (const Piece& p : pieces)
-      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
+      overlaps = overlaps || target.PieceBoxMeets(p, p.tau0, p.tau1, box_a);
     if (!overlaps) answer.culled_by_box = true;
     if (!overlaps) std::fill(done.begin(), done.end(), true);
   }
@@ -591,8 +667,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     Eigen::Vector3d a, b;
     memo_a.SegmentAt(l, s_of(tau_from), &a, &b);
     OtherContact c;
-    if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, roots[l], 0.0,
-                       &c) &&
+    if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, cands_of(l, 0),
+                       0.0, &c) &&
         c.separation <= 0) {
       OtherBracket br;
       br.link = l;
@@ -616,7 +692,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   for (int l = 0; l < num_links; ++l) {
     if (done[l] || roots[l].empty()) continue;
     for (int p = 0; p < static_cast<int>(pieces.size()); ++p) {
-      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, roots[l]});
+      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, cands_of(l, static_cast<size_t>(p))});
     }
   }
   while (!queue.empty() && searching()) {
@@ -649,6 +725,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       }
       break;
     }
+    // No candidate left by the link boxes: Cull would keep none.
+    if (item.cands.empty()) continue;
     const Piece& piece = pieces[item.piece];
     const double r_a = skeleton_a.link(item.link).radius;
     double s0 = s_of(item.tau0), s1 = s_of(item.tau1);
