@@ -573,7 +573,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
-                        const EntityQueryOptions& options) {
+                        const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a) {
   const PairMotion& motion_a = memo->motion();
   MotionMemo& memo_a = *memo;
   OtherAnswer answer;
@@ -588,45 +588,88 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   const double accept = options.delta_m > 4 * tol ? options.delta_m - tol : options.delta_m;
   auto s_of = [&](double tau) { return std::clamp(tau / dur, 0.0, 1.0); };
 
-  std::vector<std::vector<int>> roots(num_links);
-  for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
-
   // Link-level broad phase (link_sweep_boxes.h): the candidates of A's link
   // l over piece p, cands[l * num_pieces + p], are its roots less E's links
-  // whose box over p's sample interval is apart from l's box over the pair.
-  // Every Cull and Nearest of the descent would drop those (their boxes lie
-  // inside these), so the descent's answer is unchanged; when none is left
-  // anywhere, it is `free` (every item culled, none past the work limit,
-  // none touching at the start) with no pose composed.
+  // whose box over p's sample interval is apart from l's box over the pair
+  // by more than the descent's slack on A's side (2 tol, with a relative
+  // 1e-8 for the rounding of A's box radius). Every Cull and Nearest of the
+  // descent would drop those (their boxes lie inside these), so the
+  // descent's answer is unchanged; when none is left anywhere, it is `free`
+  // (every item culled, none past the work limit, none touching at the
+  // start) with no pose composed and no root candidate listed.
   const size_t num_pieces = pieces.size();
+  std::vector<std::vector<int>> roots(num_links);
   std::vector<std::vector<int>> cands;  // Empty: the target has no link boxes.
+  std::vector<Aabb> boxes_e;            // Piece p's link j at p * num_e + j.
+  size_t num_e = 0;
+  bool have = true;
   {
-    std::vector<std::vector<Aabb>> boxes_e(num_pieces);
-    bool have = true;
-    for (size_t p = 0; p < num_pieces && have; ++p) have = target.LinkBoxes(pieces[p], &boxes_e[p]);
-    if (have) {
-      const std::vector<Aabb> boxes_a = LinkSweepBoxes(skeleton_a, motion_a, 2 * tol);
-      cands.resize(static_cast<size_t>(num_links) * num_pieces);
-      int64_t root_items = 0;
-      bool any = false;
-      for (int l = 0; l < num_links; ++l) {
-        if (roots[l].empty()) continue;
-        for (size_t p = 0; p < num_pieces; ++p) {
-          std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces + p];
-          for (int j : roots[l]) {
-            if (!BoxesApart(boxes_a[static_cast<size_t>(l)], boxes_e[p][static_cast<size_t>(j)])) {
-              c.push_back(j);
-            }
+    std::vector<Aabb> piece_boxes;
+    for (size_t p = 0; p < num_pieces && have; ++p) {
+      have = target.LinkBoxes(pieces[p], &piece_boxes);
+      if (p == 0) num_e = piece_boxes.size();
+      have = have && piece_boxes.size() == num_e;
+      boxes_e.insert(boxes_e.end(), piece_boxes.begin(), piece_boxes.end());
+    }
+  }
+  if (have) {
+    std::vector<Aabb> own_boxes;
+    if (link_boxes_a == nullptr) {
+      own_boxes = LinkSweepBoxes(skeleton_a, motion_a, 0.0);
+      link_boxes_a = &own_boxes;
+    }
+    SWEPTCCD_CHECK(static_cast<int>(link_boxes_a->size()) == num_links);
+    const double margin = 2 * tol * (1 + 1e-8);
+    std::vector<Aabb> unions(num_pieces, Aabb::Empty());
+    for (size_t p = 0; p < num_pieces; ++p) {
+      for (size_t j = 0; j < num_e; ++j) unions[p].Grow(boxes_e[p * num_e + j]);
+    }
+    // near[l * num_pieces + p]: some link of E (a root or not) near A's l.
+    std::vector<char> near(static_cast<size_t>(num_links) * num_pieces, 0);
+    bool any = false;
+    for (int l = 0; l < num_links; ++l) {
+      const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
+      for (size_t p = 0; p < num_pieces; ++p) {
+        if (BoxesApart(box_a, unions[p], margin)) continue;
+        for (size_t j = 0; j < num_e; ++j) {
+          if (!BoxesApart(box_a, boxes_e[p * num_e + j], margin)) {
+            near[static_cast<size_t>(l) * num_pieces + p] = 1;
+            any = true;
+            break;
           }
-          any = any || !c.empty();
-          ++root_items;
         }
       }
-      if (!any && root_items <= options.max_intervals) {
-        answer.culled_by_box = true;
-        return answer;
+    }
+    if (!any && static_cast<int64_t>(num_links) * static_cast<int64_t>(num_pieces) <=
+                    options.max_intervals) {
+      answer.culled_by_box = true;
+      return answer;
+    }
+    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+    cands.resize(static_cast<size_t>(num_links) * num_pieces);
+    int64_t root_items = 0;
+    any = false;
+    for (int l = 0; l < num_links; ++l) {
+      if (roots[l].empty()) continue;
+      const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
+      for (size_t p = 0; p < num_pieces; ++p) {
+        ++root_items;
+        if (!near[static_cast<size_t>(l) * num_pieces + p]) continue;
+        std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces + p];
+        for (int j : roots[l]) {
+          if (!BoxesApart(box_a, boxes_e[p * num_e + static_cast<size_t>(j)], margin)) {
+            c.push_back(j);
+          }
+        }
+        any = any || !c.empty();
       }
     }
+    if (!any && root_items <= options.max_intervals) {
+      answer.culled_by_box = true;
+      return answer;
+    }
+  } else {
+    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
   }
   auto cands_of = [&](int l, size_t p) -> const std::vector<int>& {
     return cands.empty() ? roots[l] : cands[static_cast<size_t>(l) * num_pieces + p];

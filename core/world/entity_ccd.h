@@ -211,9 +211,12 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
                         const EntityQueryOptions& options);
 /// The same with A's memo, which callers answering one pair against many
-/// entities keep across them (the same bits: the memo answers as the motion).
+/// entities keep across them (the same bits: the memo answers as the motion),
+/// and optionally A's LinkSweepBoxes(skeleton_a, memo_a->motion(), 0), which
+/// they compute once for all entities (else computed here).
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
-                        const EntityQueryOptions& options);
+                        const EntityQueryOptions& options,
+                        const std::vector<Aabb>* link_boxes_a = nullptr);
 
 }  // namespace sweptccd::world

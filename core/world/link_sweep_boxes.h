@@ -32,11 +32,12 @@ namespace sweptccd::world {
 std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& motion,
                                  double extra);
 
-/// True when the boxes are apart on some axis by a positive gap. Not
+/// True when the boxes are apart on some axis by a gap over `margin` (>= 0;
+/// a box grown by `margin` on every side would still be apart). Not
 /// Aabb::Overlaps's negation: a NaN coordinate makes boxes not apart here.
-inline bool BoxesApart(const Aabb& x, const Aabb& y) {
+inline bool BoxesApart(const Aabb& x, const Aabb& y, double margin = 0.0) {
   for (int i = 0; i < 3; ++i) {
-    if (x.lo[i] > y.hi[i] || y.lo[i] > x.hi[i]) return true;
+    if (x.lo[i] - margin > y.hi[i] || y.lo[i] - margin > x.hi[i]) return true;
   }
   return false;
 }

@@ -423,11 +423,22 @@ TEST(EntityCcdLinkBoxes, HoldEverySweptAndInstantBox) {
     const Pose p0 = RandomPose(rng, n, 1'000'000, Vector3d(rng.Box(3.0)), 0.3);
     const Pose p1 = rng.P(0.1) ? p0 : NextPose(rng, p0, 1'013'889, rng.U(0.0, 0.3));
     const PairMotion motion(sk, p0, p1, model);
-    const double extra = rng.P(0.3) ? 0.0 : rng.U(0, 1e-4);
+    const double extra = rng.P(0.3) ? 0.0 : rng.U(0, 1e-3);
     const std::vector<Aabb> boxes = LinkSweepBoxes(sk, motion, extra);
+    // As AnswerOther uses A's: with extra 0, apart only by more than the
+    // extra (BoxesApart's margin).
+    const std::vector<Aabb> base = LinkSweepBoxes(sk, motion, 0.0);
     ASSERT_EQ(static_cast<int>(boxes.size()), n);
+    ASSERT_EQ(static_cast<int>(base.size()), n);
     auto inside = [](const Aabb& x, const Aabb& outer) {
       return (outer.lo.array() <= x.lo.array()).all() && (x.hi.array() <= outer.hi.array()).all();
+    };
+    const double margin = extra * (1 + 1e-8);
+    auto inside_base = [&](const Aabb& x, int l) {
+      Aabb grown = base[l];
+      grown.lo.array() -= margin;
+      grown.hi.array() += margin;
+      return inside(x, grown);
     };
     for (int trial = 0; trial < 200; ++trial) {
       double s0 = rng.U(0, 1), s1 = rng.U(0, 1);
@@ -443,9 +454,11 @@ TEST(EntityCcdLinkBoxes, HoldEverySweptAndInstantBox) {
         const double r = sk.link(l).radius + extra;
         const Aabb swept = Aabb::OfCapsule(a, b, (r + g) * (1 + 1e-9) + 1e-9);
         ASSERT_TRUE(inside(swept, boxes[l])) << "seed " << seed << " link " << l;
+        ASSERT_TRUE(inside_base(swept, l)) << "seed " << seed << " link " << l;
         motion.SegmentAt(l, s0, &a, &b);
-        ASSERT_TRUE(inside(Aabb::OfCapsule(a, b, r * (1 + 1e-9) + 1e-9), boxes[l]))
-            << "seed " << seed << " link " << l;
+        const Aabb instant = Aabb::OfCapsule(a, b, r * (1 + 1e-9) + 1e-9);
+        ASSERT_TRUE(inside(instant, boxes[l])) << "seed " << seed << " link " << l;
+        ASSERT_TRUE(inside_base(instant, l)) << "seed " << seed << " link " << l;
         ++checked;
       }
     }
