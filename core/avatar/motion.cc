@@ -363,4 +363,10 @@ void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
   *growth = std::min(first_order, second_order);
 }
 
+double PairMotion::SecondOrderRadius(int link, double chord, double s0, double s1) const {
+  const LinkMotion& m = links_[link];
+  return internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
+                                     m.extent, rounding_slack_, s0, s1);
+}
+
 }  // namespace sweptccd

@@ -115,6 +115,11 @@ class PairMotion {
                                 const Eigen::Vector3d& bm, Eigen::Vector3d* p_WA,
                                 Eigen::Vector3d* p_WB, double* growth) const;
 
+  /// The second-order growth over [s0, s1] given `chord`, the larger of the
+  /// distances that the link's two segment ends move from s0 to s1:
+  /// SweptCapsuleFromSegments's second-order term (the same bits for the
+  /// chord it computes). Nondecreasing in chord and in s1 - s0.
+  double SecondOrderRadius(int link, double chord, double s0, double s1) const;
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link

@@ -13,6 +13,7 @@
 #include "core/geometry/distance.h"
 #include "core/geometry/segment_gap.h"
 #include "core/query/ccd_query.h"
+#include "core/world/link_sweep_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -64,6 +65,24 @@ class AvatarTarget : public OtherTarget {
       box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
     }
     return box;
+  }
+
+  // As PieceBox, link by link, stopping as soon as the union meets `box`
+  // (B's links not needed are not composed; those composed are kept for
+  // Cull, which asks for the same intervals at the root items).
+  bool PieceBoxMeets(const Piece& piece, double tau0, double tau1,
+                     const Aabb& box_a) const override {
+    MotionMemo& m = MemoOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    Aabb box = Aabb::Empty();
+    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
+      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
+      if (box_a.Overlaps(box)) return true;
+    }
+    return false;
   }
 
   void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
@@ -130,6 +149,12 @@ class AvatarTarget : public OtherTarget {
   }
 
   double tolerance() const override { return tol_; }
+
+  bool LinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const override {
+    const std::vector<Aabb>& held = motions_->LinkBoxesOf(piece.k);
+    boxes->assign(held.begin(), held.end());
+    return true;
+  }
 
  private:
   // B's motion over its interval k, with its memo of poses and segments
@@ -486,10 +511,20 @@ MotionMemo& IntervalMotions::MemoOf(int k) {
     held->motion = PairMotion(entity_.skeleton, entity_.used[static_cast<size_t>(k)],
                               entity_.used[static_cast<size_t>(k1)], entity_.motion);
     held->memo.Rebind(held->motion);
+    held->link_boxes.clear();
   } else {
     held = std::make_unique<Held>(entity_, k, k1);
   }
   return held_.emplace(k, std::move(held)).first->second->memo;
+}
+
+const std::vector<Aabb>& IntervalMotions::LinkBoxesOf(int k) {
+  MemoOf(k);
+  Held& held = *held_.at(k);
+  if (held.link_boxes.empty() && entity_.skeleton.num_links() > 0) {
+    held.link_boxes = LinkSweepBoxes(entity_.skeleton, held.motion, 0.0);
+  }
+  return held.link_boxes;
 }
 
 std::unique_ptr<OtherTarget> MakeAvatarTarget(const World& world, int a, int b, double scale,
@@ -538,7 +573,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
-                        const EntityQueryOptions& options) {
+                        const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a) {
   const PairMotion& motion_a = memo->motion();
   MotionMemo& memo_a = *memo;
   OtherAnswer answer;
@@ -553,8 +588,92 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   const double accept = options.delta_m > 4 * tol ? options.delta_m - tol : options.delta_m;
   auto s_of = [&](double tau) { return std::clamp(tau / dur, 0.0, 1.0); };
 
+  // Link-level broad phase (link_sweep_boxes.h): the candidates of A's link
+  // l over piece p, cands[l * num_pieces + p], are its roots less E's links
+  // whose box over p's sample interval is apart from l's box over the pair
+  // by more than the descent's slack on A's side (2 tol, with a relative
+  // 1e-8 for the rounding of A's box radius). Every Cull and Nearest of the
+  // descent would drop those (their boxes lie inside these), so the
+  // descent's answer is unchanged; when none is left anywhere, it is `free`
+  // (every item culled, none past the work limit, none touching at the
+  // start) with no pose composed and no root candidate listed.
+  const size_t num_pieces = pieces.size();
   std::vector<std::vector<int>> roots(num_links);
-  for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+  std::vector<std::vector<int>> cands;  // Empty: the target has no link boxes.
+  std::vector<Aabb> boxes_e;            // Piece p's link j at p * num_e + j.
+  size_t num_e = 0;
+  bool have = true;
+  {
+    std::vector<Aabb> piece_boxes;
+    for (size_t p = 0; p < num_pieces && have; ++p) {
+      have = target.LinkBoxes(pieces[p], &piece_boxes);
+      if (p == 0) num_e = piece_boxes.size();
+      have = have && piece_boxes.size() == num_e;
+      boxes_e.insert(boxes_e.end(), piece_boxes.begin(), piece_boxes.end());
+    }
+  }
+  if (have) {
+    std::vector<Aabb> own_boxes;
+    if (link_boxes_a == nullptr) {
+      own_boxes = LinkSweepBoxes(skeleton_a, motion_a, 0.0);
+      link_boxes_a = &own_boxes;
+    }
+    SWEPTCCD_CHECK(static_cast<int>(link_boxes_a->size()) == num_links);
+    const double margin = 2 * tol * (1 + 1e-8);
+    std::vector<Aabb> unions(num_pieces, Aabb::Empty());
+    for (size_t p = 0; p < num_pieces; ++p) {
+      for (size_t j = 0; j < num_e; ++j) unions[p].Grow(boxes_e[p * num_e + j]);
+    }
+    // near[l * num_pieces + p]: some link of E (a root or not) near A's l.
+    std::vector<char> near(static_cast<size_t>(num_links) * num_pieces, 0);
+    bool any = false;
+    for (int l = 0; l < num_links; ++l) {
+      const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
+      for (size_t p = 0; p < num_pieces; ++p) {
+        if (BoxesApart(box_a, unions[p], margin)) continue;
+        for (size_t j = 0; j < num_e; ++j) {
+          if (!BoxesApart(box_a, boxes_e[p * num_e + j], margin)) {
+            near[static_cast<size_t>(l) * num_pieces + p] = 1;
+            any = true;
+            break;
+          }
+        }
+      }
+    }
+    if (!any && static_cast<int64_t>(num_links) * static_cast<int64_t>(num_pieces) <=
+                    options.max_intervals) {
+      answer.culled_by_box = true;
+      return answer;
+    }
+    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+    cands.resize(static_cast<size_t>(num_links) * num_pieces);
+    int64_t root_items = 0;
+    any = false;
+    for (int l = 0; l < num_links; ++l) {
+      if (roots[l].empty()) continue;
+      const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
+      for (size_t p = 0; p < num_pieces; ++p) {
+        ++root_items;
+        if (!near[static_cast<size_t>(l) * num_pieces + p]) continue;
+        std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces + p];
+        for (int j : roots[l]) {
+          if (!BoxesApart(box_a, boxes_e[p * num_e + static_cast<size_t>(j)], margin)) {
+            c.push_back(j);
+          }
+        }
+        any = any || !c.empty();
+      }
+    }
+    if (!any && root_items <= options.max_intervals) {
+      answer.culled_by_box = true;
+      return answer;
+    }
+  } else {
+    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+  }
+  auto cands_of = [&](int l, size_t p) -> const std::vector<int>& {
+    return cands.empty() ? roots[l] : cands[static_cast<size_t>(l) * num_pieces + p];
+  };
   std::vector<bool> done(num_links, false);
   std::vector<OtherBracket> brackets;  // In chronological order.
   auto close = [&](const OtherBracket& b) {
@@ -580,7 +699,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     }
     bool overlaps = false;
     for (const Piece& p : pieces)
-      overlaps = overlaps || box_a.Overlaps(target.PieceBox(p, p.tau0, p.tau1));
+      overlaps = overlaps || target.PieceBoxMeets(p, p.tau0, p.tau1, box_a);
     if (!overlaps) answer.culled_by_box = true;
     if (!overlaps) std::fill(done.begin(), done.end(), true);
   }
@@ -591,8 +710,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     Eigen::Vector3d a, b;
     memo_a.SegmentAt(l, s_of(tau_from), &a, &b);
     OtherContact c;
-    if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, roots[l], 0.0,
-                       &c) &&
+    if (target.Nearest(pieces.front(), tau_from, l, a, b, skeleton_a.link(l).radius, cands_of(l, 0),
+                       0.0, &c) &&
         c.separation <= 0) {
       OtherBracket br;
       br.link = l;
@@ -616,7 +735,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   for (int l = 0; l < num_links; ++l) {
     if (done[l] || roots[l].empty()) continue;
     for (int p = 0; p < static_cast<int>(pieces.size()); ++p) {
-      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, roots[l]});
+      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, cands_of(l, static_cast<size_t>(p))});
     }
   }
   while (!queue.empty() && searching()) {
@@ -649,6 +768,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       }
       break;
     }
+    // No candidate left by the link boxes: Cull would keep none.
+    if (item.cands.empty()) continue;
     const Piece& piece = pieces[item.piece];
     const double r_a = skeleton_a.link(item.link).radius;
     double s0 = s_of(item.tau0), s1 = s_of(item.tau1);

@@ -97,6 +97,12 @@ class OtherTarget {
   virtual std::vector<int> RootCandidates(int link_a) const = 0;
   /// A box holding E over the piece (the entity-level broad phase).
   virtual Aabb PieceBox(const Piece& piece, double tau0, double tau1) const = 0;
+  /// box.Overlaps(PieceBox(piece, tau0, tau1)), which a target may answer
+  /// without the whole PieceBox (a union of boxes that overlaps `box` still
+  /// does when it grows).
+  virtual bool PieceBoxMeets(const Piece& piece, double tau0, double tau1, const Aabb& box) const {
+    return box.Overlaps(PieceBox(piece, tau0, tau1));
+  }
   /// Removes from *cands those that cannot come within A's link over
   /// [tau0, tau1]: A's swept capsule is its segment (a, b) at the interval's
   /// midpoint, every point within `growth_a` of its midpoint position,
@@ -111,6 +117,16 @@ class OtherTarget {
                        double search, OtherContact* out) const = 0;
   /// Rounding slack (metres) of this target's geometry.
   virtual double tolerance() const = 0;
+  /// The link-level broad phase: per candidate (by index), a box holding
+  /// every box that Cull and Nearest test that candidate with over any part
+  /// of the piece's sample interval (LinkSweepBoxes with extra 0). False,
+  /// *boxes untouched, when the target has none (then every candidate is
+  /// kept).
+  virtual bool LinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const {
+    (void)piece;
+    (void)boxes;
+    return false;
+  }
 };
 
 /// Largest absolute coordinate of an entity's samples and geometry (its
@@ -144,11 +160,15 @@ class IntervalMotions {
   /// That motion (valid until MemoOf or MotionOf asks for an interval not
   /// kept while this one is the farthest).
   const PairMotion& MotionOf(int k) { return MemoOf(k).motion(); }
+  /// LinkSweepBoxes(skeleton, MotionOf(k), 0), computed once per interval
+  /// kept (valid as MotionOf's answer).
+  const std::vector<Aabb>& LinkBoxesOf(int k);
 
  private:
   struct Held {
     PairMotion motion;
     MotionMemo memo;  // Over `motion`.
+    std::vector<Aabb> link_boxes;  // LinkSweepBoxes of `motion`; empty: not yet.
     Held(const AvatarEntity& e, int k, int k1);
   };
   const AvatarEntity& entity_;
@@ -191,9 +211,12 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
                         const EntityQueryOptions& options);
 /// The same with A's memo, which callers answering one pair against many
-/// entities keep across them (the same bits: the memo answers as the motion).
+/// entities keep across them (the same bits: the memo answers as the motion),
+/// and optionally A's LinkSweepBoxes(skeleton_a, memo_a->motion(), 0), which
+/// they compute once for all entities (else computed here).
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
-                        const EntityQueryOptions& options);
+                        const EntityQueryOptions& options,
+                        const std::vector<Aabb>* link_boxes_a = nullptr);
 
 }  // namespace sweptccd::world

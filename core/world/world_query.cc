@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/query/result_json.h"
+#include "core/world/link_sweep_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -115,7 +116,9 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
       b >= 0 ? MakeAvatarTarget(w_.world, a, b, WindowScale(w_.world.avatars[b], pieces),
                                 interval_motions_[static_cast<size_t>(b)].get())
              : MakeObjectTarget(w_.world, a, o, WindowScale(w_.world.objects[o], pieces));
-  *answer = AnswerOther(A.skeleton, &*memo_, u0, u1, pieces, *target, entity_options_);
+  if (b >= 0 && link_boxes_.empty()) link_boxes_ = LinkSweepBoxes(A.skeleton, *motion_, 0.0);
+  *answer = AnswerOther(A.skeleton, &*memo_, u0, u1, pieces, *target, entity_options_,
+                        b >= 0 ? &link_boxes_ : nullptr);
   return true;
 }
 
@@ -140,6 +143,7 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   }
   motion_a_ = a;
   motion_r_ = r;
+  link_boxes_.clear();
   return *motion_;
 }
 

@@ -67,6 +67,9 @@ class WorldAnswerer {
   // Over *motion_: every entity of the record asks for A's links at the
   // same times (the window's start, its halves).
   mutable std::optional<MotionMemo> memo_;
+  // LinkSweepBoxes of A over *motion_ (extra 0), for every avatar entity of
+  // the record; empty until one needs them.
+  mutable std::vector<Aabb> link_boxes_;
   // Each avatar's motions over its sample intervals, kept across records.
   std::vector<std::unique_ptr<IntervalMotions>> interval_motions_;
 };

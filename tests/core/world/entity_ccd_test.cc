@@ -23,6 +23,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -31,6 +32,7 @@
 #include <vector>
 
 #include "core/geometry/distance.h"
+#include "core/world/link_sweep_boxes.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
@@ -402,6 +404,223 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
   EXPECT_GT(tally.initially, 10);
   EXPECT_GT(tally.free, 40);
   EXPECT_EQ(tally.undecided, 0);
+}
+
+// ------------------------------------------------- link-level broad phase
+
+// LinkSweepBoxes against the boxes the descent builds: for random motions
+// (both models, 180-degree turns, zero-length links) and random parts
+// [s0, s1] of [0, 1] (whole, tiny, at the ends), the box of every swept
+// capsule and every instant segment, with the descent's margins, lies in
+// the link's box.
+TEST(EntityCcdLinkBoxes, HoldEverySweptAndInstantBox) {
+  int checked = 0;
+  for (int seed = 0; seed < 300; ++seed) {
+    Rng rng(9000 + seed);
+    const int n = 1 + rng.I(6);
+    const Skeleton sk = RandomSkeleton(rng, n, true);
+    const MotionModel model = rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+    const Pose p0 = RandomPose(rng, n, 1'000'000, Vector3d(rng.Box(3.0)), 0.3);
+    const Pose p1 = rng.P(0.1) ? p0 : NextPose(rng, p0, 1'013'889, rng.U(0.0, 0.3));
+    const PairMotion motion(sk, p0, p1, model);
+    const double extra = rng.P(0.3) ? 0.0 : rng.U(0, 1e-3);
+    const std::vector<Aabb> boxes = LinkSweepBoxes(sk, motion, extra);
+    // As AnswerOther uses A's: with extra 0, apart only by more than the
+    // extra (BoxesApart's margin).
+    const std::vector<Aabb> base = LinkSweepBoxes(sk, motion, 0.0);
+    ASSERT_EQ(static_cast<int>(boxes.size()), n);
+    ASSERT_EQ(static_cast<int>(base.size()), n);
+    auto inside = [](const Aabb& x, const Aabb& outer) {
+      return (outer.lo.array() <= x.lo.array()).all() && (x.hi.array() <= outer.hi.array()).all();
+    };
+    const double margin = extra * (1 + 1e-8);
+    auto inside_base = [&](const Aabb& x, int l) {
+      Aabb grown = base[l];
+      grown.lo.array() -= margin;
+      grown.hi.array() += margin;
+      return inside(x, grown);
+    };
+    for (int trial = 0; trial < 200; ++trial) {
+      double s0 = rng.U(0, 1), s1 = rng.U(0, 1);
+      if (s0 > s1) std::swap(s0, s1);
+      if (trial % 5 == 0) s1 = std::min(1.0, s0 + rng.U(0, 1e-6));
+      if (trial == 1) s0 = 0, s1 = 1;
+      if (trial == 2) s0 = 0;
+      if (trial == 3) s1 = 1;
+      for (int l = 0; l < n; ++l) {
+        Vector3d a, b;
+        double g;
+        motion.SweptCapsule(l, s0, s1, &a, &b, &g);
+        const double r = sk.link(l).radius + extra;
+        const Aabb swept = Aabb::OfCapsule(a, b, (r + g) * (1 + 1e-9) + 1e-9);
+        ASSERT_TRUE(inside(swept, boxes[l])) << "seed " << seed << " link " << l;
+        ASSERT_TRUE(inside_base(swept, l)) << "seed " << seed << " link " << l;
+        motion.SegmentAt(l, s0, &a, &b);
+        const Aabb instant = Aabb::OfCapsule(a, b, r * (1 + 1e-9) + 1e-9);
+        ASSERT_TRUE(inside(instant, boxes[l])) << "seed " << seed << " link " << l;
+        ASSERT_TRUE(inside_base(instant, l)) << "seed " << seed << " link " << l;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 100000);
+}
+
+// The broad phase's brute-force twin: two random avatars moving over one
+// pair each; every link pair whose boxes are apart is separated at dense
+// samples of both motions (the capsules at s, for s over [0, 1]). Both
+// kinds of pair must occur.
+TEST(EntityCcdLinkBoxes, ApartMeansSeparatedAtDenseSamples) {
+  int apart = 0, near = 0;
+  for (int seed = 0; seed < 300; ++seed) {
+    Rng rng(12000 + seed);
+    Skeleton sk[2];
+    PairMotion* motions[2];
+    std::vector<PairMotion> held;
+    held.reserve(2);
+    for (int e = 0; e < 2; ++e) {
+      const int n = 1 + rng.I(5);
+      sk[e] = RandomSkeleton(rng, n, true);
+      const MotionModel model =
+          rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+      const Pose p0 = RandomPose(rng, n, 1'000'000, Vector3d(rng.Box(0.6)), 0.3);
+      const Pose p1 = NextPose(rng, p0, 1'011'111, rng.U(0.0, 0.3));
+      held.emplace_back(sk[e], p0, p1, model);
+    }
+    motions[0] = &held[0];
+    motions[1] = &held[1];
+    const std::vector<Aabb> boxes0 = LinkSweepBoxes(sk[0], *motions[0], 0.0);
+    const std::vector<Aabb> boxes1 = LinkSweepBoxes(sk[1], *motions[1], 0.0);
+    for (int i = 0; i < sk[0].num_links(); ++i) {
+      for (int j = 0; j < sk[1].num_links(); ++j) {
+        if (!BoxesApart(boxes0[i], boxes1[j])) {
+          ++near;
+          continue;
+        }
+        ++apart;
+        for (int k = 0; k <= 400; ++k) {
+          const double s = k / 400.0;
+          Vector3d a0, b0, a1, b1, c0, c1;
+          motions[0]->SegmentAt(i, s, &a0, &b0);
+          motions[1]->SegmentAt(j, s, &a1, &b1);
+          const double d = std::sqrt(SegmentSegmentDistanceSquared(a0, b0, a1, b1, &c0, &c1));
+          ASSERT_GT(d - sk[0].link(i).radius - sk[1].link(j).radius, 0)
+              << "seed " << seed << " links " << i << " " << j << " s " << s;
+        }
+      }
+    }
+  }
+  std::printf("%d link pairs apart, %d near\n", apart, near);
+  EXPECT_GT(apart, 300);
+  EXPECT_GT(near, 300);
+}
+
+// A target without link boxes (and whose PieceBoxMeets is the whole
+// PieceBox): the descent as it was before the link-level broad phase.
+class WithoutLinkBoxes : public OtherTarget {
+ public:
+  explicit WithoutLinkBoxes(const OtherTarget& t) : t_(t) {}
+  std::vector<int> RootCandidates(int link_a) const override { return t_.RootCandidates(link_a); }
+  Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
+    return t_.PieceBox(p, tau0, tau1);
+  }
+  void Cull(const Piece& p, double tau0, double tau1, const Vector3d& a, const Vector3d& b,
+            double radius_a, double growth_a, std::vector<int>* cands) const override {
+    t_.Cull(p, tau0, tau1, a, b, radius_a, growth_a, cands);
+  }
+  bool Nearest(const Piece& p, double tau, int link_a, const Vector3d& a, const Vector3d& b,
+               double radius_a, const std::vector<int>& cands, double search,
+               OtherContact* out) const override {
+    return t_.Nearest(p, tau, link_a, a, b, radius_a, cands, search, out);
+  }
+  double tolerance() const override { return t_.tolerance(); }
+
+ private:
+  const OtherTarget& t_;
+};
+
+bool SameBits(double x, double y) { return std::memcmp(&x, &y, sizeof x) == 0; }
+bool SameBits(const Vector3d& x, const Vector3d& y) {
+  return SameBits(x.x(), y.x()) && SameBits(x.y(), y.y()) && SameBits(x.z(), y.z());
+}
+void ExpectSameBracket(const OtherBracket& x, const OtherBracket& y) {
+  EXPECT_EQ(x.link, y.link);
+  EXPECT_TRUE(SameBits(x.tau_lo, y.tau_lo) && SameBits(x.tau_hi, y.tau_hi));
+  EXPECT_EQ(x.initially_colliding, y.initially_colliding);
+  EXPECT_EQ(x.undecided, y.undecided);
+  EXPECT_EQ(x.has_witness, y.has_witness);
+  if (!x.has_witness || !y.has_witness) return;
+  EXPECT_EQ(x.witness.link, y.witness.link);
+  EXPECT_EQ(x.witness.other_link, y.witness.other_link);
+  EXPECT_TRUE(SameBits(x.witness.tau, y.witness.tau));
+  EXPECT_TRUE(SameBits(x.witness.point_link, y.witness.point_link));
+  EXPECT_TRUE(SameBits(x.witness.point_other, y.witness.point_other));
+  EXPECT_TRUE(SameBits(x.witness.normal, y.witness.normal));
+  EXPECT_TRUE(SameBits(x.witness.separation, y.witness.separation));
+}
+
+// The link-level broad phase never changes an answer: random avatar pairs
+// (close, so that both contacts and free answers occur), answered with and
+// without the link boxes, agree bit for bit, per-link mode and small work
+// limits included (where the descent runs out of work at the same item).
+TEST(EntityCcdLinkBoxes, NeverChangeAnAnswer) {
+  int contact = 0, n_free = 0, undecided = 0, by_link_boxes = 0;
+  for (int seed = 0; seed < 3000; ++seed) {
+    Rng rng(15000 + seed);
+    World w;
+    Pose p0, p1;
+    RandomAvatarWorld(rng, &w, &p0, &p1);
+    EntityQueryOptions opt;
+    opt.eps_s = rng.P(0.5) ? 1e-4 : 1e-3;
+    opt.per_link = rng.P(0.3);
+    if (rng.P(0.2)) opt.max_intervals = 1 + rng.I(40);
+    if (rng.P(0.5)) {  // A slower (its links' boxes tighter).
+      p1.links = p0.links;
+      for (LinkPose& l : p1.links) l.p += rng.Box(0.02);
+      w.avatars[0].used[1] = p1;
+    }
+    if (rng.P(0.5)) {  // B slower too.
+      for (size_t i = 1; i < w.avatars[1].used.size(); ++i) {
+        w.avatars[1].used[i].links = w.avatars[1].used[i - 1].links;
+        for (LinkPose& l : w.avatars[1].used[i].links) l.p += rng.Box(0.02);
+      }
+    }
+    if (rng.P(0.5)) {  // B moved off: near misses, boxes that meet while links do not.
+      const Vector3d shift = rng.Dir() * rng.U(0.2, 1.0);
+      for (Pose& p : w.avatars[1].used) {
+        for (LinkPose& l : p.links) l.p += shift;
+      }
+    }
+    std::vector<int64_t> times;
+    for (const Pose& p : w.avatars[1].used) times.push_back(p.utime);
+    const int64_t t_from = std::max(p0.utime, times.front());
+    const int64_t t_to = std::min(p1.utime, times.back());
+    if (t_from > t_to) continue;
+    const std::vector<Piece> pieces = SplitWindow(p0.utime, t_from, t_to, times);
+    const PairMotion motion(w.avatars[0].skeleton, p0, p1, w.avatars[0].motion);
+    const auto target = MakeAvatarTarget(w, 0, 1);
+    const auto plain_target = MakeAvatarTarget(w, 0, 1);  // Its own memos.
+    const WithoutLinkBoxes plain(*plain_target);
+    const OtherAnswer x =
+        AnswerOther(w.avatars[0].skeleton, motion, p0.utime, p1.utime, pieces, *target, opt);
+    const OtherAnswer y =
+        AnswerOther(w.avatars[0].skeleton, motion, p0.utime, p1.utime, pieces, plain, opt);
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    ASSERT_EQ(x.contact, y.contact);
+    if (x.contact) ExpectSameBracket(x.bracket, y.bracket);
+    ASSERT_EQ(x.links.size(), y.links.size());
+    for (size_t i = 0; i < x.links.size(); ++i) ExpectSameBracket(x.links[i], y.links[i]);
+    contact += x.contact && !x.bracket.undecided;
+    undecided += x.contact && x.bracket.undecided;
+    n_free += !x.contact;
+    by_link_boxes += x.culled_by_box && !y.culled_by_box;  // No descent, where it ran before.
+  }
+  std::printf("%d contact, %d undecided, %d free (%d by the link boxes alone)\n", contact,
+              undecided, n_free, by_link_boxes);
+  EXPECT_GT(by_link_boxes, 20);
+  EXPECT_GT(contact, 60);
+  EXPECT_GT(undecided, 5);
+  EXPECT_GT(n_free, 40);
 }
 
 // Two one-link avatars; B's link is placed by the caller.
