@@ -19,6 +19,27 @@
 //                         each message from the publication of its covering
 //                         sample (below)
 //   --label TEXT          the table row's label
+//   --phases burst|spread when the clients sample (default burst): burst, all
+//                         clients at the start of each tick, one after
+//                         another; spread, client c at c/CLIENTS of the
+//                         period into each tick and its utime as much later,
+//                         as headsets on independent clocks would be
+//   --breakdown           also print to stderr where the environment part's
+//                         time went (below)
+//
+// Two threads, each with its own lcm::LCM on the same URL: the main thread
+// publishes; a receive thread only takes each event's arrival time when its
+// handler runs and stores it. The two meet after the run. With one thread,
+// an event that arrived while the bench was still signing and publishing the
+// rest of a 32-client tick waited for the next handleTimeout, so the bench's
+// own publishing time was counted as the daemon's latency. A pose's sent time
+// is taken just before lcm.publish, after it was signed (the client's cost).
+//
+// --breakdown splits the environment part's latency with the times the
+// daemon puts in contact_event_t (system clock, the same machine's):
+// publication -> daemon's handler (receive_utime), queue_us, compute_us, the
+// rest until the event's utime (just before it is signed and published), and
+// utime -> arrival at the bench's handler.
 //
 // A shared entry of A's pair (seq0, seq1) against client E is covered when
 // the daemon has both A's pose seq1 and E's first sample with utime > the
@@ -29,6 +50,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
@@ -40,6 +62,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "core/errors.h"
@@ -57,12 +80,123 @@ double MicrosSince(Clock::time_point from, Clock::time_point to) {
   return std::chrono::duration<double, std::micro>(to - from).count();
 }
 
+int64_t SystemUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// What the publisher recorded; written by the main thread only, read after
+// the receive thread has been joined.
+struct Sent {
+  struct Pose {
+    Clock::time_point at;
+    int64_t at_utime = 0;  // System clock, for --breakdown.
+  };
+  std::map<std::pair<std::string, int64_t>, Pose> by_seq;                // (client, seq).
+  std::map<std::string, std::map<int64_t, Clock::time_point>> by_utime;  // client: pose utime.
+};
+
+// One contact_event_t as it arrived (what the report needs of it).
+struct EventArrival {
+  Clock::time_point at;
+  int64_t at_utime = 0;  // System clock, for --breakdown.
+  std::string client_id;
+  int64_t seq1 = 0;
+  int64_t skipped_pairs_total = 0;
+  int64_t receive_utime = 0, event_utime = 0;
+  double queue_us = 0, compute_us = 0;
+};
+
+struct SharedArrival {
+  Clock::time_point at;
+  sweptccd::shared_contact_t msg;
+};
+
+// The receive thread: its own lcm::LCM; each handler takes the time first,
+// then decodes and appends. Nothing it writes is read by another thread
+// before Stop() has joined it, except last_arrival_ns (atomic, the drain's).
+class Receiver {
+ public:
+  Receiver(const std::string& url, bool shared, size_t expected_events) : lcm_(url) {
+    events_.reserve(expected_events);
+    if (!lcm_.good()) return;
+    lcm_.subscribe(sweptccd::kContactChannel, &Receiver::OnEvent, this)
+        ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
+    if (shared) {
+      lcm_.subscribe(sweptccd::kSharedContactChannel, &Receiver::OnShared, this)
+          ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
+    }
+  }
+
+  bool good() { return lcm_.good(); }
+
+  void Start() {
+    thread_ = std::thread([this] {
+      while (!stop_.load(std::memory_order_relaxed)) lcm_.handleTimeout(50);
+    });
+  }
+
+  // Joins the thread; afterwards the arrivals may be read.
+  void Stop() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+
+  // When the last message arrived (the drain's "nothing for 1 s").
+  Clock::time_point last_arrival() const {
+    return Clock::time_point(Clock::duration(last_arrival_ns_.load(std::memory_order_relaxed)));
+  }
+
+  const std::vector<EventArrival>& events() const { return events_; }
+  const std::vector<SharedArrival>& shared() const { return shared_; }
+  int64_t undecodable() const { return undecodable_; }
+
+ private:
+  void Heard(Clock::time_point now) {
+    last_arrival_ns_.store(now.time_since_epoch().count(), std::memory_order_relaxed);
+  }
+
+  void OnEvent(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    const Clock::time_point now = Clock::now();
+    const int64_t now_utime = SystemUtime();
+    Heard(now);
+    sweptccd::contact_event_t e;
+    if (e.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+      ++undecodable_;
+      return;
+    }
+    events_.push_back({now, now_utime, std::move(e.client_id), e.seq1, e.skipped_pairs_total,
+                       e.receive_utime, e.utime, e.queue_us, e.compute_us});
+  }
+
+  void OnShared(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    const Clock::time_point now = Clock::now();
+    Heard(now);
+    SharedArrival a{now, {}};
+    if (a.msg.decode(rbuf->data, 0, rbuf->data_size) < 0) {
+      ++undecodable_;
+      return;
+    }
+    shared_.push_back(std::move(a));
+  }
+
+  lcm::LCM lcm_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<Clock::rep> last_arrival_ns_{0};
+  std::vector<EventArrival> events_;
+  std::vector<SharedArrival> shared_;
+  int64_t undecodable_ = 0;
+};
+
+// The matched results, computed after the run from Sent and the arrivals.
 struct Collector {
-  std::map<std::pair<std::string, int64_t>, Clock::time_point> sent;          // (client, seq).
-  std::map<std::string, std::map<int64_t, Clock::time_point>> sent_by_utime;  // client: utime.
   std::vector<double> latencies_us;
   std::set<std::pair<std::string, int64_t>> answered;  // (client, seq1) with an env part.
   int64_t skipped = 0;
+  // --breakdown: publication -> daemon, queue, compute, rest, daemon -> bench.
+  std::array<std::vector<double>, 5> parts_us;
   // Shared part.
   std::vector<double> shared_latencies_us;
   std::map<std::pair<std::string, int64_t>, int> shared_per_pair;  // (client, seq1): entries.
@@ -71,24 +205,29 @@ struct Collector {
   int64_t shared_received = 0, shared_timeout = 0, shared_invalid = 0, shared_uncovered = 0;
   int64_t shared_messages = 0;  // shared_contact_t received (each carries entries).
 
-  void On(const lcm::ReceiveBuffer*, const std::string&, const sweptccd::contact_event_t* e) {
-    const Clock::time_point now = Clock::now();
-    const auto it = sent.find({e->client_id, e->seq1});
-    if (it == sent.end()) return;
-    latencies_us.push_back(MicrosSince(it->second, now));
-    answered.insert({e->client_id, e->seq1});
-    skipped = std::max(skipped, e->skipped_pairs_total);
+  void On(const Sent& sent, const EventArrival& e) {
+    const auto it = sent.by_seq.find({e.client_id, e.seq1});
+    if (it == sent.by_seq.end()) return;
+    latencies_us.push_back(MicrosSince(it->second.at, e.at));
+    answered.insert({e.client_id, e.seq1});
+    skipped = std::max(skipped, e.skipped_pairs_total);
+    const double to_daemon = static_cast<double>(e.receive_utime - it->second.at_utime);
+    const double in_daemon = static_cast<double>(e.event_utime - e.receive_utime);
+    parts_us[0].push_back(to_daemon);
+    parts_us[1].push_back(e.queue_us);
+    parts_us[2].push_back(e.compute_us);
+    parts_us[3].push_back(in_daemon - e.queue_us - e.compute_us);
+    parts_us[4].push_back(static_cast<double>(e.at_utime - e.event_utime));
   }
 
-  void OnShared(const lcm::ReceiveBuffer*, const std::string&,
-                const sweptccd::shared_contact_t* m) {
-    const Clock::time_point now = Clock::now();
-    const auto a = sent.find({m->client_id, m->seq1});
-    if (a == sent.end()) return;
+  void OnShared(const Sent& sent, const SharedArrival& arrival) {
+    const sweptccd::shared_contact_t* m = &arrival.msg;
+    const auto a = sent.by_seq.find({m->client_id, m->seq1});
+    if (a == sent.by_seq.end()) return;
     ++shared_messages;
     for (const sweptccd::shared_entry_t& e : m->entries) {
-      const auto other = sent_by_utime.find(e.entity);
-      if (other == sent_by_utime.end()) continue;
+      const auto other = sent.by_utime.find(e.entity);
+      if (other == sent.by_utime.end()) continue;
       ++shared_received;
       ++shared_per_pair[{m->client_id, m->seq1}];
       shared_compute_us.push_back(e.compute_us);
@@ -100,12 +239,14 @@ struct Collector {
         ++shared_timeout;
         continue;
       }
+      // Matched after the run, so a covering sample published after the
+      // entry arrived is in the map too: that entry came before it.
       const auto cover = other->second.upper_bound(m->utime1);
-      if (cover == other->second.end()) {  // Answered before E's covering sample: cannot be.
+      if (cover == other->second.end() || cover->second > arrival.at) {  // Cannot be.
         ++shared_uncovered;
         continue;
       }
-      shared_latencies_us.push_back(MicrosSince(std::max(a->second, cover->second), now));
+      shared_latencies_us.push_back(MicrosSince(std::max(a->second.at, cover->second), arrival.at));
     }
   }
 };
@@ -131,6 +272,8 @@ struct Options {
   bool stagger = false;
   bool shared = false;
   std::string label;
+  bool spread = false;  // --phases spread.
+  bool breakdown = false;
 };
 
 // Parses the options after the six positional arguments; false on a bad one.
@@ -153,6 +296,15 @@ bool ParseOptions(int argc, char** argv, Options* o) {
       o->shared = true;
     } else if (a == "--label" && left >= 1) {
       o->label = argv[++i];
+    } else if (a == "--phases" && left >= 1) {
+      const std::string v = argv[++i];
+      if (v != "burst" && v != "spread") {
+        std::fprintf(stderr, "latency_bench: --phases '%s': use burst or spread\n", v.c_str());
+        return false;
+      }
+      o->spread = v == "spread";
+    } else if (a == "--breakdown") {
+      o->breakdown = true;
     } else {
       std::fprintf(stderr, "latency_bench: unknown or incomplete option '%s'\n", a.c_str());
       return false;
@@ -177,6 +329,54 @@ void PlaceInRoom(const Options& o, std::vector<sweptccd::tracker_pose_t>* poses)
   }
 }
 
+// Publishes every client's poses on `lcm` for SECONDS at RATE_HZ (burst or
+// spread, Options::spread) and records in `sent` when each went out.
+// Returns the poses published.
+int64_t PublishAll(lcm::LCM* lcm, const sweptccd::MacKey& key, const Options& options,
+                   const std::vector<sweptccd::tracker_pose_t>& poses,
+                   const std::vector<std::array<double, 2>>& offset, double rate, int ticks,
+                   Sent* sent) {
+  const int clients = static_cast<int>(offset.size());
+  const auto period = std::chrono::duration<double>(1.0 / rate);
+  const auto start = Clock::now();
+  int64_t published = 0;
+  for (int t = 0; t < ticks; ++t) {
+    for (int c = 0; c < clients; ++c) {
+      // Burst: every client at the tick's start, one after another. Spread:
+      // client c at c / clients of the period, its utime as much later.
+      const double phase = options.spread ? static_cast<double>(c) / clients : 0.0;
+      std::this_thread::sleep_until(
+          start + std::chrono::duration_cast<Clock::duration>(period * (t + phase)));
+      // The clip loops; each client's utime advances at the publication rate.
+      const size_t frame = options.stagger ? t + c * poses.size() / clients : t;
+      sweptccd::tracker_pose_t m = poses[frame % poses.size()];
+      for (auto& p : m.position) p[0] += offset[c][0], p[2] += offset[c][1];
+      m.client_id = "client" + std::to_string(c);
+      m.seq = t;
+      m.utime = 1000000 + static_cast<int64_t>((t + phase) * 1e6 / rate);
+      const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(m, &key);
+      const Clock::time_point now = Clock::now();
+      sent->by_seq[{m.client_id, m.seq}] = {now, SystemUtime()};
+      sent->by_utime[m.client_id][m.utime] = now;
+      lcm->publish(sweptccd::kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+      ++published;
+    }
+  }
+  return published;
+}
+
+// Prints "--breakdown" (stderr): median and p99 of each part.
+void PrintBreakdown(const Collector& collector) {
+  static const char* const kNames[] = {"publication -> daemon's handler", "queue_us", "compute_us",
+                                       "rest in the daemon", "daemon's utime -> bench's handler"};
+  std::fprintf(stderr, "breakdown (median / p99 us):");
+  for (size_t k = 0; k < collector.parts_us.size(); ++k) {
+    const Stats s = Summarise(collector.parts_us[k]);
+    std::fprintf(stderr, "%s %s %.1f / %.1f", k ? ";" : "", kNames[k], s.median, s.p99);
+  }
+  std::fprintf(stderr, "\n");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -184,7 +384,8 @@ int main(int argc, char** argv) {
   if (argc < 7 || !ParseOptions(argc, argv, &options)) {
     std::fprintf(stderr,
                  "usage: latency_bench URL POSES.jsonl CLIENTS RATE_HZ SECONDS KEY [--room FLOOR_Y "
-                 "CX CZ] [--grid COLS SPACING_M] [--stagger] [--shared] [--label TEXT]\n");
+                 "CX CZ] [--grid COLS SPACING_M] [--stagger] [--shared] [--label TEXT] "
+                 "[--phases burst|spread] [--breakdown]\n");
     return 2;
   }
   std::optional<sweptccd::MacKey> key;  // Poses are signed, as in production.
@@ -194,10 +395,15 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "latency_bench: %s\n", e.what());
     return 2;
   }
-  lcm::LCM lcm(argv[1]);
+  lcm::LCM lcm(argv[1]);  // The publisher's; the receive thread has its own.
   if (!lcm.good()) return 2;
   const int clients = std::stoi(argv[3]);
   const double rate = std::stod(argv[4]), seconds = std::stod(argv[5]);
+  if (clients < 1 || !(rate > 0)) {
+    std::fprintf(stderr, "latency_bench: CLIENTS '%s' and RATE_HZ '%s' must be positive\n", argv[3],
+                 argv[4]);
+    return 2;
+  }
   std::vector<sweptccd::tracker_pose_t> poses;
   {
     std::ifstream in(argv[2]);
@@ -215,6 +421,10 @@ int main(int argc, char** argv) {
       poses.push_back(m);
     }
   }
+  if (poses.empty()) {
+    std::fprintf(stderr, "latency_bench: no poses in '%s'\n", argv[2]);
+    return 2;
+  }
   if (options.room) PlaceInRoom(options, &poses);
   // Per-client offset (x, z) on the grid, centred on the room place.
   std::vector<std::array<double, 2>> offset(clients, {0.0, 0.0});
@@ -225,53 +435,34 @@ int main(int argc, char** argv) {
                    (c / options.grid_cols - 0.5 * (rows - 1)) * options.spacing_m};
     }
   }
-  Collector collector;
-  lcm.subscribe(sweptccd::kContactChannel, &Collector::On, &collector)
-      ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
-  if (options.shared) {
-    lcm.subscribe(sweptccd::kSharedContactChannel, &Collector::OnShared, &collector)
-        ->setQueueCapacity(sweptccd::kLcmQueueCapacity);
-  }
-  const auto period = std::chrono::duration<double>(1.0 / rate);
   const int ticks = static_cast<int>(seconds * rate);
-  const auto start = Clock::now();
-  int64_t published = 0;
-  for (int t = 0; t < ticks; ++t) {
-    const auto due = start + std::chrono::duration_cast<Clock::duration>(period * t);
-    while (Clock::now() < due) {
-      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(due - Clock::now());
-      lcm.handleTimeout(std::max<int>(0, static_cast<int>(left.count())));
-    }
-    // Clients publish one after another within the tick; the clip loops and
-    // each client's utime advances at the publication rate.
-    for (int c = 0; c < clients; ++c) {
-      const size_t frame = options.stagger ? t + c * poses.size() / clients : t;
-      sweptccd::tracker_pose_t m = poses[frame % poses.size()];
-      for (auto& p : m.position) p[0] += offset[c][0], p[2] += offset[c][1];
-      m.client_id = "client" + std::to_string(c);
-      m.seq = t;
-      m.utime = 1000000 + static_cast<int64_t>(t * 1e6 / rate);
-      const Clock::time_point now = Clock::now();
-      collector.sent[{m.client_id, m.seq}] = now;
-      collector.sent_by_utime[m.client_id][m.utime] = now;
-      const std::vector<uint8_t> bytes = sweptccd::EncodeSigned(m, &*key);
-      lcm.publish(sweptccd::kPoseChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
-      ++published;
-    }
-  }
+  Receiver receiver(argv[1], options.shared, static_cast<size_t>(clients) * ticks);
+  if (!receiver.good()) return 2;
+  receiver.Start();
+  Sent sent;
+  const int64_t published = PublishAll(&lcm, *key, options, poses, offset, rate, ticks, &sent);
   // Drain: 2 s; with --shared until nothing arrived for 1 s (at most 20 s),
   // so what is missing then was dropped, not late.
   const auto drain_start = Clock::now();
-  auto last_heard = drain_start;
   while (true) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
     const auto now = Clock::now();
     if (!options.shared && now >= drain_start + std::chrono::seconds(2)) break;
+    const auto last_heard = std::max(drain_start, receiver.last_arrival());
     if (options.shared && (now >= last_heard + std::chrono::seconds(1) ||
                            now >= drain_start + std::chrono::seconds(20))) {
       break;
     }
-    if (lcm.handleTimeout(50) > 0) last_heard = Clock::now();
   }
+  receiver.Stop();
+  Collector collector;
+  for (const EventArrival& e : receiver.events()) collector.On(sent, e);
+  for (const SharedArrival& a : receiver.shared()) collector.OnShared(sent, a);
+  if (receiver.undecodable() > 0) {
+    std::fprintf(stderr, "latency_bench: %lld messages did not decode\n",
+                 static_cast<long long>(receiver.undecodable()));
+  }
+  if (options.breakdown) PrintBreakdown(collector);
   const Stats env = Summarise(collector.latencies_us);
   if (!options.shared) {
     std::printf("| %d | %.0f | %lld | %zu | %.1f | %.1f | %.1f |\n", clients, rate,

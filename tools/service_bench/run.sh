@@ -11,6 +11,13 @@
 # by latest-wins, rejected) and the namespace's UDP receive-buffer drops
 # (/proc/net/snmp RcvbufErrors: datagrams the kernel dropped on any socket,
 # the daemon's or the bench's) and send drops (SndbufErrors).
+# PHASES=burst|spread (default burst) says when the clients sample in each
+# tick (latency_bench --phases): burst, all at its start, one after another;
+# spread, client c at c/CLIENTS of the period, as headsets on independent
+# clocks. BREAKDOWN=1 adds, per run, where the environment part's time went
+# (latency_bench --breakdown). LATENCY_BENCH=PATH runs another bench binary
+# against the same daemon (default BUILD_DIR/bin/sweptccd_latency_bench; an
+# older bench takes neither option, so leave PHASES and BREAKDOWN unset).
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
 enter_private_netns "$@"
@@ -20,6 +27,10 @@ work=$build/service_bench
 mkdir -p "$work"
 setup_loopback_multicast
 url=$SWEPTCCD_URL
+bench=${LATENCY_BENCH:-$build/bin/sweptccd_latency_bench}
+bench_opts=()
+if [ -n "${PHASES:-}" ]; then bench_opts+=(--phases "$PHASES"); fi
+if [ "${BREAKDOWN:-}" = 1 ]; then bench_opts+=(--breakdown); fi
 rm -f "$work/room.key"
 "$build/bin/sweptccd" keygen --out "$work/room.key"
 echo "| clients | Hz | poses sent | events | median us | p99 us | max us | merged |"
@@ -39,7 +50,8 @@ for run in ${RUNS:-1:90 8:90 32:90}; do
     --timeout 14 > "$work/monitor_$n.jsonl" 2>/dev/null &
   monitor=$!
   read -r rcv0 snd0 < <(udp_drops)
-  line=$("$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" "$n" "$hz" 10 "$work/room.key")
+  line=$("$bench" "$url" "$work/poses.jsonl" "$n" "$hz" 10 "$work/room.key" \
+    "${bench_opts[@]}" 2> "$work/bench_$n.err") || { cat "$work/bench_$n.err" >&2; exit 1; }
   read -r sent events < <(awk -F'|' '{ gsub(/ /, ""); print $4, $5 }' <<< "$line")
   echo "$line $(awk -v s="$sent" -v e="$events" -v n="$n" 'BEGIN { printf "%.2f%% |", 100 * (s - n - e) / (s - n) }')"
   sleep 1.5  # A status period, so the monitor has the daemon's last counts.
@@ -54,6 +66,7 @@ for run in ${RUNS:-1:90 8:90 32:90}; do
       END { for (c in p) { P += p[c]; A += a[c]; K += k[c]; R += r[c] }
         printf "%d poses received, %d pairs answered, %d merged by latest-wins, %d rejected", P, A, K, R }');" \
     "kernel: UDP RcvbufErrors $((rcv1 - rcv0)), SndbufErrors $((snd1 - snd0))")
+  if [ "${BREAKDOWN:-}" = 1 ]; then where+=("$n clients at $hz Hz: $(grep '^breakdown' "$work/bench_$n.err")"); fi
 done
 echo
 for w in "${where[@]}"; do echo "$w"; done
