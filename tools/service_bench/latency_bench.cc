@@ -42,9 +42,12 @@
 // utime -> arrival at the bench's handler.
 //
 // A shared entry of A's pair (seq0, seq1) against client E is covered when
-// the daemon has both A's pose seq1 and E's first sample with utime > the
-// pair's utime1 (service/shared_world.cc, Covered). Its latency is taken from
-// the later of those two publications to the entry's arrival. Entries
+// the daemon has both A's pose seq1 and E's first sample with utime >= the
+// pair's utime1 (> for a window of one instant; service/shared_world.cc,
+// Covered). Its latency is taken from the later of those two publications
+// to the entry's arrival; the line after the table also times each entry
+// from A's pose alone (what an application waits after sending it) and
+// gives the daemon's own queue_us of the entries. Entries
 // ended_by_timeout are counted, not timed; entries missing for a pair that
 // was answered and covered during the run are counted as dropped.
 
@@ -202,6 +205,8 @@ struct Collector {
   std::map<std::pair<std::string, int64_t>, int> shared_per_pair;  // (client, seq1): entries.
   std::set<std::pair<std::string, std::string>> contact_pairs;     // Unordered client pairs.
   std::vector<double> shared_compute_us;                           // shared_contact_t.compute_us.
+  std::vector<double> shared_queue_us;                             // shared_entry_t.queue_us.
+  std::vector<double> shared_from_pose_us;  // A's pose published -> the entry's arrival.
   int64_t shared_received = 0, shared_timeout = 0, shared_invalid = 0, shared_uncovered = 0;
   int64_t shared_messages = 0;  // shared_contact_t received (each carries entries).
 
@@ -231,6 +236,7 @@ struct Collector {
       ++shared_received;
       ++shared_per_pair[{m->client_id, m->seq1}];
       shared_compute_us.push_back(e.compute_us);
+      shared_queue_us.push_back(e.queue_us);
       if (e.result == sweptccd::shared_entry_t::RESULT_INVALID) ++shared_invalid;
       if (e.result == sweptccd::shared_entry_t::RESULT_CONTACT) {
         contact_pairs.insert({std::min(m->client_id, e.entity), std::max(m->client_id, e.entity)});
@@ -241,12 +247,14 @@ struct Collector {
       }
       // Matched after the run, so a covering sample published after the
       // entry arrived is in the map too: that entry came before it.
-      const auto cover = other->second.upper_bound(m->utime1);
+      const auto cover = e.t_from < e.t_to ? other->second.lower_bound(m->utime1)
+                                           : other->second.upper_bound(m->utime1);
       if (cover == other->second.end() || cover->second > arrival.at) {  // Cannot be.
         ++shared_uncovered;
         continue;
       }
       shared_latencies_us.push_back(MicrosSince(std::max(a->second.at, cover->second), arrival.at));
+      shared_from_pose_us.push_back(MicrosSince(a->second.at, arrival.at));
     }
   }
 };
@@ -497,6 +505,14 @@ int main(int argc, char** argv) {
       "shared entries' compute_us (AnswerSharedJob in the daemon, wall time): median %.1f, "
       "mean %.1f, p99 %.1f, max %.1f\n",
       compute.median, compute.n ? compute_sum_us / compute.n : 0.0, compute.p99, compute.max);
+  const Stats queue = Summarise(collector.shared_queue_us);
+  std::printf("shared entries' queue_us (due -> query start, in the daemon): median %.1f, p99 %.1f, "
+              "max %.1f\n",
+              queue.median, queue.p99, queue.max);
+  const Stats from_pose = Summarise(collector.shared_from_pose_us);
+  std::printf("shared entries from A's pose publication (covered entries): median %.1f, p99 %.1f, "
+              "max %.1f us\n",
+              from_pose.median, from_pose.p99, from_pose.max);
   std::printf("shared messages: %lld received carrying %lld entries (%.2f entries a message)\n",
               static_cast<long long>(collector.shared_messages),
               static_cast<long long>(collector.shared_received),

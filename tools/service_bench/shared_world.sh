@@ -27,6 +27,10 @@ rate=90
   > /dev/null
 "$build/bin/sweptccd" keygen --out "$work/room.key"
 placement=(--room -1.35 -0.67 -1.9 --grid 4 0.8 --stagger)
+# PHASES=spread: the clients sample at their own phases in each tick
+# (independent trackers; latency_bench --phases); default burst, all at once
+# with the same utimes (one tracking system stamping every body).
+if [ -n "${PHASES:-}" ]; then placement+=(--phases "$PHASES"); fi
 
 daemon=
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
