@@ -55,16 +55,7 @@ class AvatarTarget : public OtherTarget {
   }
 
   Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
-    MotionMemo& m = MemoOf(piece.k);
-    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
-    WidenS(&s0, &s1);
-    Aabb box = Aabb::Empty();
-    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
-    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
-      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
-    }
-    return box;
+    return GrowPieceBox(piece, tau0, tau1, nullptr);
   }
 
   // As PieceBox, link by link, stopping as soon as the union meets `box`
@@ -72,17 +63,7 @@ class AvatarTarget : public OtherTarget {
   // Cull, which asks for the same intervals at the root items).
   bool PieceBoxMeets(const Piece& piece, double tau0, double tau1,
                      const Aabb& box_a) const override {
-    MotionMemo& m = MemoOf(piece.k);
-    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
-    WidenS(&s0, &s1);
-    Aabb box = Aabb::Empty();
-    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
-    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
-      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
-      if (box_a.Overlaps(box)) return true;
-    }
-    return false;
+    return box_a.Overlaps(GrowPieceBox(piece, tau0, tau1, &box_a));
   }
 
   void Cull(const Piece& piece, double tau0, double tau1, const Eigen::Vector3d& a,
@@ -157,6 +138,23 @@ class AvatarTarget : public OtherTarget {
   }
 
  private:
+  // The union of B's link capsules over the piece's [tau0, tau1], grown
+  // link by link; with `until`, it stops at the first link that makes the
+  // union meet *until (the rest is not composed).
+  Aabb GrowPieceBox(const Piece& piece, double tau0, double tau1, const Aabb* until) const {
+    MotionMemo& m = MemoOf(piece.k);
+    double s0 = piece.SE(tau0), s1 = piece.SE(tau1);
+    WidenS(&s0, &s1);
+    Aabb box = Aabb::Empty();
+    std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
+      box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
+      if (until != nullptr && until->Overlaps(box)) break;
+    }
+    return box;
+  }
+
   // B's motion over its interval k, with its memo of poses and segments
   // (B's links at one instant share their ancestors' poses).
   MotionMemo& MemoOf(int k) const { return motions_->MemoOf(k); }
