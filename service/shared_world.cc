@@ -76,8 +76,8 @@ shared_entry_t EntryOf(const SharedJob& job) {
 
 shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOptions& given) {
   world::EntityQueryOptions options = given;
-  if (job.eps_s > 0) options.eps_s = job.eps_s;
-  if (job.delta_m > 0) options.delta_m = job.delta_m;
+  if (job.own_a && job.own_a->eps_s > 0) options.eps_s = job.own_a->eps_s;
+  if (job.own_a && job.own_a->delta_m > 0) options.delta_m = job.own_a->delta_m;
   shared_entry_t m = EntryOf(job);
   const auto start = SteadyClock::now();
   // A job made outside SharedWorld (tests) has no due time: no wait.
@@ -118,8 +118,8 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
       w.avatars.push_back(std::move(e));
     }
     w.rules.assign(w.avatars.size(), {});
-    if (job.rules_a) w.rules[0] = *job.rules_a;
-    if (job.rules_e && !job.entity_is_object) w.rules[1] = *job.rules_e;
+    if (job.own_a) w.rules[0] = job.own_a->rules;
+    if (job.own_e && !job.entity_is_object) w.rules[1] = job.own_e->rules;
     const int64_t u0 = job.pose0.utime, u1 = job.pose1.utime;
     const std::vector<world::Piece> pieces = world::SplitWindow(u0, job.t_from, job.t_to, times);
     const PairMotion motion(w.avatars[0].skeleton, job.pose0, job.pose1, job.motion_a);
@@ -179,11 +179,7 @@ void SharedWorld::AddAvatar(const std::string& id, std::shared_ptr<const Skeleto
   e.id = id;
   e.skeleton = std::move(skeleton);
   e.motion = motion;
-  e.eps_s = own.eps_s;
-  e.delta_m = own.delta_m;
-  if (!own.rules.empty()) {
-    e.rules = std::make_shared<const std::vector<world::EntityRule>>(own.rules);
-  }
+  e.own = std::make_shared<const AvatarAnswerOptions>(own);
   e.last_heard = now;
   e.last_sample_time = now;
   entities_.emplace(id, std::move(e));
@@ -414,10 +410,8 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->receive_utime = entry.pair->receive_utime;
   job->skeleton_a = entry.skeleton_a;
   job->motion_a = entry.motion_a;
-  job->eps_s = entry.eps_s;
-  job->delta_m = entry.delta_m;
-  job->rules_a = entry.rules_a;
-  job->rules_e = e.is_object ? nullptr : e.rules;
+  job->own_a = entry.own_a;
+  job->own_e = e.own;  // Null for an object.
   if (job->cleared_by_box) {
     // Only the utimes are read (SharedMessageOf, the pair's batch key).
     job->pose0.utime = u0;
@@ -499,9 +493,7 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.a = id;
     entry.skeleton_a = a.skeleton;
     entry.motion_a = a.motion;
-    entry.eps_s = a.eps_s;
-    entry.delta_m = a.delta_m;
-    entry.rules_a = a.rules;
+    entry.own_a = a.own;
     entry.pair = shared;
     entry.e = other;
     entry.created = now;

@@ -54,6 +54,13 @@ struct SharedWorldOptions {
   bool broad_phase = true;
 };
 
+/// What an avatar's own configuration changes in the answers of the shared
+/// world (ClientConfig).
+struct AvatarAnswerOptions {
+  double eps_s = 0, delta_m = 0;         // Its tolerances; 0: the service's.
+  std::vector<world::EntityRule> rules;  // Its filters (SPEC 8), resolved.
+};
+
 /// One (pair of avatar A, other entity E) entry, due: everything its answer
 /// needs, copied out of the shared world (the samples of E the window uses,
 /// re-based: its first is the last one at or before t_from).
@@ -63,12 +70,10 @@ struct SharedJob {
   int64_t receive_utime = 0;  // When A's pose seq1 was received (service clock).
   std::shared_ptr<const Skeleton> skeleton_a;
   MotionModel motion_a = MotionModel::kArticulated;
-  /// A's own tolerances (a live client's join, ClientConfig): 0 takes the
-  /// options AnswerSharedJob is given (the service's).
-  double eps_s = 0, delta_m = 0;
-  /// The filters of A and of E (an avatar; SPEC 8 "Filters"): either one's
-  /// rule applies to the pair of links. Null: none.
-  std::shared_ptr<const std::vector<world::EntityRule>> rules_a, rules_e;
+  /// A's and E's (an avatar's) own options: A's tolerances answer the
+  /// entry, and a filter rule of either applies to the pair of links
+  /// (SPEC 8 "Filters"). Null: none (the service's tolerances, no rule).
+  std::shared_ptr<const AvatarAnswerOptions> own_a, own_e;
   Pose pose0, pose1;
   std::string entity;  // E's id.
   bool entity_is_object = false;
@@ -91,8 +96,8 @@ struct SharedJob {
 
 /// Answers one due entry (AnswerOther of core/world over the job's slice,
 /// WindowScale for its slack): one entry of a shared_contact_t, with
-/// per-link brackets when options.per_link. A's tolerances (job.eps_s,
-/// job.delta_m) replace options' where set: A's record is answered to A's
+/// per-link brackets when options.per_link. A's tolerances (job.own_a)
+/// replace options' where set: A's record is answered to A's
 /// tolerances, as its environment part is. Pure and deterministic (but for
 /// compute_us); any thread. A job cleared_by_box is answered `free` at
 /// once, as `sweptccd world` answers it. Never throws (a failure is
@@ -103,12 +108,6 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
 /// set, no entries yet, utime and mac unset. Any thread.
 shared_contact_t SharedMessageOf(const SharedJob& job);
 
-/// What an avatar's own configuration changes in the answers of the shared
-/// world (ClientConfig).
-struct AvatarAnswerOptions {
-  double eps_s = 0, delta_m = 0;         // Its tolerances; 0: the service's.
-  std::vector<world::EntityRule> rules;  // Its filters (SPEC 8), resolved.
-};
 
 class SharedWorld {
  public:
@@ -176,8 +175,7 @@ class SharedWorld {
     bool is_object = false;
     std::shared_ptr<const Skeleton> skeleton;
     MotionModel motion = MotionModel::kArticulated;
-    double eps_s = 0, delta_m = 0;  // An avatar's own tolerances (0: the service's).
-    std::shared_ptr<const std::vector<world::EntityRule>> rules;  // Its filters; null: none.
+    std::shared_ptr<const AvatarAnswerOptions> own;  // An avatar's (AddAvatar).
     std::shared_ptr<const Environment> mesh;
     bool has_stream = false;
     int64_t session = 0, last_seq = 0;
@@ -204,8 +202,7 @@ class SharedWorld {
     std::string a;  // The avatar whose pair it is.
     std::shared_ptr<const Skeleton> skeleton_a;
     MotionModel motion_a = MotionModel::kArticulated;
-    double eps_s = 0, delta_m = 0;  // A's.
-    std::shared_ptr<const std::vector<world::EntityRule>> rules_a;
+    std::shared_ptr<const AvatarAnswerOptions> own_a;
     std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
     std::string e;
     Time created;

@@ -16,6 +16,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <thread>
@@ -59,15 +60,22 @@ std::shared_ptr<const Environment> LoadEnvironment(const ServiceConfig& config) 
   return env;
 }
 
+// A link index written as 1-9 decimal digits, else nullopt.
+std::optional<int> LinkIndexOf(const std::string& key) {
+  if (key.empty() || key.size() > 9 || key.find_first_not_of("0123456789") != std::string::npos) {
+    return std::nullopt;
+  }
+  return std::stoi(key);
+}
+
 // A link of a filter rule (EntityRuleSpec): a link name first, then "*" (-1),
 // then an index. Throws InputError naming the rule and the skeleton.
 int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std::string& where) {
   const int found = skeleton.FindLink(key);
   if (found >= 0) return found;
   if (key == "*") return -1;
-  if (key.find_first_not_of("0123456789") == std::string::npos && key.size() <= 9) {
-    const int index = std::stoi(key);
-    if (index < skeleton.num_links()) return index;
+  if (const std::optional<int> index = LinkIndexOf(key); index && *index < skeleton.num_links()) {
+    return *index;
   }
   throw InputError(where + ": no link '" + EscapeForDisplay(key) + "' in skeleton '" +
                    EscapeForDisplay(skeleton.name()) + "' (" + std::to_string(skeleton.num_links()) +
@@ -102,9 +110,8 @@ void ResolveEntityRules(const ServiceConfig& config, std::vector<ClientConfig>* 
           rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
         } else if (r.other_link == "*") {
           rule.other_link = -1;
-        } else if (r.other_link.find_first_not_of("0123456789") == std::string::npos &&
-                   r.other_link.size() <= 9) {
-          rule.other_link = std::stoi(r.other_link);
+        } else if (const std::optional<int> index = LinkIndexOf(r.other_link)) {
+          rule.other_link = *index;
         } else {
           throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
                            "' names a link of '" + r.entity +

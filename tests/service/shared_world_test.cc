@@ -568,8 +568,9 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
   for (const SharedJob& job : due) {
     if (job.ended_by_timeout) continue;
     const bool alice = job.client_id == "alice";
-    EXPECT_EQ(job.eps_s, alice ? kEps : 0.0);
-    EXPECT_EQ(job.delta_m, alice ? kDelta : 0.0);
+    ASSERT_TRUE(job.own_a);
+    EXPECT_EQ(job.own_a->eps_s, alice ? kEps : 0.0);
+    EXPECT_EQ(job.own_a->delta_m, alice ? kDelta : 0.0);
     const shared_entry_t m = AnswerSharedJob(job, eo);
     const json record = json::parse((alice ? alice_answerer : *off.answerer)
                                         .RecordJson(alice ? 0 : 1, static_cast<size_t>(job.pair)));
