@@ -43,6 +43,19 @@ class CollisionServiceTest : public ::testing::Test {
     return MakeWith(std::move(ids), options);
   }
 
+  // The shared world on, `workers` workers, the fake clock, the pose rate
+  // limits out of the way and no cut by silence within a test.
+  ServiceOptions SharedOptions(int workers) {
+    ServiceOptions options;
+    options.num_workers = workers;
+    options.clock_utime = [this] { return ++fake_utime_; };
+    options.max_pose_rate_hz = 1e6;
+    options.pose_burst = 1 << 20;
+    options.silence_timeout_ms = 3'600'000;
+    options.shared_world = true;
+    return options;
+  }
+
   std::unique_ptr<CollisionService> MakeWith(std::vector<std::string> ids, ServiceOptions options) {
     std::vector<ClientConfig> clients;
     for (const std::string& id : ids) {
@@ -644,15 +657,9 @@ TEST_F(RateLimitTest, BadRatesAreRefused) {
 // together and published as one shared_contact_t, each with its own window
 // and waited_us.
 TEST_F(CollisionServiceTest, SharedEntriesDueTogetherArePublishedAsOneMessage) {
-  ServiceOptions options;
-  options.num_workers = 2;
-  options.clock_utime = [this] { return ++fake_utime_; };
-  options.max_pose_rate_hz = 1e6;
-  options.pose_burst = 1 << 20;
+  ServiceOptions options = SharedOptions(2);
   options.max_object_pose_rate_hz = 1e6;
   options.object_pose_burst = 1 << 20;
-  options.silence_timeout_ms = 3'600'000;
-  options.shared_world = true;
   options.objects = {{"box", CubeObject()}};
   auto service = MakeWith({"a", "b", "c"}, options);
   for (int64_t k = 0; k < 4; ++k) {
@@ -716,13 +723,7 @@ TEST_F(CollisionServiceTest, SharedEntriesDueTogetherArePublishedAsOneMessage) {
 // entry between the far client (20 m away along x) and the two others, none
 // between the two near ones; each cleared entry is published `free`.
 TEST_F(CollisionServiceTest, TheStatusCountsTheEntriesTheBroadPhaseCleared) {
-  ServiceOptions options;
-  options.num_workers = 2;
-  options.clock_utime = [this] { return ++fake_utime_; };
-  options.max_pose_rate_hz = 1e6;
-  options.pose_burst = 1 << 20;
-  options.silence_timeout_ms = 3'600'000;
-  options.shared_world = true;
+  ServiceOptions options = SharedOptions(2);
   auto service = MakeWith({"a", "near", "far"}, options);
   for (int64_t k = 0; k < 5; ++k) {
     tracker_pose_t far = Sample("far", k);
@@ -753,13 +754,7 @@ TEST_F(CollisionServiceTest, TheStatusCountsTheEntriesTheBroadPhaseCleared) {
 // due while the only worker is held for 30 ms says at least that; one
 // answered with the worker free says less.
 TEST_F(CollisionServiceTest, SharedQueueTimeIsTheWaitForAWorker) {
-  ServiceOptions options;
-  options.num_workers = 1;
-  options.clock_utime = [this] { return ++fake_utime_; };
-  options.max_pose_rate_hz = 1e6;
-  options.pose_burst = 1 << 20;
-  options.silence_timeout_ms = 3'600'000;
-  options.shared_world = true;
+  ServiceOptions options = SharedOptions(1);
   auto service = MakeWith({"a", "b"}, options);
   for (int64_t k = 0; k < 2; ++k) {
     service->OnPose(Sample("a", k));
@@ -793,13 +788,7 @@ TEST_F(CollisionServiceTest, SharedQueueTimeIsTheWaitForAWorker) {
 // each overlapping entity, after its environment part; what the last samples
 // cannot cover waits until Stop() cuts it (ended_by_timeout).
 TEST_F(CollisionServiceTest, SharedWorldAnswersEachPairAgainstEveryOtherEntityOnce) {
-  ServiceOptions options;
-  options.num_workers = 2;
-  options.clock_utime = [this] { return ++fake_utime_; };
-  options.max_pose_rate_hz = 1e6;
-  options.pose_burst = 1 << 20;
-  options.silence_timeout_ms = 3'600'000;  // No cut by silence in this test.
-  options.shared_world = true;
+  ServiceOptions options = SharedOptions(2);
   TriangleMesh cube;
   for (int c = 0; c < 8; ++c) {
     cube.vertices.emplace_back((c & 1) ? 0.2f : -0.2f, (c & 2) ? 0.2f : -0.2f,
