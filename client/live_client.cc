@@ -234,6 +234,12 @@ void LiveClient::SendJoin() {
   FillJoinSkeleton(*options_.skeleton, &r);
   r.num_ignore = static_cast<int32_t>(options_.ignore.size());
   r.ignore = options_.ignore;
+  r.num_ignore_entities = static_cast<int32_t>(options_.ignore_entities.size());
+  for (const EntityIgnore& rule : options_.ignore_entities) {
+    r.ignore_entity_link.push_back(rule.link);
+    r.ignore_entity.push_back(rule.entity);
+    r.ignore_entity_other_link.push_back(rule.other_link);
+  }
   const MacKey* key = options_.room_key ? &*options_.room_key : nullptr;
   connection_->Publish(options_.channels.join, EncodeSigned(r, key));
 }

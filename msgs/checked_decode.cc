@@ -203,6 +203,15 @@ std::string CheckWire(const join_request_t*, const void* data, size_t size,
   r.Fixed("a, b, radius", static_cast<size_t>(n) * 7 * 8);
   const int32_t k = r.Count("num_ignore", limits.max_ignore_rules, kMinString);
   for (int32_t i = 0; i < k && !r.failed(); ++i) r.String("ignore[]", limits.max_text_bytes);
+  // Per entity rule: three strings (a link, an id, a link or empty).
+  const int32_t e = r.Count("num_ignore_entities", limits.max_ignore_rules, 3 * kMinString);
+  for (int32_t i = 0; i < e && !r.failed(); ++i) {
+    r.String("ignore_entity_link[]", limits.max_id_bytes);
+  }
+  for (int32_t i = 0; i < e && !r.failed(); ++i) r.String("ignore_entity[]", limits.max_id_bytes);
+  for (int32_t i = 0; i < e && !r.failed(); ++i) {
+    r.String("ignore_entity_other_link[]", limits.max_id_bytes);
+  }
   r.Fixed("mac", kMac);
   return r.Finish();
 }

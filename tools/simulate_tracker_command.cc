@@ -152,6 +152,25 @@ void CheckOptions(const SimulateTrackerCommandOptions& o) {
   }
 }
 
+// --join-ignore-entity LINK:ENTITY[:OTHER_LINK]. An id has no ':' (the id
+// rule), so the parts are unambiguous unless a link name holds one: then
+// give its index.
+EntityIgnore ParseEntityRule(const std::string& spec) {
+  std::vector<std::string> parts;
+  size_t from = 0;
+  for (size_t colon; (colon = spec.find(':', from)) != std::string::npos; from = colon + 1) {
+    parts.push_back(spec.substr(from, colon - from));
+  }
+  parts.push_back(spec.substr(from));
+  if (parts.size() < 2 || parts.size() > 3 || parts[0].empty() || parts[1].empty() ||
+      (parts.size() == 3 && parts[2].empty())) {
+    throw InputError("simulate-tracker: --join-ignore-entity '" + EscapeForDisplay(spec) +
+                     "': expected LINK:ENTITY or LINK:ENTITY:OTHER_LINK (a link name holding "
+                     "':' is given by its index)");
+  }
+  return EntityIgnore{parts[0], parts[1], parts.size() == 3 ? parts[2] : ""};
+}
+
 std::vector<std::string> ClientIds(const SimulateTrackerCommandOptions& o) {
   std::vector<std::string> ids = o.client_ids;
   for (int i = 0; i < std::max(0, o.num_clients); ++i)
@@ -321,6 +340,9 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
                   "--join: key file that verifies the daemon's replies (default: --key)");
   app->add_option("--join-ignore", o->ignore_rules,
                   "--join: LINK:OBJECT filter rule sent with the join; repeat");
+  app->add_option("--join-ignore-entity", o->entity_rules,
+                  "--join: LINK:ENTITY or LINK:ENTITY:OTHER_LINK, a shared-world filter sent "
+                  "with the join (SPEC 8; links by name, index or *); repeat");
   app->add_option("--object", o->objects,
                   "ID=POSES.jsonl: a tracked object's pose lines (SPEC 8), sent as object_pose_t "
                   "on SWEPTCCD_OBJECT_POSE by utime among the avatars' samples; repeatable");
@@ -467,6 +489,9 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       lo.session = session;
       lo.skeleton = skeleton;
       lo.ignore = o.ignore_rules;
+      for (const std::string& rule : o.entity_rules) {
+        lo.ignore_entities.push_back(ParseEntityRule(rule));
+      }
       lo.shared_connection = shared;
       live[c.id] = std::make_unique<LiveClient>(std::move(lo));
     }
@@ -652,6 +677,11 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     if (o.join && !skeleton) {
       throw InputError("simulate-tracker: --join needs --skeleton (or --bvh) to join with");
     }
+    if (!o.join && (!o.entity_rules.empty() || !o.ignore_rules.empty())) {
+      throw InputError("simulate-tracker: --join-ignore and --join-ignore-entity are sent with "
+                       "a join: give --join");
+    }
+    for (const std::string& rule : o.entity_rules) ParseEntityRule(rule);
     clients = MakeClients(o);
     SetClientRates(o, &clients);
     source->Rewind();  // A pose file that cannot be opened is refused before LCM starts.

@@ -73,6 +73,8 @@ struct SimulateTrackerCommandOptions {
   bool join = false;
   std::string service_key_path;  // Verifies join replies; default: key_path.
   std::vector<std::string> ignore_rules;  // --join: LINK:OBJECT filter rules.
+  /// --join: the shared world's filters, LINK:ENTITY or LINK:ENTITY:OTHER_LINK.
+  std::vector<std::string> entity_rules;
   /// --object ID=POSES.jsonl, repeated: tracked objects of the shared world
   /// (SPEC 8 object pose lines), published as object_pose_t on
   /// SWEPTCCD_OBJECT_POSE interleaved by utime with the avatars' samples

@@ -82,43 +82,64 @@ int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std:
                    " links; give a link name, an index or \"*\")");
 }
 
-// The shared world's filters of every configured client, resolved against
-// the skeletons (an other_link of a client that is not configured: an index
-// or "*" only, as its skeleton is not known here).
-void ResolveEntityRules(const ServiceConfig& config, std::vector<ClientConfig>* clients) {
-  std::map<std::string, const Skeleton*> skeletons;
-  for (const ClientConfig& c : *clients) skeletons[c.client_id] = c.skeleton.get();
+// What a shared-world filter's other entity can be resolved against: the
+// configured clients' skeletons (a live client's skeleton may differ at its
+// next join, so its links are given by index or "*") and the tracked objects
+// (no links).
+struct RuleTargets {
+  std::map<std::string, std::shared_ptr<const Skeleton>> skeletons;
   std::set<std::string> objects;
-  for (const ObjectSpec& o : config.objects) objects.insert(o.id);
+};
+
+RuleTargets RuleTargetsOf(const ServiceConfig& config, const std::vector<ClientConfig>& clients) {
+  RuleTargets t;
+  for (const ClientConfig& c : clients) t.skeletons[c.client_id] = c.skeleton;
+  for (const ObjectSpec& o : config.objects) t.objects.insert(o.id);
+  return t;
+}
+
+// One filter rule of an avatar with skeleton `own`, resolved (SPEC 8
+// "Filters"). Throws InputError naming `where` and the problem.
+world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own,
+                                    const RuleTargets& targets, const std::string& where) {
+  if (!IsValidClientId(r.entity)) {
+    throw InputError(where + ".entity: '" + EscapeForDisplay(r.entity) +
+                     "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
+  }
+  world::EntityRule rule;
+  rule.link = ResolveRuleLink(r.link, own, where + ".link");
+  rule.entity = r.entity;
+  if (r.other_link.empty()) return rule;
+  if (targets.objects.count(r.entity)) {
+    throw InputError(where + ": other_link given for object '" + r.entity +
+                     "' (objects have no links)");
+  }
+  const auto other = targets.skeletons.find(r.entity);
+  if (other != targets.skeletons.end()) {
+    rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
+  } else if (r.other_link == "*") {
+    rule.other_link = -1;
+  } else if (const std::optional<int> index = LinkIndexOf(r.other_link)) {
+    rule.other_link = *index;
+  } else {
+    throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
+                     "' names a link of '" + r.entity +
+                     "', which is not a configured client; give an index or \"*\"");
+  }
+  return rule;
+}
+
+// The shared world's filters of every configured client, resolved against
+// the skeletons.
+void ResolveEntityRules(const ServiceConfig& config, std::vector<ClientConfig>* clients) {
+  const RuleTargets targets = RuleTargetsOf(config, *clients);
   for (size_t i = 0; i < clients->size(); ++i) {
     ClientConfig& cc = (*clients)[i];
     const std::vector<EntityRuleSpec>& specs = config.clients[i].ignore_entities;
     for (size_t k = 0; k < specs.size(); ++k) {
-      const EntityRuleSpec& r = specs[k];
       const std::string where = "configuration: clients[" + std::to_string(i) + "] ('" +
                                 cc.client_id + "') ignore_entities[" + std::to_string(k) + "]";
-      world::EntityRule rule;
-      rule.link = ResolveRuleLink(r.link, *cc.skeleton, where + ".link");
-      rule.entity = r.entity;
-      if (!r.other_link.empty()) {
-        if (objects.count(r.entity)) {
-          throw InputError(where + ": other_link given for object '" + r.entity +
-                           "' (objects have no links)");
-        }
-        const auto other = skeletons.find(r.entity);
-        if (other != skeletons.end()) {
-          rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
-        } else if (r.other_link == "*") {
-          rule.other_link = -1;
-        } else if (const std::optional<int> index = LinkIndexOf(r.other_link)) {
-          rule.other_link = *index;
-        } else {
-          throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
-                           "' names a link of '" + r.entity +
-                           "', which is not a configured client; give an index or \"*\"");
-        }
-      }
-      cc.entity_rules.push_back(rule);
+      cc.entity_rules.push_back(ResolveEntityRule(specs[k], *cc.skeleton, targets, where));
     }
   }
 }
@@ -205,9 +226,11 @@ constexpr size_t kMaxQueuedJoins = 16;
 class LiveRegistry : public LiveSessionHandler {
  public:
   LiveRegistry(const ServiceConfig& config, std::shared_ptr<const Environment> env,
-               CollisionService* service, LcmTransport* transport, bool signed_mode)
+               RuleTargets rule_targets, CollisionService* service, LcmTransport* transport,
+               bool signed_mode)
       : config_(config),
         env_(std::move(env)),
+        rule_targets_(std::move(rule_targets)),
         service_(service),
         transport_(transport),
         signed_mode_(signed_mode),
@@ -345,6 +368,21 @@ class LiveRegistry : public LiveSessionHandler {
         return Refuse(join_reply_t::REASON_BAD_FILTER, EscapeForDisplay(e.what(), 400));
       }
     }
+    if (r.num_ignore_entities > 0 && !config_.shared_world) {
+      return Refuse(join_reply_t::REASON_BAD_FILTER,
+                    "ignore_entity rules need the shared world, and this daemon runs without "
+                    "it (shared_world: false)");
+    }
+    for (int32_t k = 0; k < r.num_ignore_entities; ++k) {
+      const EntityRuleSpec spec{r.ignore_entity_link[k], r.ignore_entity[k],
+                                r.ignore_entity_other_link[k]};
+      try {
+        cc.entity_rules.push_back(ResolveEntityRule(
+            spec, *cc.skeleton, rule_targets_, "ignore_entity rule " + std::to_string(k)));
+      } catch (const InputError& e) {
+        return Refuse(join_reply_t::REASON_BAD_FILTER, EscapeForDisplay(e.what(), 400));
+      }
+    }
     std::optional<MacKey> key;
     if (signed_mode_) {
       bool zero = true;
@@ -404,6 +442,7 @@ class LiveRegistry : public LiveSessionHandler {
 
   const ServiceConfig& config_;
   std::shared_ptr<const Environment> env_;
+  const RuleTargets rule_targets_;
   CollisionService* service_;
   LcmTransport* transport_;
   bool signed_mode_;
@@ -458,6 +497,7 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   }
   std::shared_ptr<const Environment> env = LoadEnvironment(config);
   std::vector<ClientConfig> clients = LoadClients(config, *env);
+  RuleTargets rule_targets = RuleTargetsOf(config, clients);
   // No pose may claim more links than the largest configured skeleton.
   // With live clients: no more than max_links (what a join may ask for).
   security.limits.max_links = config.max_live_clients > 0 ? config.max_links : 1;
@@ -484,7 +524,8 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
                      std::strerror(errno));
   }
   transport->Subscribe(service.get());
-  live = std::make_unique<LiveRegistry>(config, env, service.get(), transport.get(), signed_mode);
+  live = std::make_unique<LiveRegistry>(config, env, std::move(rule_targets), service.get(),
+                                        transport.get(), signed_mode);
   transport->SubscribeLive(live.get());
 }
 

@@ -275,6 +275,8 @@ def messages(m):
     j.num_links, j.link_name, j.parent = 2, ["pelvis", "arm"], [-1, 0]
     j.a, j.b, j.radius = [[0, 0, 0], [0, 0, 0]], [[0, 0, 0.3], [0.3, 0, 0]], [0.1, 0.05]
     j.num_ignore, j.ignore, j.mac = 1, ["arm:0"], bytes(32)
+    j.num_ignore_entities, j.ignore_entity_link = 1, ["arm"]
+    j.ignore_entity, j.ignore_entity_other_link = ["bob"], ["*"]
     write("fuzz_decode_join_request_t", "two_links.lcm", j.encode())
     write("fuzz_decode_join_request_t", "two_links_signed.lcm", sign(j.encode()))
     # Attack: num_links 2^26 right after the fixed fields (five arrays sized from it).

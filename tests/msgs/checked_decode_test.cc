@@ -218,6 +218,33 @@ TEST(CheckedDecode, HugeJoinLinkCountIsRefusedWithoutAllocating) {
   EXPECT_NE(problem.find("bytes follow"), std::string::npos) << problem;
 }
 
+TEST(CheckedDecode, HugeJoinEntityRuleCountIsRefusedWithoutAllocating) {
+  join_request_t j = RandomMessages(23).Join();
+  j.client_id = "alice";
+  j.num_links = 0;
+  j.link_name.clear(), j.parent.clear(), j.a.clear(), j.b.clear(), j.radius.clear();
+  j.num_ignore = 0;
+  j.ignore.clear();
+  j.num_ignore_entities = 0;
+  j.ignore_entity_link.clear(), j.ignore_entity.clear(), j.ignore_entity_other_link.clear();
+  std::vector<uint8_t> bytes = Encode(j);
+  ASSERT_TRUE(CheckWire(static_cast<const join_request_t*>(nullptr), bytes.data(), bytes.size(),
+                        WireLimits{})
+                  .empty());
+  // As above, then num_links and num_ignore (4 bytes each): num_ignore_entities at 91.
+  PutInt32(&bytes, 91, 1 << 26);
+  std::string problem;
+  EXPECT_LT(LargestAllocationDecoding<join_request_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("num_ignore_entities at byte 91 is 67108864, outside [0, 256]"),
+            std::string::npos)
+      << problem;
+  PutInt32(&bytes, 91, 200);  // Within the limit, but 200 rules need 2400 bytes at least.
+  EXPECT_LT(LargestAllocationDecoding<join_request_t>(bytes, &problem), 1024u);
+  EXPECT_NE(problem.find("num_ignore_entities at byte 91 is 200 but only 32 bytes follow"),
+            std::string::npos)
+      << problem;
+}
+
 TEST(CheckedDecode, HugeClientCountIsRefusedWithoutAllocating) {
   status_t s = RandomMessages(18).Status();
   s.backend = "b", s.renderer = "", s.security = "signed";

@@ -148,6 +148,12 @@ class RandomMessages {
     }
     j.num_ignore = Below(4);
     for (int i = 0; i < j.num_ignore; ++i) j.ignore.push_back(Text(16));
+    j.num_ignore_entities = Below(4);
+    for (int i = 0; i < j.num_ignore_entities; ++i) {
+      j.ignore_entity_link.push_back(Text(12));
+      j.ignore_entity.push_back(Text(20));
+      j.ignore_entity_other_link.push_back(Text(12));
+    }
     Mac(j.mac);
     return j;
   }

@@ -164,6 +164,10 @@ void Fill(join_request_t& m) {
   m.radius = {0.12, 0.07};
   m.num_ignore = 1;
   m.ignore = {"{\"link\": \"thigh\", \"object\": 0}"};
+  m.num_ignore_entities = 1;
+  m.ignore_entity_link = {"thigh"};
+  m.ignore_entity = {"bob"};
+  m.ignore_entity_other_link = {"forearm"};
 }
 
 void Fill(join_reply_t& m) {

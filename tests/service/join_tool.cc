@@ -70,6 +70,7 @@ int main(int argc, char** argv) {
       j.eps_s = j.delta_m = 0;
       FillJoinSkeleton(skeleton, &j);
       j.num_ignore = 0;
+      j.num_ignore_entities = 0;
       spoil(&j);
       const std::vector<uint8_t> bytes = EncodeSigned(j, &room);
       waiter.nonce = nonce;

@@ -167,5 +167,34 @@ TEST_F(SimulateTrackerTest, FileWithoutAnyPoseIsRefused) {
   EXPECT_NE(r.err.find("error: " + poses + ": no pose to send"), std::string::npos) << r.err;
 }
 
+// The shared world's join filters: refused before anything is sent when
+// malformed or given without --join, each with one line naming the flag.
+TEST_F(SimulateTrackerTest, MalformedJoinFiltersAreRefusedBeforeSending) {
+  const std::string poses = Write("one.jsonl", PoseLine("1000", 0) + "\n" + PoseLine("2000", 0));
+  const std::string skeleton = Write(
+      "one.json", R"({"name": "one", "links": [{"name": "hand", "parent": null, "a": [0, 0, 0],
+      "b": [0.1, 0, 0], "radius": 0.05}]})");
+  struct Case {
+    std::vector<std::string> extra;
+    std::string must_contain;
+  };
+  const std::vector<Case> cases = {
+      {{"--join-ignore-entity", "hand:bob"}, "sent with a join: give --join"},
+      {{"--join-ignore", "hand:0"}, "sent with a join: give --join"},
+      {{"--join", "--skeleton", skeleton, "--join-ignore-entity", "hand"}, "expected LINK:ENTITY"},
+      {{"--join", "--skeleton", skeleton, "--join-ignore-entity", "hand::x"},
+       "expected LINK:ENTITY"},
+      {{"--join", "--skeleton", skeleton, "--join-ignore-entity", "a:b:c:d"},
+       "given by its index"},
+  };
+  for (size_t i = 0; i < cases.size(); ++i) {
+    const std::string log = Path("refused" + std::to_string(i) + ".lcmlog");
+    const RunResult r = Simulate(poses, log, cases[i].extra);
+    EXPECT_TRUE(r.exited && r.code == 2) << i << ": " << r.Describe();
+    EXPECT_NE(r.err.find(cases[i].must_contain), std::string::npos) << i << ": " << r.err;
+    EXPECT_TRUE(ReadLog(log).empty()) << i;
+  }
+}
+
 }  // namespace
 }  // namespace sweptccd

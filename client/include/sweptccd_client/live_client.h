@@ -130,6 +130,16 @@ class DaemonConnection {
 
 /// What a join came to: reason is a join_reply_t::REASON_* code, or -1 when
 /// no reply came within the timeout.
+/// A shared-world filter sent with a join (SPEC 8 "Filters"): this client's
+/// `link` never touches `entity` (a client or tracked object id), or only its
+/// `other_link` when not empty. Links: a name, an index or "*"; another
+/// avatar's link by name only when that avatar is a configured client.
+struct EntityIgnore {
+  std::string link;
+  std::string entity;
+  std::string other_link;
+};
+
 struct JoinResult {
   int reason = -1;
   std::string message;  // Escaped, one line.
@@ -166,6 +176,7 @@ class LiveClient {
     std::optional<Skeleton> skeleton;
     MotionModel motion = MotionModel::kArticulated;
     std::vector<std::string> ignore;  // LINK:OBJECT rules.
+    std::vector<EntityIgnore> ignore_entities;  // The shared world's filters.
     double eps_s = 0, delta_m = 0;
     double join_timeout_s = 5;
     /// Re-join by itself when the daemon restarts (status_t.instance) or

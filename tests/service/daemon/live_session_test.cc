@@ -5,8 +5,10 @@
 // test waits for the drop with a deadline, never asserting on a time.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <lcm/lcm-cpp.hpp>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -17,6 +19,7 @@
 #include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/join_request_t.hpp"
 #include "sweptccd/leave_t.hpp"
+#include "sweptccd/shared_contact_t.hpp"
 #include "tests/service/service_test_util.h"
 
 namespace sweptccd {
@@ -93,6 +96,7 @@ class LiveSessionTest : public ::testing::Test {
       j.radius.push_back(l.radius);
     }
     j.num_ignore = 0;
+    j.num_ignore_entities = 0;
     return j;
   }
 
@@ -264,6 +268,13 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
   filter.num_ignore = 1;
   filter.ignore = {"nolink:0"};
   cases.push_back({"bad filter", filter, +join_reply_t::REASON_BAD_FILTER, "nolink"});
+  join_request_t entity_filter = JoinOf("x9", 2);
+  entity_filter.num_ignore_entities = 1;
+  entity_filter.ignore_entity_link = {"arm"};
+  entity_filter.ignore_entity = {"a"};
+  entity_filter.ignore_entity_other_link = {""};
+  cases.push_back({"entity filter, no shared world", entity_filter,
+                   +join_reply_t::REASON_BAD_FILTER, "shared_world: false"});
   join_request_t motion = JoinOf("x6", 2);
   motion.motion = 5;
   cases.push_back({"bad motion", motion, +join_reply_t::REASON_BAD_OPTIONS, "motion 5"});
@@ -290,6 +301,85 @@ TEST_F(LiveSessionTest, EveryKindOfRefusalHasItsCodeAndOneLine) {
   daemon_->WaitUntilIdle();
   ASSERT_FALSE(listener_.rejections().empty());
   EXPECT_EQ(listener_.rejections().back().reason, "bad_client_id");
+}
+
+struct SharedContacts {
+  void On(const lcm::ReceiveBuffer* rbuf, const std::string&) {
+    DecodeResult<shared_contact_t> r =
+        DecodeChecked<shared_contact_t>(rbuf->data, rbuf->data_size, {});
+    ASSERT_TRUE(r.ok()) << r.problem;
+    std::lock_guard<std::mutex> lock(mutex);
+    for (const shared_entry_t& e : r.message->entries) {
+      results[{r.message->client_id, e.entity}].push_back(e.result);
+    }
+  }
+  std::mutex mutex;
+  std::map<std::pair<std::string, std::string>, std::vector<int8_t>> results;  // (A, E).
+};
+
+// A join's ignore_entity rules reach the shared world: resolved against the
+// joining skeleton (and a configured client's, by name), applied to both
+// avatars' answers; a rule that cannot be resolved is refused, naming it.
+TEST_F(LiveSessionTest, AJoinsEntityFiltersApplyToTheSharedWorld) {
+  Configure("entity_filters");
+  config_.shared_world = true;
+  Build();
+  SharedContacts shared;
+  daemon_->lcm()->subscribe(kSharedContactChannel, &SharedContacts::On, &shared);
+  auto with_rules = [&](const std::string& id, std::vector<std::array<std::string, 3>> rules) {
+    join_request_t j = JoinOf(id, 1);
+    j.num_ignore_entities = static_cast<int32_t>(rules.size());
+    for (const auto& r : rules) {
+      j.ignore_entity_link.push_back(r[0]);
+      j.ignore_entity.push_back(r[1]);
+      j.ignore_entity_other_link.push_back(r[2]);
+    }
+    return j;
+  };
+  struct Refused {
+    std::vector<std::array<std::string, 3>> rules;
+    const char* must_contain;
+  };
+  const std::vector<Refused> refused = {
+      {{{"nolink", "a", ""}}, "no link 'nolink' in skeleton 'bad'"},
+      {{{"arm", "a", "nolink"}}, "other_link: no link 'nolink' in skeleton 'two'"},
+      {{{"arm", "bad id", ""}}, "breaks the id rule"},
+      {{{"arm", "live1", "arm"}}, "not a configured client; give an index"},
+  };
+  for (const Refused& r : refused) {
+    const join_reply_t reply = Join(with_rules("bad", r.rules));
+    EXPECT_EQ(reply.reason, +join_reply_t::REASON_BAD_FILTER) << reply.message;
+    EXPECT_NE(reply.message.find(r.must_contain), std::string::npos) << reply.message;
+  }
+  // live1 ignores every link of a; live2 ignores each of the four link
+  // pairs with a one by one (names, an index, "*"). At the same poses every
+  // link of one touches every link of the other, so a rule that is lost or
+  // resolved to the wrong link leaves a contact.
+  const join_reply_t one = Join(with_rules("live1", {{"*", "a", ""}}));
+  const join_reply_t two = Join(with_rules(
+      "live2", {{"pelvis", "a", "pelvis"}, {"pelvis", "a", "1"}, {"arm", "a", "*"}}));
+  ASSERT_EQ(one.reason, +join_reply_t::REASON_ACCEPTED) << one.message;
+  ASSERT_EQ(two.reason, +join_reply_t::REASON_ACCEPTED) << two.message;
+  for (int64_t k = 0; k < 6; ++k) {
+    Send(kPoseChannel, Sample("a", k));
+    for (const join_reply_t* live : {&one, &two}) {
+      tracker_pose_t p = Sample(live->client_id, k);
+      p.session = live->session;
+      Send(kPoseChannel, p);
+    }
+    daemon_->WaitUntilIdle();
+  }
+  ASSERT_TRUE(listener_.rejections().empty()) << listener_.rejections()[0].message;
+  std::lock_guard<std::mutex> lock(shared.mutex);
+  const std::vector<int8_t> free(5, shared_entry_t::RESULT_FREE);
+  const std::vector<int8_t> contact(5, shared_entry_t::RESULT_CONTACT);
+  using Key = std::pair<std::string, std::string>;
+  EXPECT_EQ(shared.results[Key("live1", "a")], free);
+  EXPECT_EQ(shared.results[Key("a", "live1")], free);  // A rule of either avatar.
+  EXPECT_EQ(shared.results[Key("live2", "a")], free);
+  EXPECT_EQ(shared.results[Key("a", "live2")], free);
+  EXPECT_EQ(shared.results[Key("live1", "live2")], contact);  // No rule between them.
+  EXPECT_EQ(shared.results[Key("live2", "live1")], contact);
 }
 
 TEST_F(LiveSessionTest, TwoJoinsRacingForOneIdGetOneSession) {
