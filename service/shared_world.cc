@@ -452,18 +452,22 @@ void SharedWorld::Settle(const std::string& id, Pred pred, bool cut, Time now,
   auto keep = pending_.begin();
   for (auto x = pending_.begin(); x != pending_.end(); ++x) {
     if (x->e == id && pred(*x)) {
-      SharedJob job;
-      if (MakeJob(e, *x, cut, now, &job)) {
-        if (job.ended_by_timeout) ++entries_cut_;
-        if (job.cleared_by_box) ++entries_cleared_;
-        due->push_back(std::move(job));
-      }
+      SettleOne(e, *x, cut, now, due);
       continue;
     }
     if (keep != x) *keep = std::move(*x);
     ++keep;
   }
   pending_.erase(keep, pending_.end());
+}
+
+void SharedWorld::SettleOne(const Entity& e, const Entry& entry, bool cut, Time now,
+                            std::vector<SharedJob>* due) {
+  SharedJob job;
+  if (!MakeJob(e, entry, cut, now, &job)) return;
+  if (job.ended_by_timeout) ++entries_cut_;
+  if (job.cleared_by_box) ++entries_cleared_;
+  due->push_back(std::move(job));
 }
 
 void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
@@ -497,22 +501,20 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.pair = shared;
     entry.e = other;
     entry.created = now;
-    pending_.push_back(std::move(entry));
+    // Covered already (E is ahead): due now, never pending.
     const Entity& e = entities_.at(other);
-    if (Covered(e, pending_.back())) {
-      Settle(
-          other, [&](const Entry& x) { return &x == &pending_.back(); }, false, now, due);
+    if (Covered(e, entry)) {
+      SettleOne(e, entry, /*cut=*/false, now, due);
+    } else {
+      pending_.push_back(std::move(entry));
     }
   }
   // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
   // scan of every entry per pair would cost O(entities x pending).)
   while (static_cast<int>(pending_.size()) > options_.max_pending) {
-    const Entry& oldest = pending_.front();
-    const std::string e = oldest.e;
-    const Entry* p = &oldest;
     ++entries_overflowed_;
-    Settle(
-        e, [&](const Entry& x) { return &x == p; }, /*cut=*/true, now, due);
+    SettleOne(entities_.at(pending_.front().e), pending_.front(), /*cut=*/true, now, due);
+    pending_.pop_front();
   }
 }
 

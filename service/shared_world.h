@@ -221,6 +221,9 @@ class SharedWorld {
   // Makes the job of an entry against E (covered: exact; else cut at E's
   // last sample). False when the window is empty (no job).
   bool MakeJob(const Entity& e, const Entry& entry, bool cut, Time now, SharedJob* job) const;
+  // Makes entry's job against E (MakeJob), counts it, appends it to `due`.
+  void SettleOne(const Entity& e, const Entry& entry, bool cut, Time now,
+                 std::vector<SharedJob>* due);
   // Settles every pending entry of E that `pred` says; appends jobs.
   template <class Pred>
   void Settle(const std::string& e, Pred pred, bool cut, Time now, std::vector<SharedJob>* due);
