@@ -199,14 +199,22 @@ TEST(CheckedDecode, HugeLinkCountIsRefusedWithoutAllocating) {
   EXPECT_FALSE(problem.empty());
 }
 
-TEST(CheckedDecode, HugeJoinLinkCountIsRefusedWithoutAllocating) {
-  join_request_t j = RandomMessages(19).Join();
+// A join of client "alice" with no links and no rules: every count at a
+// known byte.
+join_request_t EmptyJoin(uint64_t seed) {
+  join_request_t j = RandomMessages(seed).Join();
   j.client_id = "alice";
   j.num_links = 0;
   j.link_name.clear(), j.parent.clear(), j.a.clear(), j.b.clear(), j.radius.clear();
   j.num_ignore = 0;
   j.ignore.clear();
-  std::vector<uint8_t> bytes = Encode(j);
+  j.num_ignore_entities = 0;
+  j.ignore_entity_link.clear(), j.ignore_entity.clear(), j.ignore_entity_other_link.clear();
+  return j;
+}
+
+TEST(CheckedDecode, HugeJoinLinkCountIsRefusedWithoutAllocating) {
+  std::vector<uint8_t> bytes = Encode(EmptyJoin(19));
   // fingerprint 8, utime 8, "alice" 10, nonce 8, public_key 32, motion 1, eps 8, delta 8.
   PutInt32(&bytes, 83, 1 << 26);
   std::string problem;
@@ -219,15 +227,7 @@ TEST(CheckedDecode, HugeJoinLinkCountIsRefusedWithoutAllocating) {
 }
 
 TEST(CheckedDecode, HugeJoinEntityRuleCountIsRefusedWithoutAllocating) {
-  join_request_t j = RandomMessages(23).Join();
-  j.client_id = "alice";
-  j.num_links = 0;
-  j.link_name.clear(), j.parent.clear(), j.a.clear(), j.b.clear(), j.radius.clear();
-  j.num_ignore = 0;
-  j.ignore.clear();
-  j.num_ignore_entities = 0;
-  j.ignore_entity_link.clear(), j.ignore_entity.clear(), j.ignore_entity_other_link.clear();
-  std::vector<uint8_t> bytes = Encode(j);
+  std::vector<uint8_t> bytes = Encode(EmptyJoin(23));
   ASSERT_TRUE(CheckWire(static_cast<const join_request_t*>(nullptr), bytes.data(), bytes.size(),
                         WireLimits{})
                   .empty());
