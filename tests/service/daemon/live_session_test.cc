@@ -371,8 +371,8 @@ TEST_F(LiveSessionTest, AJoinsEntityFiltersApplyToTheSharedWorld) {
   }
   ASSERT_TRUE(listener_.rejections().empty()) << listener_.rejections()[0].message;
   std::lock_guard<std::mutex> lock(shared.mutex);
-  const std::vector<int8_t> free(5, shared_entry_t::RESULT_FREE);
-  const std::vector<int8_t> contact(5, shared_entry_t::RESULT_CONTACT);
+  const std::vector<int8_t> free(5, +shared_entry_t::RESULT_FREE);
+  const std::vector<int8_t> contact(5, +shared_entry_t::RESULT_CONTACT);
   using Key = std::pair<std::string, std::string>;
   EXPECT_EQ(shared.results[Key("live1", "a")], free);
   EXPECT_EQ(shared.results[Key("a", "live1")], free);  // A rule of either avatar.
