@@ -12,6 +12,9 @@ void MotionMemo::Rebind(const PairMotion& motion) {
   motion_ = &motion;
   times_.clear();
   blocks_used_ = 0;
+  swept_times_.clear();
+  swept_blocks_used_ = 0;
+  last_swept_ = nullptr;
 }
 
 MotionMemo::Slot* MotionMemo::SlotsAt(double s) {
@@ -69,14 +72,46 @@ void MotionMemo::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vec
   *p_WB = slot.b;
 }
 
+MotionMemo::SweptSlot* MotionMemo::SweptSlotsAt(double s0, double s1) {
+  SweptKey key;
+  std::memcpy(&key.s0, &s0, sizeof key.s0);
+  std::memcpy(&key.s1, &s1, sizeof key.s1);
+  if (last_swept_ != nullptr && key == last_swept_key_) return last_swept_;
+  const size_t n = static_cast<size_t>(motion_->num_links());
+  auto it = swept_times_.find(key);
+  if (it == swept_times_.end()) {
+    if (swept_times_.size() >= max_times_) {
+      swept_times_.clear();
+      swept_blocks_used_ = 0;
+    }
+    const size_t block = swept_blocks_used_++;
+    // As SlotsAt: slots kept from earlier use are emptied.
+    const size_t kept = std::min(swept_.size(), (block + 1) * n);
+    for (size_t i = block * n; i < kept; ++i) swept_[i].have = false;
+    if (swept_.size() < (block + 1) * n) swept_.resize((block + 1) * n);
+    it = swept_times_.emplace(key, block).first;
+  }
+  last_swept_key_ = key;
+  last_swept_ = swept_.data() + it->second * n;
+  return last_swept_;
+}
+
 void MotionMemo::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
                               Eigen::Vector3d* p_WB, double* growth) {
-  // The same segments, in the same order, as PairMotion::SweptCapsule.
-  Eigen::Vector3d a0, b0, a1, b1, am, bm;
-  SegmentAt(link, s0, &a0, &b0);
-  SegmentAt(link, s1, &a1, &b1);
-  SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
-  motion_->SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
+  SweptSlot& slot = SweptSlotsAt(s0, s1)[link];
+  if (!slot.have) {
+    // The same segments, in the same order, as PairMotion::SweptCapsule.
+    Eigen::Vector3d a0, b0, a1, b1, am, bm;
+    SegmentAt(link, s0, &a0, &b0);
+    SegmentAt(link, s1, &a1, &b1);
+    SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
+    motion_->SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, &slot.a, &slot.b,
+                                      &slot.growth);
+    slot.have = true;
+  }
+  *p_WA = slot.a;
+  *p_WB = slot.b;
+  *growth = slot.growth;
 }
 
 }  // namespace sweptccd

@@ -30,7 +30,9 @@ class MotionMemo {
 
   /// As PairMotion::SegmentAt (the same bits).
   void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB);
-  /// As PairMotion::SweptCapsule (the same bits).
+  /// As PairMotion::SweptCapsule (the same bits), kept per (s0, s1) by
+  /// their bits like the segments (callers answering one motion against
+  /// several entities ask for the same intervals again).
   void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
                     double* growth);
 
@@ -47,6 +49,24 @@ class MotionMemo {
   // Fills slots[link].pose, and that of each ancestor not yet there.
   void ComposePose(Slot* slots, int link, double s);
 
+  struct SweptSlot {
+    Eigen::Vector3d a{0, 0, 0}, b{0, 0, 0};
+    double growth = 0;
+    bool have = false;
+  };
+  struct SweptKey {
+    uint64_t s0, s1;
+    bool operator==(const SweptKey& o) const { return s0 == o.s0 && s1 == o.s1; }
+  };
+  struct SweptKeyHash {
+    size_t operator()(const SweptKey& k) const {
+      return std::hash<uint64_t>()(k.s0 * 0x9E3779B97F4A7C15ull ^ k.s1);
+    }
+  };
+  // The swept slots of every link over [s0, s1] (num_links() of them,
+  // created empty on first use); valid until the next call.
+  SweptSlot* SweptSlotsAt(double s0, double s1);
+
   const PairMotion* motion_;
   size_t max_times_;
   // Time -> its block of num_links() slots in slots_. Blocks are reused
@@ -55,6 +75,14 @@ class MotionMemo {
   std::vector<Slot> slots_;
   size_t blocks_used_ = 0;
   std::vector<int> chain_;  // Scratch of ComposePose.
+  // (s0, s1) -> its block of num_links() swept slots, kept like times_ (at
+  // most max_times_ intervals, then emptied); the last one asked for is
+  // remembered, since callers ask for every link over one interval in turn.
+  std::unordered_map<SweptKey, size_t, SweptKeyHash> swept_times_;
+  std::vector<SweptSlot> swept_;
+  size_t swept_blocks_used_ = 0;
+  SweptKey last_swept_key_{0, 0};
+  SweptSlot* last_swept_ = nullptr;
 };
 
 }  // namespace sweptccd

@@ -43,13 +43,20 @@ class AvatarTarget : public OtherTarget {
                                      e_, std::numeric_limits<size_t>::max())),
         motions_(shared != nullptr ? shared : own_.get()) {
     tol_ = std::ldexp((scale >= 0 ? scale : EntityScale(e_)) + 10.0, -22) + 1e-9;
+    // A rule can only ignore a link pair of A and B when it names the other
+    // avatar (World::IgnoresLinkPair); with none, every link is a root.
+    const auto names = [&](int x, int y) {
+      return std::any_of(world.rules[x].begin(), world.rules[x].end(),
+                         [&](const EntityRule& r) { return r.entity == world.avatars[y].id; });
+    };
+    filtered_ = names(a, b) || names(b, a);
   }
 
   std::vector<int> RootCandidates(int link_a) const override {
     std::vector<int> out;
     out.reserve(static_cast<size_t>(e_.skeleton.num_links()));
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      if (!world_.IgnoresLinkPair(a_, link_a, b_, j)) out.push_back(j);
+      if (!filtered_ || !world_.IgnoresLinkPair(a_, link_a, b_, j)) out.push_back(j);
     }
     return out;
   }
@@ -242,6 +249,7 @@ class AvatarTarget : public OtherTarget {
   std::unique_ptr<IntervalMotions> own_;
   IntervalMotions* motions_;
   double tol_ = 0;
+  bool filtered_ = true;  // Some rule of A or B names the other.
   mutable std::unordered_map<SweptKey, std::vector<SweptLink>, SweptKeyHash> swept_;
   mutable std::unordered_map<SweptKey, std::vector<InstantLink>, SweptKeyHash> instants_;
 };
@@ -356,11 +364,13 @@ class ObjectTarget : public OtherTarget {
   double tol_ = 0;
 };
 
+// An item of the descent; its candidates are arena[off, off + len) of the
+// answer's candidate arena (both halves of a split share one list).
 struct Item {
   double tau0, tau1;
   int link;
   int piece;
-  std::vector<int> cands;
+  size_t off, len;
 };
 struct Later {
   bool operator()(const Item& x, const Item& y) const {
@@ -380,6 +390,7 @@ double Piece::SE(double tau) const {
 std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
                                const std::vector<int64_t>& samples) {
   std::vector<Piece> pieces;
+  pieces.reserve(4);  // A pair's window meets a few of E's intervals.
   if (samples.size() == 1) {
     pieces.push_back({static_cast<double>(t_from - utime0), static_cast<double>(t_to - utime0), 0,
                       static_cast<double>(samples[0] - utime0), 0});
@@ -492,8 +503,11 @@ IntervalMotions::Held::Held(const AvatarEntity& e, int k, int k1)
     : motion(e.skeleton, e.used[static_cast<size_t>(k)], e.used[static_cast<size_t>(k1)], e.motion),
       memo(motion, /*max_times=*/64) {}
 
-IntervalMotions::IntervalMotions(const AvatarEntity& entity, size_t max_kept)
-    : entity_(entity), max_kept_(std::max<size_t>(max_kept, 1)) {}
+IntervalMotions::IntervalMotions(const AvatarEntity& entity, size_t max_kept,
+                                 std::vector<std::vector<Aabb>> link_boxes)
+    : entity_(entity),
+      max_kept_(std::max<size_t>(max_kept, 1)),
+      given_link_boxes_(std::move(link_boxes)) {}
 
 MotionMemo& IntervalMotions::MemoOf(int k) {
   auto it = held_.find(k);
@@ -517,6 +531,10 @@ MotionMemo& IntervalMotions::MemoOf(int k) {
 }
 
 const std::vector<Aabb>& IntervalMotions::LinkBoxesOf(int k) {
+  if (!given_link_boxes_.empty()) {
+    SWEPTCCD_CHECK(k >= 0 && static_cast<size_t>(k) < given_link_boxes_.size());
+    return given_link_boxes_[static_cast<size_t>(k)];
+  }
   MemoOf(k);
   Held& held = *held_.at(k);
   if (held.link_boxes.empty() && entity_.skeleton.num_links() > 0) {
@@ -723,22 +741,32 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   }
 
   // A binary heap under Later, as std::priority_queue keeps it (the same
-  // push_heap / pop_heap, so the same order), whose top is moved out, not
-  // copied with its candidates.
+  // push_heap / pop_heap, so the same order). Candidate lists live in one
+  // arena (no allocation per item); `work` holds the popped item's while
+  // Cull narrows it. Lists of items no longer queued are dropped when the
+  // arena has doubled since it was last compacted.
   std::vector<Item> queue;
-  auto push = [&](Item&& item) {
-    queue.push_back(std::move(item));
+  std::vector<int> arena, work;
+  size_t compacted = 0;
+  auto push = [&](const Item& item) {
+    queue.push_back(item);
     std::push_heap(queue.begin(), queue.end(), Later());
+  };
+  auto store = [&](const std::vector<int>& list) {
+    const size_t off = arena.size();
+    arena.insert(arena.end(), list.begin(), list.end());
+    return off;
   };
   for (int l = 0; l < num_links; ++l) {
     if (done[l] || roots[l].empty()) continue;
     for (int p = 0; p < static_cast<int>(pieces.size()); ++p) {
-      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, cands_of(l, static_cast<size_t>(p))});
+      const std::vector<int>& c = cands_of(l, static_cast<size_t>(p));
+      push(Item{pieces[p].tau0, pieces[p].tau1, l, p, store(c), c.size()});
     }
   }
   while (!queue.empty() && searching()) {
     std::pop_heap(queue.begin(), queue.end(), Later());
-    Item item = std::move(queue.back());
+    const Item item = queue.back();
     queue.pop_back();
     if (done[item.link]) continue;
     if (++answer.intervals > options.max_intervals) {
@@ -767,7 +795,9 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       break;
     }
     // No candidate left by the link boxes: Cull would keep none.
-    if (item.cands.empty()) continue;
+    if (item.len == 0) continue;
+    work.assign(arena.begin() + static_cast<std::ptrdiff_t>(item.off),
+                arena.begin() + static_cast<std::ptrdiff_t>(item.off + item.len));
     const Piece& piece = pieces[item.piece];
     const double r_a = skeleton_a.link(item.link).radius;
     double s0 = s_of(item.tau0), s1 = s_of(item.tau1);
@@ -775,8 +805,8 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     Eigen::Vector3d a, b;
     double g;
     memo_a.SweptCapsule(item.link, s0, s1, &a, &b, &g);
-    target.Cull(piece, item.tau0, item.tau1, a, b, r_a + tol, g, &item.cands);
-    if (item.cands.empty()) continue;  // Certified free over the item.
+    target.Cull(piece, item.tau0, item.tau1, a, b, r_a + tol, g, &work);
+    if (work.empty()) continue;  // Certified free over the item.
     if (item.tau1 - item.tau0 <= eps_us) {
       OtherContact best, c;
       bool have = false;
@@ -784,7 +814,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       for (double tau : {item.tau0, mid, item.tau1}) {
         Eigen::Vector3d sa, sb;
         memo_a.SegmentAt(item.link, s_of(tau), &sa, &sb);
-        if (target.Nearest(piece, tau, item.link, sa, sb, r_a, item.cands, options.delta_m, &c) &&
+        if (target.Nearest(piece, tau, item.link, sa, sb, r_a, work, options.delta_m, &c) &&
             (!have || c.separation < best.separation)) {
           best = c;
           have = true;
@@ -811,8 +841,20 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       close(br);
       continue;
     }
-    push(Item{item.tau0, mid, item.link, item.piece, item.cands});
-    push(Item{mid, item.tau1, item.link, item.piece, std::move(item.cands)});
+    if (arena.size() > std::max<size_t>(2 * compacted, 1 << 16)) {
+      std::vector<int> live;  // Only the queued items' lists (order kept).
+      for (Item& t : queue) {
+        const size_t off = live.size();
+        live.insert(live.end(), arena.begin() + static_cast<std::ptrdiff_t>(t.off),
+                    arena.begin() + static_cast<std::ptrdiff_t>(t.off + t.len));
+        t.off = off;
+      }
+      arena.swap(live);
+      compacted = arena.size();
+    }
+    const size_t off = store(work);
+    push(Item{item.tau0, mid, item.link, item.piece, off, work.size()});
+    push(Item{mid, item.tau1, item.link, item.piece, off, work.size()});
   }
 
   if (!brackets.empty()) {

@@ -152,7 +152,12 @@ double WindowScale(const ObjectEntity& entity, const std::vector<Piece>& pieces)
 /// thread-safe; must outlive the targets made with it.
 class IntervalMotions {
  public:
-  explicit IntervalMotions(const AvatarEntity& entity, size_t max_kept = 4);
+  /// `link_boxes`, when not empty, holds LinkSweepBoxes(skeleton, motion
+  /// of interval k, 0) for every interval k, made by the caller (who built
+  /// each motion once already); LinkBoxesOf then answers from it without
+  /// building the motion.
+  explicit IntervalMotions(const AvatarEntity& entity, size_t max_kept = 4,
+                           std::vector<std::vector<Aabb>> link_boxes = {});
   IntervalMotions(const IntervalMotions&) = delete;
   IntervalMotions& operator=(const IntervalMotions&) = delete;
   /// The memo of the motion from sample k to k + 1 (k + 1 clamped).
@@ -160,8 +165,9 @@ class IntervalMotions {
   /// That motion (valid until MemoOf or MotionOf asks for an interval not
   /// kept while this one is the farthest).
   const PairMotion& MotionOf(int k) { return MemoOf(k).motion(); }
-  /// LinkSweepBoxes(skeleton, MotionOf(k), 0), computed once per interval
-  /// kept (valid as MotionOf's answer).
+  /// LinkSweepBoxes(skeleton, MotionOf(k), 0): the caller's when given
+  /// (valid as long as this), else computed once per interval kept (valid
+  /// as MotionOf's answer).
   const std::vector<Aabb>& LinkBoxesOf(int k);
 
  private:
@@ -174,6 +180,7 @@ class IntervalMotions {
   const AvatarEntity& entity_;
   size_t max_kept_;
   std::map<int, std::unique_ptr<Held>> held_;
+  std::vector<std::vector<Aabb>> given_link_boxes_;  // By interval; empty: none given.
 };
 
 /// The other entity's targets; `scale` is EntityScale of it (< 0: computed

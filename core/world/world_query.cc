@@ -5,6 +5,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "core/errors.h"
 #include "core/query/result_json.h"
 #include "core/world/link_sweep_boxes.h"
 
@@ -58,13 +59,29 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
   for (const AvatarEntity& e : w_.world.avatars) {
-    interval_motions_.push_back(std::make_unique<IntervalMotions>(e));
+    // Per sample interval, from one motion: the entity box and the link
+    // boxes (both depend on the interval's samples only; the link boxes are
+    // kept so that an entry cleared by them never builds E's motion).
     avatar_boxes_.emplace_back();
+    std::vector<std::vector<Aabb>> link_boxes;
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
-      avatar_boxes_.back().push_back(
-          AvatarMotionBox(e.skeleton, PairMotion(e.skeleton, e.used[k], e.used[k1], e.motion)));
+      const PairMotion motion(e.skeleton, e.used[k], e.used[k1], e.motion);
+      avatar_boxes_.back().push_back(AvatarMotionBox(e.skeleton, motion));
+      link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
     }
+    interval_motions_.push_back(std::make_unique<IntervalMotions>(e, 4, std::move(link_boxes)));
+    avatar_sample_scales_.emplace_back();
+    for (const Pose& pose : e.used) {
+      double scale = 0;
+      for (const LinkPose& l : pose.links) scale = std::max(scale, l.p.cwiseAbs().maxCoeff());
+      avatar_sample_scales_.back().push_back(scale);
+    }
+    double skeleton_scale = 0;
+    for (const Link& l : e.skeleton.links()) {
+      skeleton_scale = std::max({skeleton_scale, l.a_L.norm(), l.b_L.norm()});
+    }
+    avatar_skeleton_scales_.push_back(skeleton_scale);
   }
   for (const ObjectEntity& e : w_.world.objects) {
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
@@ -113,13 +130,32 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
   // The rounding slack from the window's samples only (WindowScale): what a
   // live service holding only those answers with too.
   const std::unique_ptr<OtherTarget> target =
-      b >= 0 ? MakeAvatarTarget(w_.world, a, b, WindowScale(w_.world.avatars[b], pieces),
+      b >= 0 ? MakeAvatarTarget(w_.world, a, b, AvatarWindowScale(b, pieces),
                                 interval_motions_[static_cast<size_t>(b)].get())
              : MakeObjectTarget(w_.world, a, o, WindowScale(w_.world.objects[o], pieces));
-  if (b >= 0 && link_boxes_.empty()) link_boxes_ = LinkSweepBoxes(A.skeleton, *motion_, 0.0);
+  if (b >= 0 && link_boxes_a_ == nullptr) {
+    if (motion_k_ >= 0) {
+      link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
+    } else {
+      link_boxes_ = LinkSweepBoxes(A.skeleton, *motion_, 0.0);
+      link_boxes_a_ = &link_boxes_;
+    }
+  }
   *answer = AnswerOther(A.skeleton, &*memo_, u0, u1, pieces, *target, entity_options_,
-                        b >= 0 ? &link_boxes_ : nullptr);
+                        b >= 0 ? link_boxes_a_ : nullptr);
   return true;
+}
+
+double WorldAnswerer::AvatarWindowScale(int b, const std::vector<Piece>& pieces) const {
+  // WindowScale(avatars[b], pieces) from the kept maxima.
+  const std::vector<double>& samples = avatar_sample_scales_[static_cast<size_t>(b)];
+  SWEPTCCD_CHECK(!pieces.empty() && !samples.empty());
+  const size_t first = static_cast<size_t>(pieces.front().k);
+  const size_t last = std::min(static_cast<size_t>(pieces.back().k) + 1, samples.size() - 1);
+  SWEPTCCD_CHECK(first <= last);
+  double scale = 0;
+  for (size_t k = first; k <= last; ++k) scale = std::max(scale, samples[k]);
+  return std::max(scale, avatar_skeleton_scales_[static_cast<size_t>(b)]);
 }
 
 const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
@@ -132,9 +168,11 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   if (k + 1 < times.size() && SamePose(A.used[k], rec.pose0) &&
       SamePose(A.used[k + 1], rec.pose1)) {
     motion_ = &interval_motions_[static_cast<size_t>(a)]->MotionOf(static_cast<int>(k));
+    motion_k_ = static_cast<int>(k);
   } else {
     own_motion_.emplace(A.skeleton, rec.pose0, rec.pose1, A.motion);
     motion_ = &*own_motion_;
+    motion_k_ = -1;
   }
   if (memo_) {
     memo_->Rebind(*motion_);  // Its memory kept from record to record.
@@ -143,12 +181,15 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   }
   motion_a_ = a;
   motion_r_ = r;
-  link_boxes_.clear();
+  link_boxes_a_ = nullptr;
   return *motion_;
 }
 
 Aabb WorldAnswerer::PairBox(int a, size_t r) const {
-  return AvatarMotionBox(w_.world.avatars[a].skeleton, RecordMotion(a, r));
+  const PairMotion& motion = RecordMotion(a, r);
+  // The interval's box was made from the same samples by the same function.
+  if (motion_k_ >= 0) return avatar_boxes_[static_cast<size_t>(a)][static_cast<size_t>(motion_k_)];
+  return AvatarMotionBox(w_.world.avatars[a].skeleton, motion);
 }
 
 QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {

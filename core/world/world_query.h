@@ -50,6 +50,12 @@ class WorldAnswerer {
   // Per entity, a box holding it over each interval between used samples
   // (one box for an entity with one sample).
   std::vector<std::vector<Aabb>> avatar_boxes_, object_boxes_;
+  // Per avatar, the largest absolute coordinate of each used sample's links,
+  // and of its skeleton's link ends: WindowScale of a window is the largest
+  // of these over its samples and the skeleton's (a maximum is exact).
+  std::vector<std::vector<double>> avatar_sample_scales_;
+  std::vector<double> avatar_skeleton_scales_;
+  double AvatarWindowScale(int b, const std::vector<Piece>& pieces) const;
   // PairBox of the last record asked for (records are answered one by one).
   mutable int box_a_ = -1;
   mutable size_t box_r_ = 0;
@@ -64,11 +70,16 @@ class WorldAnswerer {
   // other avatar's window that meets it), else own_motion_.
   mutable const PairMotion* motion_ = nullptr;
   mutable std::optional<PairMotion> own_motion_;
+  // k when *motion_ is A's interval motion k (then PairBox is avatar_boxes_[a][k]
+  // and A's link boxes are its IntervalMotions' LinkBoxesOf(k)), else -1.
+  mutable int motion_k_ = -1;
   // Over *motion_: every entity of the record asks for A's links at the
   // same times (the window's start, its halves).
   mutable std::optional<MotionMemo> memo_;
   // LinkSweepBoxes of A over *motion_ (extra 0), for every avatar entity of
-  // the record; empty until one needs them.
+  // the record; null until one needs them (then link_boxes_, or A's
+  // IntervalMotions' boxes of interval motion_k_).
+  mutable const std::vector<Aabb>* link_boxes_a_ = nullptr;
   mutable std::vector<Aabb> link_boxes_;
   // Each avatar's motions over its sample intervals, kept across records.
   std::vector<std::unique_ptr<IntervalMotions>> interval_motions_;

@@ -149,5 +149,29 @@ TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSegments) {
   }
 }
 
+// The same for the kept swept capsules: after Rebind to fewer links, a
+// second interval's block overlaps swept slots of the old motion.
+TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSweptCapsules) {
+  Rng rng(0x3e3014);
+  const Skeleton seven = RandomSkeleton(&rng, 7, 0), four = RandomSkeleton(&rng, 4, 0);
+  const PairMotion m7(seven, RandomPose(&rng, 7, 1.0), RandomPose(&rng, 7, 1.0),
+                      MotionModel::kArticulated);
+  const PairMotion m4(four, RandomPose(&rng, 4, 1.0), RandomPose(&rng, 4, 1.0),
+                      MotionModel::kArticulated);
+  MotionMemo memo(m7);
+  Eigen::Vector3d a, b, ta, tb;
+  double g, tg;
+  for (int l = 0; l < 7; ++l) memo.SweptCapsule(l, 0.3, 0.6, &a, &b, &g);
+  memo.Rebind(m4);
+  for (double s0 : {0.3, 0.1}) {
+    for (int l = 0; l < 4; ++l) {
+      memo.SweptCapsule(l, s0, 0.6, &a, &b, &g);
+      m4.SweptCapsule(l, s0, 0.6, &ta, &tb, &tg);
+      EXPECT_TRUE(SameBits(a, ta) && SameBits(b, tb) && SameBits(g, tg))
+          << "link " << l << " s0 " << s0;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace sweptccd

@@ -841,6 +841,11 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
             for (const RigidSample& x : w.objects[o].used) times.push_back(x.utime);
           }
           const PairMotion motion(w.avatars[a].skeleton, rec.pose0, rec.pose1, w.avatars[a].motion);
+          // The pair's box, which the answerer takes from its per-interval
+          // boxes, is the one made from the pair's own motion.
+          const Aabb pair_box = answerer->PairBox(a, r);
+          const Aabb own_box = AvatarMotionBox(w.avatars[a].skeleton, motion);
+          EXPECT_TRUE(pair_box.lo == own_box.lo && pair_box.hi == own_box.hi) << seed << " " << a;
           const std::vector<Piece> pieces = SplitWindow(rec.pose0.utime, t_from, t_to, times);
           // Fresh: the target's own motions, a memo for this answer alone.
           const auto target =
