@@ -34,6 +34,7 @@ set(SWEPTCCD_INSTALL_DOCDIR ${CMAKE_INSTALL_DATAROOTDIR}/doc/sweptccd)
 # configuration with a message naming it: add it here.
 set(SWEPTCCD_EXPORT_DEPENDENCIES
   "PkgConfig::SODIUM|pkg:SODIUM:libsodium|libsodium"
+  "PkgConfig::CRYPTO|pkg:CRYPTO:libcrypto|libcrypto"
   "PkgConfig::LCM|pkg:LCM:lcm|lcm"
   "Threads::Threads|cmake:Threads|"
   "spdlog::spdlog|cmake:spdlog|spdlog"
@@ -259,7 +260,7 @@ set(CPACK_DEBIAN_RUNTIME_DESCRIPTION
 set(CPACK_DEBIAN_DEV_PACKAGE_NAME sweptccd-dev)
 set(CPACK_DEBIAN_DEV_PACKAGE_SECTION libdevel)
 set(CPACK_DEBIAN_DEV_PACKAGE_DEPENDS
-    "sweptccd (= ${PROJECT_VERSION}), liblcm-dev, libsodium-dev, pkg-config")
+    "sweptccd (= ${PROJECT_VERSION}), liblcm-dev, libsodium-dev, libssl-dev, pkg-config")
 set(CPACK_DEBIAN_DEV_DESCRIPTION
     "SweptCCD's static libraries and headers (LCM message types, checked decoding,\nmessage signing), the CMake package SweptCCD and the pkg-config file sweptccd.")
 include(CPack)

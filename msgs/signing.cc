@@ -1,6 +1,8 @@
 #include "msgs/signing.h"
 
 #include <fcntl.h>
+#include <openssl/crypto.h>
+#include <openssl/evp.h>
 #include <sodium.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -8,6 +10,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <stdexcept>
 
 #include "core/errors.h"
@@ -15,7 +18,72 @@
 
 namespace sweptccd {
 
+namespace internal {
+
+struct HmacPads {
+  EVP_MD_CTX* inner = nullptr;  // SHA-256 after the block key ^ 0x36.
+  EVP_MD_CTX* outer = nullptr;  // SHA-256 after the block key ^ 0x5c.
+  HmacPads() = default;
+  HmacPads(const HmacPads&) = delete;
+  HmacPads& operator=(const HmacPads&) = delete;
+  // EVP_MD_CTX_free wipes the digest state (OpenSSL's clear_free).
+  ~HmacPads() {
+    EVP_MD_CTX_free(inner);
+    EVP_MD_CTX_free(outer);
+  }
+};
+
+}  // namespace internal
+
 namespace {
+
+constexpr size_t kShaBlockBytes = 64;
+constexpr size_t kShaBytes = 32;
+
+// A SHA-256 context that has hashed one 64-byte block.
+EVP_MD_CTX* DigestAfterBlock(const uint8_t* block) {
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  if (ctx == nullptr || EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) != 1 ||
+      EVP_DigestUpdate(ctx, block, kShaBlockBytes) != 1) {
+    EVP_MD_CTX_free(ctx);
+    throw std::runtime_error("OpenSSL cannot set up SHA-256 for HMAC");
+  }
+  return ctx;
+}
+
+// RFC 2104 with a 32-byte key: the key zero-padded to the 64-byte block.
+std::shared_ptr<const internal::HmacPads> MakePads(const std::array<uint8_t, kKeyBytes>& key) {
+  auto pads = std::make_shared<internal::HmacPads>();
+  uint8_t block[kShaBlockBytes];
+  for (size_t i = 0; i < kShaBlockBytes; ++i) block[i] = (i < kKeyBytes ? key[i] : 0) ^ 0x36;
+  pads->inner = DigestAfterBlock(block);
+  for (size_t i = 0; i < kShaBlockBytes; ++i) block[i] = (i < kKeyBytes ? key[i] : 0) ^ 0x5c;
+  pads->outer = DigestAfterBlock(block);
+  OPENSSL_cleanse(block, sizeof(block));
+  return pads;
+}
+
+// One scratch context per thread: the pads are copied into it, never written.
+EVP_MD_CTX* ScratchContext() {
+  thread_local const std::unique_ptr<EVP_MD_CTX, void (*)(EVP_MD_CTX*)> ctx(EVP_MD_CTX_new(),
+                                                                           &EVP_MD_CTX_free);
+  return ctx.get();
+}
+
+// HMAC-SHA256 of bytes[0, size) into mac[0, 32); false when OpenSSL fails.
+bool Hmac(const internal::HmacPads& pads, const uint8_t* bytes, size_t size, uint8_t* mac) {
+  EVP_MD_CTX* ctx = ScratchContext();
+  uint8_t inner[kShaBytes];
+  unsigned int n = 0;
+  const bool ok = ctx != nullptr && EVP_MD_CTX_copy_ex(ctx, pads.inner) == 1 &&
+                  EVP_DigestUpdate(ctx, bytes, size) == 1 &&
+                  EVP_DigestFinal_ex(ctx, inner, &n) == 1 && n == kShaBytes &&
+                  EVP_MD_CTX_copy_ex(ctx, pads.outer) == 1 &&
+                  EVP_DigestUpdate(ctx, inner, kShaBytes) == 1 &&
+                  EVP_DigestFinal_ex(ctx, mac, &n) == 1 && n == kShaBytes;
+  OPENSSL_cleanse(inner, sizeof(inner));
+  return ok;
+}
 
 void InitSodium() {
   // sodium_init is thread-safe and idempotent; a failure leaves no usable RNG.
@@ -41,6 +109,9 @@ std::string ReadSmallFile(int fd, const std::string& path) {
 }
 
 }  // namespace
+
+MacKey::MacKey(const std::array<uint8_t, kKeyBytes>& bytes)
+    : bytes_(bytes), pads_(MakePads(bytes)) {}
 
 MacKey::~MacKey() { sodium_memzero(bytes_.data(), bytes_.size()); }
 
@@ -125,15 +196,20 @@ void SignEncoded(uint8_t* bytes, size_t size, const MacKey* key) {
     std::memset(mac, 0, kMacBytes);
     return;
   }
-  InitSodium();
-  crypto_auth_hmacsha256(mac, bytes, size - kMacBytes, key->data());
+  if (!Hmac(key->pads(), bytes, size - kMacBytes, mac)) {
+    throw std::runtime_error("HMAC-SHA256 failed (OpenSSL)");
+  }
 }
 
 bool VerifyEncoded(const void* bytes, size_t size, const MacKey& key) {
   if (size < kMacBytes) return false;
-  InitSodium();
   const auto* b = static_cast<const uint8_t*>(bytes);
-  return crypto_auth_hmacsha256_verify(b + size - kMacBytes, b, size - kMacBytes, key.data()) == 0;
+  uint8_t expected[kMacBytes];
+  // A mac that cannot be computed verifies nothing.
+  const bool ok = Hmac(key.pads(), b, size - kMacBytes, expected) &&
+                  CRYPTO_memcmp(expected, b + size - kMacBytes, kMacBytes) == 0;
+  OPENSSL_cleanse(expected, sizeof(expected));
+  return ok;
 }
 
 void KeyRing::SetClientKey(const std::string& client_id, MacKey key) {

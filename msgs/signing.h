@@ -1,13 +1,18 @@
 #pragma once
-// Signed messages: HMAC-SHA256 (libsodium) over the encoded LCM bytes of a
+// Signed messages: HMAC-SHA256 (RFC 2104) over the encoded LCM bytes of a
 // message with its last 32 bytes (the `mac` field, last in every type the
 // service receives or publishes) excluded, so a receiver verifies the raw
 // datagram before decoding it. Unsigned mode writes an all-zero mac.
+// The HMAC is computed with OpenSSL's SHA-256 (SHA-NI where the CPU has it;
+// libsodium 1.0.18's is portable C, 5x slower on a 1.8 KB pose) from the
+// key's inner and outer digest states, hashed once per key; keys, random
+// bytes and sealed boxes stay libsodium's.
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -19,17 +24,29 @@ namespace sweptccd {
 inline constexpr size_t kMacBytes = 32;
 inline constexpr size_t kKeyBytes = 32;
 
-/// A 32-byte HMAC-SHA256 key. Its bytes are wiped when it is destroyed.
+namespace internal {
+/// The key's HMAC inner and outer SHA-256 states (OpenSSL digest contexts
+/// after the padded key block), computed once; read-only afterwards, so one
+/// is shared by every copy of the key and by every thread.
+struct HmacPads;
+}  // namespace internal
+
+/// A 32-byte HMAC-SHA256 key. Its bytes are wiped when it is destroyed (and
+/// its digest states when the last copy goes). Copies are cheap (the
+/// digest states are shared). Throws std::runtime_error when OpenSSL cannot
+/// set up SHA-256.
 class MacKey {
  public:
-  explicit MacKey(const std::array<uint8_t, kKeyBytes>& bytes) : bytes_(bytes) {}
+  explicit MacKey(const std::array<uint8_t, kKeyBytes>& bytes);
   ~MacKey();
   MacKey(const MacKey&) = default;
   MacKey& operator=(const MacKey&) = default;
   const uint8_t* data() const { return bytes_.data(); }
+  const internal::HmacPads& pads() const { return *pads_; }
 
  private:
   std::array<uint8_t, kKeyBytes> bytes_;
+  std::shared_ptr<const internal::HmacPads> pads_;
 };
 
 /// Parses 64 hex digits (surrounding whitespace ignored). Throws InputError

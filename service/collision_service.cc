@@ -171,12 +171,14 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   const SteadyClock::time_point receive_time = SteadyClock::now();
   std::optional<Rejection> rejection;
   bool attributed = false;
+  bool queued = false;  // A pair became ready: a worker is woken after the lock.
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_) {
       ++ignored_after_stop_;
       return;
     }
+    const size_t ready_before = ready_.size();
     auto it = client_index_.end();
     if (!IsValidClientId(pose.client_id)) {
       ++rejected_unattributed_;
@@ -194,7 +196,11 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
       if (it->second->live) it->second->last_heard = receive_time;
     }
+    queued = ready_.size() > ready_before;
   }
+  // Notified after the lock is released: the woken worker takes the mutex at
+  // once instead of waking into a lock this thread still holds.
+  if (queued) work_cv_.notify_one();
   if (rejection) {
     // An id that breaks the rule is not echoed in rejection_t.client_id.
     Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection,
@@ -230,8 +236,7 @@ std::optional<Rejection> CollisionService::AdmitLocked(const std::shared_ptr<Cli
     QueueSharedLocked(&due);
   }
   if (!rejection && !was_ready && client.session.ready()) {
-    ready_.push_back(index);
-    work_cv_.notify_one();
+    ready_.push_back(index);  // The caller wakes a worker once the lock is released.
   }
   return rejection;
 }

@@ -38,6 +38,12 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// LCM messages handled per wake-up of the loop at most: a tick's burst of
+// poses (one per client) is handled without a poll() and a clock read
+// between messages, and a flood still lets the control pipe and the timers
+// in after at most this many.
+constexpr int kMaxMessagesPerWake = 64;
+
 // Bytes on the loop's control pipe.
 constexpr char kDrain = 'd';  // Handle everything queued, then report.
 constexpr char kQuit = 'q';   // Leave the loop.
@@ -598,7 +604,10 @@ void Daemon::Impl::Loop() {
       break;
     }
     if ((fds[1].revents & POLLIN) && !HandleControl()) break;
-    if (fds[0].revents & POLLIN) lcm->handleTimeout(0);
+    if (fds[0].revents & POLLIN) {
+      for (int i = 0; i < kMaxMessagesPerWake && lcm->handleTimeout(0) > 0; ++i) {
+      }
+    }
   }
   std::lock_guard<std::mutex> lock(mutex);
   running = false;

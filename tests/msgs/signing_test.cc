@@ -3,12 +3,15 @@
 #include "msgs/signing.h"
 
 #include <gtest/gtest.h>
+#include <sodium.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
+#include <thread>
 
 #include "core/errors.h"
 #include "tests/msgs/msgs_test_util.h"
@@ -21,6 +24,7 @@ using testing::RandomMessages;
 
 const char kHexA[] = "000102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f";
 const char kHexB[] = "ff0102030405060708090a0b0c0d0e0f101112131415161718191a1b1c1d1e1f";
+const char kKnownMacHex[] = "cb515b615e351d207bba1e0f29f9786034fb3a9c6c2660b76826d6d41d9fd88a";
 
 class KeyFileTest : public ::testing::Test {
  protected:
@@ -61,6 +65,65 @@ TEST(Signing, SignVerifyRoundTripAndEveryFlippedBitFails) {
     }
   }
   EXPECT_TRUE(VerifyEncoded(bytes.data(), bytes.size(), key));
+}
+
+// The mac is computed with OpenSSL from precomputed pads; libsodium's
+// crypto_auth_hmacsha256 (the implementation before) is its twin: seeded
+// random keys and every length from 32 to 4160 bytes (0-4128 signed), so
+// every SHA-256 block boundary and padding case is crossed.
+TEST(Signing, MacEqualsLibsodiumHmacOnRandomKeysAndEveryLength) {
+  ASSERT_GE(sodium_init(), 0);
+  std::mt19937_64 rng(20261124);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (size_t size = kMacBytes; size <= 4160; ++size) {
+    std::array<uint8_t, kKeyBytes> k{};
+    for (uint8_t& b : k) b = static_cast<uint8_t>(byte(rng));
+    const MacKey key(k);
+    std::vector<uint8_t> bytes(size);
+    for (uint8_t& b : bytes) b = static_cast<uint8_t>(byte(rng));
+    SignEncoded(bytes.data(), bytes.size(), &key);
+    uint8_t twin[kMacBytes];
+    crypto_auth_hmacsha256(twin, bytes.data(), size - kMacBytes, k.data());
+    ASSERT_EQ(std::memcmp(twin, bytes.data() + size - kMacBytes, kMacBytes), 0) << "size " << size;
+    ASSERT_TRUE(VerifyEncoded(bytes.data(), bytes.size(), key)) << "size " << size;
+    ASSERT_EQ(crypto_auth_hmacsha256_verify(twin, bytes.data(), size - kMacBytes, k.data()), 0);
+  }
+}
+
+// A known answer, independent of both libraries: HMAC-SHA256 with the key
+// 00 01 .. 1f over "sweptccd" (Python: hmac.new(bytes(range(32)),
+// b"sweptccd", hashlib.sha256).hexdigest()).
+TEST(Signing, MacOfAKnownMessage) {
+  const MacKey key = ParseKeyHex(kHexA, "a");
+  std::vector<uint8_t> bytes = {'s', 'w', 'e', 'p', 't', 'c', 'c', 'd'};
+  bytes.resize(bytes.size() + kMacBytes);
+  SignEncoded(bytes.data(), bytes.size(), &key);
+  char hex[2 * kMacBytes + 1];
+  sodium_bin2hex(hex, sizeof(hex), bytes.data() + 8, kMacBytes);
+  EXPECT_STREQ(hex, kKnownMacHex);
+}
+
+// One key (its shared pads) used by several threads at once, as the
+// daemon's workers sign and its LCM thread verifies: every mac right.
+TEST(Signing, OneKeySignsAndVerifiesOnManyThreadsAtOnce) {
+  const MacKey key = ParseKeyHex(kHexB, "b");
+  RandomMessages r(34);
+  const std::vector<uint8_t> reference = EncodeSigned(r.Pose(), &key);
+  std::vector<int> wrong(4, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&, t] {
+      const MacKey copy = key;  // Copies share the pads.
+      for (int i = 0; i < 2000; ++i) {
+        std::vector<uint8_t> bytes = reference;
+        std::memset(bytes.data() + bytes.size() - kMacBytes, 0, kMacBytes);
+        SignEncoded(bytes.data(), bytes.size(), (i % 2) ? &copy : &key);
+        if (bytes != reference || !VerifyEncoded(bytes.data(), bytes.size(), copy)) ++wrong[t];
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (int t = 0; t < 4; ++t) EXPECT_EQ(wrong[t], 0) << "thread " << t;
 }
 
 TEST(Signing, WrongKeyAndUnsignedFail) {

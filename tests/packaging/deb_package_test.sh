@@ -29,7 +29,7 @@ echo "packages: $(basename "$deb") $(basename "$dev")"
 [ "$(dpkg-deb -f "$deb" Package)" = sweptccd ] || fail "package name is not sweptccd"
 depends=$(dpkg-deb -f "$deb" Depends)
 echo "Depends: $depends"
-for lib in libc6 liblcm libsodium; do
+for lib in libc6 liblcm libsodium libssl; do
   grep -q "$lib" <<< "$depends" || fail "Depends lacks $lib (dpkg-shlibdeps did not run?)"
 done
 contents=$(dpkg-deb -c "$deb" | awk '{print $NF}')
