@@ -3,6 +3,8 @@
 #include <cctype>
 #include <cmath>
 #include <cstring>
+#include <exception>
+#include <istream>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -203,7 +205,16 @@ bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bo
   std::streambuf* buf = in.rdbuf();
   bool any = false;
   for (;;) {
-    const int c = buf->sbumpc();
+    int c;
+    try {
+      c = buf->sbumpc();
+    } catch (const std::exception&) {
+      // A read error (e.g. EISDIR: a folder opens, but cannot be read):
+      // libstdc++'s filebuf throws where istream's own reads would set
+      // badbit. Set it as they would; the reader stops and says bad().
+      in.setstate(std::ios::badbit);
+      return false;
+    }
     if (c == std::char_traits<char>::eof()) {
       in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
       return any;

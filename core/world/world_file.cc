@@ -74,7 +74,10 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
     std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
     if (outcome) avatar->records.push_back(std::move(*outcome));
   }
-  if (lines.bad()) throw InputError(path + ": error while reading");
+  if (lines.bad()) {
+    throw InputError(path + ": error while reading the pose stream file (a folder, or a read "
+                            "error)");
+  }
 }
 
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {

@@ -158,6 +158,11 @@ def text_parsers():
           ' "objects": [{"id": "cup", "mesh": "cup.obj", "poses": "cup.jsonl"}]}')
     write("fuzz_world", "missing_mesh_and_escape.json",
           '{"objects": [{"id": "a\\u001b[31m", "mesh": "../../../../etc/none.obj", "poses": "cup.jsonl"}]}')
+    # Found by fuzz_world: "" names the world's own folder, which opens but
+    # cannot be read (libstdc++'s filebuf threw through the pose reader).
+    write("fuzz_world", "attack_poses_name_a_folder.json",
+          '{"avatars": [{"id": "alice", "skeleton": "bar.json", "poses": ""}],'
+          ' "objects": [{"id": "cup", "mesh": "cup.obj", "poses": ""}]}')
     write("fuzz_world", "object_pose_lines.json",
           '{"utime": 1, "pose": [0, 0, 0, 0, 0, 0, 0]}\n{"utime": -5, "pose": [1e308, 0, 0, 1, 0, 0, 0]}\n'
           '{"utime": 9223372036854775808, "pose": [0, 0, 0, 1, 0, 0]}\n')

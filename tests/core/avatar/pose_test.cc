@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <fstream>
 #include <limits>
 #include <optional>
 #include <random>
@@ -531,6 +532,19 @@ TEST(PoseLineReaderTest, MatchesGetlineTwinOnRandomText) {
     EXPECT_FALSE(reader.Next().has_value()) << "case " << c;
     EXPECT_FALSE(reader.bad());
   }
+}
+
+// A folder opens as an ifstream but every read fails (EISDIR), and
+// libstdc++'s filebuf throws where istream's reads set badbit: the reader
+// ends with bad(), never an exception (fuzz_world ended the process so).
+TEST(PoseLineReaderTest, AFolderIsABadStreamNotAnException) {
+  std::ifstream folder(::testing::TempDir(), std::ios::binary);
+  ASSERT_TRUE(folder.is_open());
+  PoseStreamReader reader(folder, 1);
+  std::optional<PairOutcome> pair;
+  EXPECT_NO_THROW(pair = reader.Next());
+  EXPECT_FALSE(pair.has_value());
+  EXPECT_TRUE(reader.bad());
 }
 
 TEST(PoseLineReaderTest, DefaultCapGrowsWithTheLinkCount) {
