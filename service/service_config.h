@@ -17,7 +17,7 @@ namespace sweptccd {
 /// One shared-world filter of a client (SPEC 8 "Filters"), as written:
 /// `{link: L, entity: ID[, other_link: M]}`. L and M are link names, "*",
 /// or indices (a name first, then an index); resolved against the
-/// skeletons when the daemon loads (daemon.cc, LoadClients).
+/// skeletons when the daemon loads (daemon.cc, ResolveEntityRules).
 struct EntityRuleSpec {
   std::string link;
   std::string entity;

@@ -137,8 +137,8 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
 
 // The shared world's filters of every configured client, resolved against
 // the skeletons.
-void ResolveEntityRules(const ServiceConfig& config, std::vector<ClientConfig>* clients) {
-  const RuleTargets targets = RuleTargetsOf(config, *clients);
+void ResolveEntityRules(const ServiceConfig& config, const RuleTargets& targets,
+                        std::vector<ClientConfig>* clients) {
   for (size_t i = 0; i < clients->size(); ++i) {
     ClientConfig& cc = (*clients)[i];
     const std::vector<EntityRuleSpec>& specs = config.clients[i].ignore_entities;
@@ -165,7 +165,6 @@ std::vector<ClientConfig> LoadClients(const ServiceConfig& config, const Environ
     for (const std::string& rule : spec.ignore_rules) cc.filter.AddRule(rule, *cc.skeleton, env);
     clients.push_back(std::move(cc));
   }
-  ResolveEntityRules(config, &clients);
   return clients;
 }
 
@@ -503,7 +502,9 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   }
   std::shared_ptr<const Environment> env = LoadEnvironment(config);
   std::vector<ClientConfig> clients = LoadClients(config, *env);
+  // Made once: the configured clients' filters and every live join's.
   RuleTargets rule_targets = RuleTargetsOf(config, clients);
+  ResolveEntityRules(config, rule_targets, &clients);
   // No pose may claim more links than the largest configured skeleton.
   // With live clients: no more than max_links (what a join may ask for).
   security.limits.max_links = config.max_live_clients > 0 ? config.max_links : 1;
