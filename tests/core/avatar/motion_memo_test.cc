@@ -129,13 +129,22 @@ TEST(MotionMemoTest, ReboundMemoAnswersForTheNewMotion) {
 // The smallest case of that regression: a 7-link motion's segments at one
 // time fill slots 0-6; rebound to a 4-link motion, its second time's block
 // is slots 4-7, of which 4-6 held the old motion's segments.
+// A random 7-link motion and a random 4-link one, for the Rebind tests.
+struct SevenThenFour {
+  explicit SevenThenFour(uint64_t seed)
+      : rng(seed),
+        seven(RandomSkeleton(&rng, 7, 0)),
+        four(RandomSkeleton(&rng, 4, 0)),
+        m7(seven, RandomPose(&rng, 7, 1.0), RandomPose(&rng, 7, 1.0), MotionModel::kArticulated),
+        m4(four, RandomPose(&rng, 4, 1.0), RandomPose(&rng, 4, 1.0), MotionModel::kArticulated) {}
+  Rng rng;
+  const Skeleton seven, four;
+  const PairMotion m7, m4;
+};
+
 TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSegments) {
-  Rng rng(0x3e3013);
-  const Skeleton seven = RandomSkeleton(&rng, 7, 0), four = RandomSkeleton(&rng, 4, 0);
-  const PairMotion m7(seven, RandomPose(&rng, 7, 1.0), RandomPose(&rng, 7, 1.0),
-                      MotionModel::kArticulated);
-  const PairMotion m4(four, RandomPose(&rng, 4, 1.0), RandomPose(&rng, 4, 1.0),
-                      MotionModel::kArticulated);
+  const SevenThenFour f(0x3e3013);
+  const PairMotion &m7 = f.m7, &m4 = f.m4;
   MotionMemo memo(m7);
   Eigen::Vector3d a, b, ta, tb;
   for (int l = 0; l < 7; ++l) memo.SegmentAt(l, 0.3, &a, &b);
@@ -152,12 +161,8 @@ TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSegments) {
 // The same for the kept swept capsules: after Rebind to fewer links, a
 // second interval's block overlaps swept slots of the old motion.
 TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSweptCapsules) {
-  Rng rng(0x3e3014);
-  const Skeleton seven = RandomSkeleton(&rng, 7, 0), four = RandomSkeleton(&rng, 4, 0);
-  const PairMotion m7(seven, RandomPose(&rng, 7, 1.0), RandomPose(&rng, 7, 1.0),
-                      MotionModel::kArticulated);
-  const PairMotion m4(four, RandomPose(&rng, 4, 1.0), RandomPose(&rng, 4, 1.0),
-                      MotionModel::kArticulated);
+  const SevenThenFour f(0x3e3014);
+  const PairMotion &m7 = f.m7, &m4 = f.m4;
   MotionMemo memo(m7);
   Eigen::Vector3d a, b, ta, tb;
   double g, tg;
