@@ -2,6 +2,7 @@
 // Reading a whole file from outside with a cap on its size.
 
 #include <cstdint>
+#include <fstream>
 #include <string>
 
 namespace sweptccd {
@@ -9,6 +10,13 @@ namespace sweptccd {
 /// Cap on a skeleton or collision filter JSON file: 16 MiB (a 256-link
 /// skeleton is about 40 KiB).
 inline constexpr uint64_t kMaxJsonFileBytes = uint64_t{16} << 20;
+
+/// Opens the file at `path` for reading (binary). Throws InputError("PATH:
+/// cannot open the WHAT") when it cannot be opened, and ("PATH: is a
+/// folder, where the WHAT should be") for a folder, which opens but fails every read: so
+/// a command refuses it at once, before loading anything else. `what` names
+/// the file's role ("pose stream file").
+std::ifstream OpenInputFile(const std::string& path, const std::string& what);
 
 /// Reads the whole file at `path`, holding at most `max_bytes` of it: a longer
 /// file is refused after reading max_bytes + 1 bytes. `what` names the file's

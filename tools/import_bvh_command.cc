@@ -11,6 +11,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/avatar/pose.h"
 #include "tools/output_paths.h"
@@ -37,8 +38,7 @@ namespace {
 
 // The --radii file: an object of link name -> radius in metres (> 0, finite).
 std::map<std::string, double> ReadRadiiFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the radii file");
+  std::ifstream in = OpenInputFile(path, "radii file");
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(in);

@@ -10,6 +10,7 @@
 
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
 #include "core/avatar/pose.h"
@@ -30,8 +31,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
     RefuseClashingPaths(inputs, {{"--output", options.output_path}});
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
-    std::ifstream poses(options.poses_path, std::ios::binary);
-    if (!poses) throw InputError(options.poses_path + ": cannot open the pose stream file");
+    std::ifstream poses = OpenInputFile(options.poses_path, "pose stream file");
 
     const auto load_start = std::chrono::steady_clock::now();
     const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);

@@ -18,6 +18,7 @@
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/gpu/gl_context.h"
 #include "core/scene/environment.h"
@@ -123,8 +124,7 @@ void Validate(const RenderCommandOptions& o) {
 
 // Every record of the stream under SPEC section 2's pairing rule.
 std::vector<PairOutcome> ReadPairs(const std::string& path, int num_links) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the pose stream file");
+  std::ifstream in = OpenInputFile(path, "pose stream file");
   std::vector<PairOutcome> pairs;
   PoseStreamReader reader(in, num_links);
   while (std::optional<PairOutcome> outcome = reader.Next()) pairs.push_back(std::move(*outcome));

@@ -18,6 +18,7 @@
 #include <random>
 #include <set>
 
+#include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/world/world_file.h"
 #include "sweptccd/object_pose_t.hpp"
@@ -78,8 +79,7 @@ class PoseFileSource : public SampleSource {
         frames_(frames) {}
 
   void Rewind() override {
-    in_ = std::make_unique<std::ifstream>(path_, std::ios::binary);
-    if (!*in_) throw InputError(path_ + ": cannot open the pose stream");
+    in_ = std::make_unique<std::ifstream>(OpenInputFile(path_, "pose stream"));
     // The same cap every pass (without --skeleton: the cap for kDefaultMaxLinks).
     reader_ = std::make_unique<PoseLineReader>(*in_, num_links_, max_line_bytes_);
     returned_ = 0;
@@ -512,8 +512,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
                          "': use ID=POSES.jsonl with an id of 1-64 characters from A-Z a-z 0-9 _ . -");
       }
       const std::string path = spec.substr(eq + 1);
-      std::ifstream in(path);
-      if (!in) throw InputError("--object " + path + ": cannot open the file");
+      std::ifstream in = OpenInputFile(path, "object pose file (--object)");
       std::string line;
       int64_t seq = 0;
       while (std::getline(in, line)) {

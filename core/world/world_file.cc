@@ -53,8 +53,7 @@ int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string&
 }
 
 void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the pose stream file");
+  std::ifstream in = OpenInputFile(path, "pose stream file");
   const int n = avatar->skeleton.num_links();
   PoseLineReader lines(in, n);
   PosePairer pairer;
@@ -75,14 +74,12 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
     if (outcome) avatar->records.push_back(std::move(*outcome));
   }
   if (lines.bad()) {
-    throw InputError(path + ": error while reading the pose stream file (a folder, or a read "
-                            "error)");
+    throw InputError(path + ": error while reading the pose stream file");
   }
 }
 
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the object pose file");
+  std::ifstream in = OpenInputFile(path, "object pose file");
   // A line holds 7 numbers and a utime: a line over 64 KiB is read to its
   // newline without being kept, and is not used (as a malformed line).
   constexpr std::streamsize kMaxLine = 64 << 10;

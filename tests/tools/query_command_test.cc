@@ -698,6 +698,13 @@ TEST_F(QueryCommandTest, PoseAndEnvironmentRefusals) {
   ExpectRefusal({"query", "--skeleton", skeleton_, "--poses", poses, "--env", floor_, "--env",
                  missing_env},
                 {missing_env, "cannot open"}, "missing env file");
+  // A folder opens but fails every read: refused by name, before the
+  // environment is loaded (a missing --env beside it is not what is named).
+  const std::string folder = std::filesystem::path(poses).parent_path().string();
+  ExpectRefusal({"query", "--skeleton", skeleton_, "--poses", folder, "--env", missing_env},
+                {folder, "is a folder, where the pose stream file should be"}, "poses a folder");
+  ExpectRefusal({"query", "--skeleton", folder, "--poses", poses, "--env", floor_},
+                {folder, "is a folder, where the skeleton file should be"}, "skeleton a folder");
   std::string garbage;
   for (int i = 0; i < 3000; ++i) garbage.push_back(static_cast<char>((i * 7919) >> 3));
   for (const char* ext : {"obj", "ply", "stl"}) {

@@ -407,9 +407,9 @@ TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
       // cannot be read (it ended the process).
       {"avatar poses a folder",
        R"({"avatars": [{"id": "a", "skeleton": "bar.json", "poses": ""}]})",
-       "error while reading the pose stream file"},
+       "is a folder, where the pose stream file should be"},
       {"object poses a folder", R"({"objects": [{"id": "cup", "mesh": "cup.obj", "poses": ""}]})",
-       "error while reading"},
+       "is a folder, where the object pose file should be"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
