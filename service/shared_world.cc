@@ -206,9 +206,13 @@ void SharedWorld::RemoveAvatar(const std::string& id, Time now, std::vector<Shar
   if (!Has(id)) return;
   Settle(
       id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
-  pending_.erase(
-      std::remove_if(pending_.begin(), pending_.end(), [&](const Entry& x) { return x.a == id; }),
-      pending_.end());
+  for (auto& [other, e] : entities_) {
+    const size_t before = e.pending.size();
+    e.pending.erase(std::remove_if(e.pending.begin(), e.pending.end(),
+                                   [&](const Entry& x) { return x.a == id; }),
+                    e.pending.end());
+    pending_count_ -= before - e.pending.size();
+  }
   entities_.erase(id);
   order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
 }
@@ -448,17 +452,18 @@ void SharedWorld::Settle(const std::string& id, Pred pred, bool cut, Time now,
                          std::vector<SharedJob>* due) {
   const auto it = entities_.find(id);
   if (it == entities_.end()) return;
-  const Entity& e = it->second;
-  auto keep = pending_.begin();
-  for (auto x = pending_.begin(); x != pending_.end(); ++x) {
-    if (x->e == id && pred(*x)) {
+  Entity& e = it->second;
+  auto keep = e.pending.begin();
+  for (auto x = e.pending.begin(); x != e.pending.end(); ++x) {
+    if (pred(*x)) {
       SettleOne(e, *x, cut, now, due);
       continue;
     }
     if (keep != x) *keep = std::move(*x);
     ++keep;
   }
-  pending_.erase(keep, pending_.end());
+  pending_count_ -= static_cast<size_t>(e.pending.end() - keep);
+  e.pending.erase(keep, e.pending.end());
 }
 
 void SharedWorld::SettleOne(const Entity& e, const Entry& entry, bool cut, Time now,
@@ -499,22 +504,34 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     entry.motion_a = a.motion;
     entry.own_a = a.own;
     entry.pair = shared;
-    entry.e = other;
     entry.created = now;
+    entry.number = next_entry_number_++;
     // Covered already (E is ahead): due now, never pending.
-    const Entity& e = entities_.at(other);
+    Entity& e = entities_.at(other);
     if (Covered(e, entry)) {
       SettleOne(e, entry, /*cut=*/false, now, due);
     } else {
-      pending_.push_back(std::move(entry));
+      e.pending.push_back(std::move(entry));
+      ++pending_count_;
     }
   }
   // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
   // scan of every entry per pair would cost O(entities x pending).)
-  while (static_cast<int>(pending_.size()) > options_.max_pending) {
+  // Over the cap: the oldest entry of all (the least number among the
+  // entities' oldest) is cut, as one list in creation order would cut.
+  while (pending_count_ > static_cast<size_t>(options_.max_pending)) {
+    Entity* oldest = nullptr;
+    for (auto& [other, e] : entities_) {
+      if (!e.pending.empty() &&
+          (oldest == nullptr || e.pending.front().number < oldest->pending.front().number)) {
+        oldest = &e;
+      }
+    }
+    SWEPTCCD_CHECK(oldest != nullptr);
     ++entries_overflowed_;
-    SettleOne(entities_.at(pending_.front().e), pending_.front(), /*cut=*/true, now, due);
-    pending_.pop_front();
+    SettleOne(*oldest, oldest->pending.front(), /*cut=*/true, now, due);
+    oldest->pending.pop_front();
+    --pending_count_;
   }
 }
 

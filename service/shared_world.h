@@ -154,12 +154,12 @@ class SharedWorld {
   /// Cuts every entry whose entity was silent, or that itself waited, for
   /// silence_timeout_us before `now`. The service calls it on the daemon's
   /// silence timer (8 times per timeout, CollisionService::ExpireSilent), so
-  /// a cut comes between 1 and 9/8 of the timeout. O(entities x pending).
+  /// a cut comes between 1 and 9/8 of the timeout. O(entities + pending).
   void CutSilent(Time now, std::vector<SharedJob>* due);
   /// Cuts everything still pending (the service is stopping).
   void CutAll(Time now, std::vector<SharedJob>* due);
 
-  size_t pending() const { return pending_.size(); }
+  size_t pending() const { return pending_count_; }
   /// Entries made ended_by_timeout (silence, a new stream, a removed
   /// avatar, the history cut, stopping), and of those the ones cut early
   /// because more than max_pending waited.
@@ -170,6 +170,19 @@ class SharedWorld {
   int64_t history_size(const std::string& id) const;
 
  private:
+  struct SharedPair : PosePair {
+    Aabb box_a;  // A over the pair (AvatarMotionBox).
+  };
+  struct Entry {
+    std::string a;  // The avatar whose pair it is.
+    std::shared_ptr<const Skeleton> skeleton_a;
+    MotionModel motion_a = MotionModel::kArticulated;
+    std::shared_ptr<const AvatarAnswerOptions> own_a;
+    std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
+    Time created;
+    uint64_t number = 0;  // Creation order over every entity's entries.
+  };
+
   struct Entity {
     std::string id;
     bool is_object = false;
@@ -190,24 +203,14 @@ class SharedWorld {
     bool evicted = false;  // The history dropped older samples of this stream.
     Time last_heard;       // Registration, then every used sample.
     Time last_sample_time;  // Receipt of the newest sample.
+    // The entries waiting for this entity's samples, oldest first: a sample
+    // looks at its own entity's entries only, not at every pending entry.
+    std::deque<Entry> pending;
     size_t size() const { return is_object ? object_samples.size() : avatar_samples.size(); }
     int64_t utime(size_t k) const {
       return is_object ? object_samples[k].utime : avatar_samples[k].utime;
     }
   };
-  struct SharedPair : PosePair {
-    Aabb box_a;  // A over the pair (AvatarMotionBox).
-  };
-  struct Entry {
-    std::string a;  // The avatar whose pair it is.
-    std::shared_ptr<const Skeleton> skeleton_a;
-    MotionModel motion_a = MotionModel::kArticulated;
-    std::shared_ptr<const AvatarAnswerOptions> own_a;
-    std::shared_ptr<const SharedPair> pair;  // Shared by the pair's entries.
-    std::string e;
-    Time created;
-  };
-
   // E's box over its samples k0 -> k1 (k1 == k0 for a one-sample entity).
   static Aabb IntervalBox(const Entity& e, size_t k0, size_t k1);
   // Whether E's box of some interval the window [t_from, t_to] uses (the
@@ -232,7 +235,8 @@ class SharedWorld {
   SharedWorldOptions options_;
   std::map<std::string, Entity> entities_;
   std::vector<std::string> order_;  // Registration order (avatars and objects).
-  std::deque<Entry> pending_;       // Oldest first.
+  size_t pending_count_ = 0;        // Entries in every entity's `pending`.
+  uint64_t next_entry_number_ = 0;
   int64_t entries_cut_ = 0;
   int64_t entries_overflowed_ = 0;
   int64_t entries_cleared_ = 0;

@@ -700,6 +700,70 @@ TEST(SharedWorld, AFullPendingListCutsItsOldestEntry) {
   EXPECT_EQ(f.due[0].t_to, 1'100'000);
 }
 
+// Entries wait per entity (a sample looks at its own entity's entries only);
+// the cap still cuts the oldest entry of all, whichever entity it waits for.
+TEST(SharedWorld, AFullPendingListCutsTheOldestEntryOfAnyEntity) {
+  SharedWorldOptions so;
+  so.silence_timeout_us = 100'000;
+  so.max_pending = 2;
+  SharedWorld live(so);
+  for (const char* id : {"alice", "bob", "carol", "dave"}) {
+    live.AddAvatar(id, Arm(), MotionModel::kArticulated, At(0));
+  }
+  Walker alice{5, {0, 0, 0}}, bob{6, {0.2, 0, 0}}, carol{7, {0.4, 0, 0}}, dave{8, {0.6, 0, 0}};
+  std::vector<SharedJob> due;
+  const auto pair = [](int64_t k, const Pose& p0, const Pose& p1) {
+    PosePair p;
+    p.pair = k, p.seq0 = k, p.seq1 = k + 1, p.pose0 = p0, p.pose1 = p1;
+    p.receive_time = At(10);
+    return p;
+  };
+  // Bob and carol lag: their samples end at 1.005 s.
+  for (int64_t t : {1'000'000, 1'005'000}) {
+    live.OnAvatarSample("bob", 1, bob.Next(t), At(1), &due);
+    live.OnAvatarSample("carol", 1, carol.Next(t), At(1), &due);
+  }
+  const Pose d0 = dave.Next(1'000'000), d1 = dave.Next(1'010'000);
+  live.OnAvatarSample("dave", 1, d0, At(2), &due);
+  live.OnAvatarSample("dave", 1, d1, At(2), &due);
+  const Pose a0 = alice.Next(1'000'000), a1 = alice.Next(1'010'000);
+  live.OnAvatarSample("alice", 1, a0, At(2), &due);
+  live.OnAvatarSample("alice", 1, a1, At(2), &due);
+  // Alice's pair: dave covers it (due at once); it waits for bob, then carol.
+  live.AddPair("alice", pair(0, a0, a1), At(3), &due);
+  ASSERT_EQ(due.size(), 1u);
+  EXPECT_EQ(due[0].entity, "dave");
+  EXPECT_EQ(live.pending(), 2u);
+  due.clear();
+  // Dave's pair: alice covers it (due), bob and carol wait: 4 entries, so
+  // the two oldest, alice's, are cut; dave's stay.
+  live.AddPair("dave", pair(0, d0, d1), At(5), &due);
+  EXPECT_EQ(live.pending(), 2u);
+  EXPECT_EQ(live.entries_overflowed(), 2);
+  ASSERT_EQ(due.size(), 3u);
+  EXPECT_EQ(due[0].client_id, "dave");
+  EXPECT_EQ(due[0].entity, "alice");
+  EXPECT_FALSE(due[0].ended_by_timeout);
+  for (size_t k : {1, 2}) {
+    EXPECT_EQ(due[k].client_id, "alice");
+    EXPECT_TRUE(due[k].ended_by_timeout);
+    EXPECT_EQ(due[k].t_to, 1'005'000);
+  }
+  EXPECT_EQ(due[1].entity, "bob");
+  EXPECT_EQ(due[2].entity, "carol");
+  // What is left is dave's, and it settles when bob and carol catch up.
+  due.clear();
+  live.OnAvatarSample("bob", 1, bob.Next(1'020'000), At(6), &due);
+  live.OnAvatarSample("carol", 1, carol.Next(1'020'000), At(6), &due);
+  ASSERT_EQ(due.size(), 2u);
+  EXPECT_EQ(due[0].client_id, "dave");
+  EXPECT_EQ(due[0].entity, "bob");
+  EXPECT_EQ(due[1].client_id, "dave");
+  EXPECT_EQ(due[1].entity, "carol");
+  EXPECT_FALSE(due[0].ended_by_timeout || due[1].ended_by_timeout);
+  EXPECT_EQ(live.pending(), 0u);
+}
+
 TEST(SharedWorld, AWindowBeforeTheKeptHistoryIsMarkedCut) {
   Fixture f(/*max_history=*/4);
   for (int k = 0; k < 10; ++k) {
