@@ -204,6 +204,19 @@ bool InsideTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& n, const Ei
          n.dot((a - c).cross(q - c)) >= 0;
 }
 
+// p projected onto the plane of the proper triangle (a, b, c) with unit
+// normal n, measured from the vertex nearest p (smaller differences, smaller
+// rounding).
+Eigen::Vector3d ProjectOntoPlane(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                                 const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                 const Eigen::Vector3d& c) {
+  const Eigen::Vector3d& base =
+      (p - a).squaredNorm() <= (p - b).squaredNorm()
+          ? ((p - a).squaredNorm() <= (p - c).squaredNorm() ? a : c)
+          : ((p - b).squaredNorm() <= (p - c).squaredNorm() ? b : c);
+  return p - n * n.dot(p - base);
+}
+
 }  // namespace
 
 Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
@@ -212,12 +225,7 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
   // Project onto the plane; inside: that is the closest point. Outside: the
   // closest point is on the boundary (edges are well-conditioned).
   const Eigen::Vector3d n = StableUnitNormal(a, b, c);
-  // Measure from the nearest vertex: smaller differences, smaller rounding.
-  const Eigen::Vector3d& base =
-      (p - a).squaredNorm() <= (p - b).squaredNorm()
-          ? ((p - a).squaredNorm() <= (p - c).squaredNorm() ? a : c)
-          : ((p - b).squaredNorm() <= (p - c).squaredNorm() ? b : c);
-  const Eigen::Vector3d q = p - n * n.dot(p - base);
+  const Eigen::Vector3d q = ProjectOntoPlane(p, n, a, b, c);
   const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
   if (InsideTriangle(q, n, a, b, c) && (q - p).squaredNorm() <= (edge - p).squaredNorm()) {
     return q;
@@ -272,6 +280,42 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
   }
   best.distance = std::sqrt(best_d2);
   return best;
+}
+
+bool SegmentTriangleWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                           const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const Eigen::Vector3d& c, double radius) {
+  if (!IsDegenerateTriangle(a, b, c)) {
+    const Eigen::Vector3d n = StableUnitNormal(a, b, c);
+    // Both ends on one side of the plane, farther than radius: so is every
+    // point of the segment, and the triangle lies in the plane. The margin
+    // (1e-9 of the magnitudes) is far above the rounding of these plane
+    // distances and of SegmentTriangleDistance, for a triangle whose height
+    // is at least 1e-3 of its longest edge (its normal is then known to
+    // ~1e-13 radians); thinner ones skip this answer.
+    const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
+    const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
+    if (ab.cross(ac).squaredNorm() >= 1e-6 * longest2 * longest2) {
+      const double d0 = n.dot(s0 - a), d1 = n.dot(s1 - a);
+      const double scale = radius + std::sqrt(longest2) +
+                           std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+      if ((d0 > 0) == (d1 > 0) && std::min(std::abs(d0), std::abs(d1)) > radius + 1e-9 * scale) {
+        return false;
+      }
+    }
+    // An end whose projection lies inside the triangle, within radius.
+    // SegmentTriangleDistance considers that end against its closest point
+    // on the triangle (ClosestPointOnTriangle: this projection, or an edge
+    // point nearer still), with the same arithmetic, so its distance is at
+    // most this one: the same answer, without the edges.
+    for (const Eigen::Vector3d* p : {&s0, &s1}) {
+      const Eigen::Vector3d q = ProjectOntoPlane(*p, n, a, b, c);
+      if (InsideTriangle(q, n, a, b, c) && std::sqrt((*p - q).squaredNorm()) <= radius) {
+        return true;
+      }
+    }
+  }
+  return SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius;
 }
 
 }  // namespace sweptccd

@@ -34,6 +34,16 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
                                               const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                               const Eigen::Vector3d& c);
 
+/// SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius, the same
+/// answer for every input, often without the edge tests: a segment beyond
+/// the triangle's plane by more than radius (with a margin far above the
+/// rounding) is refused, and an end whose projection inside the triangle is
+/// within radius is accepted; the rest are measured. The test of the
+/// descent's candidates (EnvironmentTarget::WithinCapsule).
+bool SegmentTriangleWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                           const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                           const Eigen::Vector3d& c, double radius);
+
 /// True when the triangle's area is zero up to rounding (it is then treated as
 /// the union of its three edges).
 bool IsDegenerateTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,

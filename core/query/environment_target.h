@@ -84,7 +84,7 @@ inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c
       PointSegmentDistanceSquared(tc, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9)) {
     return true;
   }
-  return SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
+  return SegmentTriangleWithin(cap.a, cap.b, ta, tb, tc, cap.radius);
 }
 
 }  // namespace sweptccd::internal

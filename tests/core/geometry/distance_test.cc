@@ -38,6 +38,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace sweptccd {
 namespace {
@@ -516,6 +517,79 @@ TEST(DistanceTest, SegmentTriangleDistanceMatchesTwin) {
 
 TEST(DistanceTest, SegmentTriangleDistanceMatchesFullySampledTwin) {
   CheckSegmentTriangle(1500, 0xf011ULL, true);
+}
+
+// SegmentTriangleWithin gives SegmentTriangleDistance(...).distance <= r on
+// every case: the random triangles and segments above (slivers, degenerate
+// triangles, crossing, grazing and zero-length segments, scales 1e-3 to
+// 1e2 m), each at radii around its distance (the distance, one step either
+// side, relative 1e-12, 1e-6 and 1e-3 either side, half, double) and around
+// its ends' distances to the plane, where the early refusal decides.
+TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
+  Gen g(0x3171a5ULL);
+  int disagreements = 0, tested = 0;
+  std::string first;
+  for (int i = 0; i < 200000; ++i) {
+    g.NewScale();
+    Vec3 a, b, c, s0, s1;
+    std::string tri_kind, seg_kind;
+    RandomTriangle(g, &a, &b, &c, &tri_kind);
+    RandomSegment(g, a, b, c, &s0, &s1, &seg_kind);
+    const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
+    std::vector<double> radii = {d,
+                                 std::nextafter(d, 0.0),
+                                 std::nextafter(d, HUGE_VAL),
+                                 d * (1 - 1e-12),
+                                 d * (1 + 1e-12),
+                                 d * (1 - 1e-6),
+                                 d * (1 + 1e-6),
+                                 d * (1 - 1e-3),
+                                 d * (1 + 1e-3),
+                                 0.5 * d,
+                                 2 * d};
+    const Vec3 n = (b - a).cross(c - a);
+    if (n.norm() > 0) {
+      for (const Vec3& e : {s0, s1}) {
+        const double h = std::fabs(n.normalized().dot(e - a));
+        for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
+          radii.push_back(r);
+        }
+      }
+    }
+    for (double r : radii) {
+      if (!(r > 0)) continue;
+      ++tested;
+      const bool within = SegmentTriangleWithin(s0, s1, a, b, c, r);
+      if (within != (d <= r)) {
+        if (disagreements++ == 0) {
+          std::ostringstream os;
+          os.precision(17);
+          os << "case " << i << " (" << tri_kind << ", " << seg_kind << ") s0=" << Fmt(s0)
+             << " s1=" << Fmt(s1) << " a=" << Fmt(a) << " b=" << Fmt(b) << " c=" << Fmt(c)
+             << " distance=" << d << " radius=" << r << " within=" << within;
+          first = os.str();
+        }
+      }
+    }
+  }
+  EXPECT_GT(tested, 2000000);
+  EXPECT_EQ(disagreements, 0) << "first: " << first;
+}
+
+// The two early answers on a floor: a segment above a large triangle is
+// refused by the plane when the radius falls short of its height, and
+// accepted by its end's projection when the radius reaches it; the answers
+// are the distance's (0.1 m).
+TEST(DistanceTest, SegmentTriangleWithinAboveAFloor) {
+  const Vec3 a(-10, 0, -10), b(10, 0, -10), c(0, 0, 10);
+  const Vec3 s0(0.3, 0.1, 0.2), s1(0.3, 0.4, 0.5);
+  const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
+  EXPECT_NEAR(d, 0.1, 1e-15);
+  for (double r : {0.05, 0.0999, d, 0.1001, 0.2}) {
+    EXPECT_EQ(SegmentTriangleWithin(s0, s1, a, b, c, r), d <= r) << r;
+  }
+  EXPECT_FALSE(SegmentTriangleWithin(s0, s1, a, b, c, 0.0999));
+  EXPECT_TRUE(SegmentTriangleWithin(s0, s1, a, b, c, 0.1001));
 }
 
 // Regressions (minimised from the randomised runs above).
