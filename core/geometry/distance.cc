@@ -145,16 +145,31 @@ double SegmentSegmentDistanceSquared(const Eigen::Vector3d& p1, const Eigen::Vec
   return best;
 }
 
+namespace {
+
+// Twice the area squared (|ab x ac|^2) and the longest edge squared.
+struct TriangleShape {
+  double n2 = 0, longest2 = 0;
+  // Height / longest edge > sqrt(f) (n2 = (longest edge * height)^2).
+  bool HeightAbove(double f) const { return n2 > f * longest2 * longest2; }
+};
+
+TriangleShape ShapeOf(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                      const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
+  return {ab.cross(ac).squaredNorm(),
+          std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()})};
+}
+
+}  // namespace
+
 bool IsDegenerateTriangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                           const Eigen::Vector3d& c) {
-  const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
-  const double n2 = ab.cross(ac).squaredNorm();
-  const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
   // |n| = 2 * area = longest edge * height. A height below 1e-8 of the
   // longest edge makes a sliver we treat as its edges: the distance is then
   // off by at most that height, while the plane of a thinner sliver is only
   // known to ~1e-16 * L / h radians, which misplaces the projection by more.
-  return n2 <= 1e-16 * longest2 * longest2;
+  return !ShapeOf(a, b, c).HeightAbove(1e-16);
 }
 
 namespace {
@@ -233,9 +248,26 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
   return edge;
 }
 
-SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
-                                              const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                                              const Eigen::Vector3d& c) {
+namespace {
+
+// SegmentTriangleDistance's steps. With `radius` (not null) only *within
+// matters: whether the distance is at most *radius. It may then be decided
+// early, where an answer implies the full one, and the result is not filled:
+// - both ends on one side of the plane, farther than radius: so is every
+//   point of the segment, and the triangle lies in the plane. The margin
+//   (1e-9 of the magnitudes) is far above the rounding of these plane
+//   distances and of the full distance, for a triangle whose height is at
+//   least 1e-3 of its longest edge (its normal is then known to ~1e-13
+//   radians); thinner ones go on;
+// - an end whose projection lies inside the triangle, within radius: the
+//   full steps consider that end against its closest point on the
+//   triangle (ClosestPointOnTriangle: this projection, by the same
+//   arithmetic, or an edge point nearer still), so their distance is at
+//   most this one.
+SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                                           const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                           const Eigen::Vector3d& c, const double* radius,
+                                           bool* within) {
   SegmentTriangleResult best;
   double best_d2 = std::numeric_limits<double>::infinity();
   auto consider = [&](const Eigen::Vector3d& on_segment, const Eigen::Vector3d& on_triangle) {
@@ -246,23 +278,40 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
       best.p_triangle = on_triangle;
     }
   };
-  const bool degenerate = IsDegenerateTriangle(a, b, c);
-  if (!degenerate) {
-    // Crossing the plane inside the triangle: distance 0.
+  const TriangleShape shape = ShapeOf(a, b, c);
+  if (shape.HeightAbove(1e-16)) {  // Not IsDegenerateTriangle.
     const Eigen::Vector3d n = StableUnitNormal(a, b, c);
     const double d0 = n.dot(s0 - a), d1 = n.dot(s1 - a);
+    if (radius != nullptr && (d0 > 0) == (d1 > 0) && shape.HeightAbove(1e-6)) {
+      const double scale = *radius + std::sqrt(shape.longest2) +
+                           std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+      if (std::min(std::abs(d0), std::abs(d1)) > *radius + 1e-9 * scale) {
+        *within = false;
+        return best;
+      }
+    }
+    // Crossing the plane inside the triangle: distance 0.
     if ((d0 <= 0 && d1 >= 0) || (d0 >= 0 && d1 <= 0)) {
       if (d0 != d1) {
         const double t = d0 / (d0 - d1);
         const Eigen::Vector3d x = s0 + t * (s1 - s0);
         if (InsideTriangle(x, n, a, b, c)) {
-          // Put the triangle's point exactly on its plane (x may be off it by
-          // rounding); the segment's point stays on the segment.
           // They intersect: distance 0. The triangle's point is put exactly
-          // on its plane (x may be off it by rounding, ~1e-16 of the scale).
+          // on its plane (x may be off it by rounding, ~1e-16 of the scale);
+          // the segment's point stays on the segment.
           best.distance = 0;
           best.p_segment = x;
           best.p_triangle = x - n * n.dot(x - a);
+          if (radius != nullptr) *within = true;
+          return best;
+        }
+      }
+    }
+    if (radius != nullptr) {
+      for (const Eigen::Vector3d* p : {&s0, &s1}) {
+        const Eigen::Vector3d q = ProjectOntoPlane(*p, n, a, b, c);
+        if (InsideTriangle(q, n, a, b, c) && std::sqrt((*p - q).squaredNorm()) <= *radius) {
+          *within = true;
           return best;
         }
       }
@@ -279,43 +328,24 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
     consider(c1, c2);
   }
   best.distance = std::sqrt(best_d2);
+  if (radius != nullptr) *within = best.distance <= *radius;
   return best;
+}
+
+}  // namespace
+
+SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                                              const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                              const Eigen::Vector3d& c) {
+  return SegmentTriangleSteps(s0, s1, a, b, c, nullptr, nullptr);
 }
 
 bool SegmentTriangleWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                            const Eigen::Vector3d& c, double radius) {
-  if (!IsDegenerateTriangle(a, b, c)) {
-    const Eigen::Vector3d n = StableUnitNormal(a, b, c);
-    // Both ends on one side of the plane, farther than radius: so is every
-    // point of the segment, and the triangle lies in the plane. The margin
-    // (1e-9 of the magnitudes) is far above the rounding of these plane
-    // distances and of SegmentTriangleDistance, for a triangle whose height
-    // is at least 1e-3 of its longest edge (its normal is then known to
-    // ~1e-13 radians); thinner ones skip this answer.
-    const Eigen::Vector3d ab = b - a, ac = c - a, bc = c - b;
-    const double longest2 = std::max({ab.squaredNorm(), ac.squaredNorm(), bc.squaredNorm()});
-    if (ab.cross(ac).squaredNorm() >= 1e-6 * longest2 * longest2) {
-      const double d0 = n.dot(s0 - a), d1 = n.dot(s1 - a);
-      const double scale = radius + std::sqrt(longest2) +
-                           std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
-      if ((d0 > 0) == (d1 > 0) && std::min(std::abs(d0), std::abs(d1)) > radius + 1e-9 * scale) {
-        return false;
-      }
-    }
-    // An end whose projection lies inside the triangle, within radius.
-    // SegmentTriangleDistance considers that end against its closest point
-    // on the triangle (ClosestPointOnTriangle: this projection, or an edge
-    // point nearer still), with the same arithmetic, so its distance is at
-    // most this one: the same answer, without the edges.
-    for (const Eigen::Vector3d* p : {&s0, &s1}) {
-      const Eigen::Vector3d q = ProjectOntoPlane(*p, n, a, b, c);
-      if (InsideTriangle(q, n, a, b, c) && std::sqrt((*p - q).squaredNorm()) <= radius) {
-        return true;
-      }
-    }
-  }
-  return SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius;
+  bool within = false;
+  SegmentTriangleSteps(s0, s1, a, b, c, &radius, &within);
+  return within;
 }
 
 }  // namespace sweptccd
