@@ -12,10 +12,10 @@ namespace sweptccd {
 inline constexpr uint64_t kMaxJsonFileBytes = uint64_t{16} << 20;
 
 /// Opens the file at `path` for reading (binary). Throws InputError("PATH:
-/// cannot open the WHAT") when it cannot be opened, and ("PATH: is a
-/// folder, where the WHAT should be") for a folder, which opens but fails every read: so
-/// a command refuses it at once, before loading anything else. `what` names
-/// the file's role ("pose stream file").
+/// cannot open the WHAT") when it cannot be opened, and ("PATH: is a folder,
+/// where the WHAT should be") for a folder, which opens but fails every
+/// read: so a command refuses it at once, before loading anything else.
+/// `what` names the file's role ("pose stream file").
 std::ifstream OpenInputFile(const std::string& path, const std::string& what);
 
 /// Reads the whole file at `path`, holding at most `max_bytes` of it: a longer

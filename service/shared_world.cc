@@ -207,14 +207,18 @@ void SharedWorld::RemoveAvatar(const std::string& id, Time now, std::vector<Shar
   Settle(
       id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
   for (auto& [other, e] : entities_) {
-    const size_t before = e.pending.size();
     e.pending.erase(std::remove_if(e.pending.begin(), e.pending.end(),
                                    [&](const Entry& x) { return x.a == id; }),
                     e.pending.end());
-    pending_count_ -= before - e.pending.size();
   }
   entities_.erase(id);
   order_.erase(std::remove(order_.begin(), order_.end(), id), order_.end());
+}
+
+size_t SharedWorld::pending() const {
+  size_t n = 0;
+  for (const auto& [id, e] : entities_) n += e.pending.size();
+  return n;
 }
 
 int64_t SharedWorld::history_size(const std::string& id) const {
@@ -462,7 +466,6 @@ void SharedWorld::Settle(const std::string& id, Pred pred, bool cut, Time now,
     if (keep != x) *keep = std::move(*x);
     ++keep;
   }
-  pending_count_ -= static_cast<size_t>(e.pending.end() - keep);
   e.pending.erase(keep, e.pending.end());
 }
 
@@ -512,14 +515,13 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
       SettleOne(e, entry, /*cut=*/false, now, due);
     } else {
       e.pending.push_back(std::move(entry));
-      ++pending_count_;
     }
   }
   // (Silence is cut by CutSilent, on the daemon's timer: not here, where a
   // scan of every entry per pair would cost O(entities x pending).)
   // Over the cap: the oldest entry of all (the least number among the
   // entities' oldest) is cut, as one list in creation order would cut.
-  while (pending_count_ > static_cast<size_t>(options_.max_pending)) {
+  while (pending() > static_cast<size_t>(options_.max_pending)) {
     Entity* oldest = nullptr;
     for (auto& [other, e] : entities_) {
       if (!e.pending.empty() &&
@@ -531,7 +533,6 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
     ++entries_overflowed_;
     SettleOne(*oldest, oldest->pending.front(), /*cut=*/true, now, due);
     oldest->pending.pop_front();
-    --pending_count_;
   }
 }
 

@@ -159,7 +159,7 @@ class SharedWorld {
   /// Cuts everything still pending (the service is stopping).
   void CutAll(Time now, std::vector<SharedJob>* due);
 
-  size_t pending() const { return pending_count_; }
+  size_t pending() const;  // Entries waiting, over every entity.
   /// Entries made ended_by_timeout (silence, a new stream, a removed
   /// avatar, the history cut, stopping), and of those the ones cut early
   /// because more than max_pending waited.
@@ -235,7 +235,6 @@ class SharedWorld {
   SharedWorldOptions options_;
   std::map<std::string, Entity> entities_;
   std::vector<std::string> order_;  // Registration order (avatars and objects).
-  size_t pending_count_ = 0;        // Entries in every entity's `pending`.
   uint64_t next_entry_number_ = 0;
   int64_t entries_cut_ = 0;
   int64_t entries_overflowed_ = 0;

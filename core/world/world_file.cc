@@ -73,9 +73,7 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
     std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
     if (outcome) avatar->records.push_back(std::move(*outcome));
   }
-  if (lines.bad()) {
-    throw InputError(path + ": error while reading the pose stream file");
-  }
+  if (lines.bad()) throw InputError(path + ": error while reading the pose stream file");
 }
 
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
