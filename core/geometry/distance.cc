@@ -234,12 +234,14 @@ Eigen::Vector3d ProjectOntoPlane(const Eigen::Vector3d& p, const Eigen::Vector3d
 
 }  // namespace
 
-Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
-                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
-  if (IsDegenerateTriangle(a, b, c)) return ClosestPointOnEdges(p, a, b, c);
+namespace {
+
+// ClosestPointOnTriangle for a proper triangle whose StableUnitNormal is n.
+Eigen::Vector3d ClosestPointOnProperTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                                             const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                             const Eigen::Vector3d& c) {
   // Project onto the plane; inside: that is the closest point. Outside: the
   // closest point is on the boundary (edges are well-conditioned).
-  const Eigen::Vector3d n = StableUnitNormal(a, b, c);
   const Eigen::Vector3d q = ProjectOntoPlane(p, n, a, b, c);
   const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
   if (InsideTriangle(q, n, a, b, c) && (q - p).squaredNorm() <= (edge - p).squaredNorm()) {
@@ -247,6 +249,41 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
   }
   return edge;
 }
+
+}  // namespace
+
+Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                       const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  if (IsDegenerateTriangle(a, b, c)) return ClosestPointOnEdges(p, a, b, c);
+  return ClosestPointOnProperTriangle(p, StableUnitNormal(a, b, c), a, b, c);
+}
+
+namespace {
+
+// Whether the segment lies beyond one edge of the triangle, in its plane,
+// by more than radius: both ends farther than radius + margin out along the
+// edge's outward normal within the plane (e x n, unit). The triangle lies on
+// the inner side of that line, so every point of the segment is farther than
+// radius from every point of the triangle. For a triangle at least 1e-3 as
+// high as long, n, and so each edge normal, is known to ~1e-13 radians; the
+// margin (1e-9 of the magnitudes, as the plane refusal's) is far above that
+// and above the rounding of the full distance.
+bool BeyondAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& n,
+                  const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                  double radius, const TriangleShape& shape) {
+  const double scale = radius + std::sqrt(shape.longest2) +
+                       std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+  const double beyond = radius + 1e-9 * scale;
+  const Eigen::Vector3d* v[3] = {&a, &b, &c};
+  for (int e = 0; e < 3; ++e) {
+    const Eigen::Vector3d& p = *v[e];
+    const Eigen::Vector3d out = (*v[(e + 1) % 3] - p).cross(n).normalized();
+    if (out.dot(s0 - p) > beyond && out.dot(s1 - p) > beyond) return true;
+  }
+  return false;
+}
+
+}  // namespace
 
 namespace {
 
@@ -315,10 +352,15 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
           return best;
         }
       }
+      if (shape.HeightAbove(1e-6) && BeyondAnEdge(s0, s1, n, a, b, c, *radius, shape)) {
+        *within = false;
+        return best;
+      }
     }
-    // Segment endpoints against the face.
-    consider(s0, ClosestPointOnTriangle(s0, a, b, c));
-    consider(s1, ClosestPointOnTriangle(s1, a, b, c));
+    // Segment endpoints against the face (ClosestPointOnTriangle: the
+    // triangle is proper and n its StableUnitNormal).
+    consider(s0, ClosestPointOnProperTriangle(s0, n, a, b, c));
+    consider(s1, ClosestPointOnProperTriangle(s1, n, a, b, c));
   }
   // Segment against the three edges (for a degenerate triangle, this is all).
   Eigen::Vector3d c1, c2;

@@ -524,7 +524,8 @@ TEST(DistanceTest, SegmentTriangleDistanceMatchesFullySampledTwin) {
 // triangles, crossing, grazing and zero-length segments, scales 1e-3 to
 // 1e2 m), each at radii around its distance (the distance, one step either
 // side, relative 1e-12, 1e-6 and 1e-3 either side, half, double) and around
-// its ends' distances to the plane, where the early refusal decides.
+// its ends' distances to the plane and beyond each edge, where the early
+// refusals decide.
 TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
   Gen g(0x3171a5ULL);
   int disagreements = 0, tested = 0;
@@ -551,6 +552,17 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
     if (n.norm() > 0) {
       for (const Vec3& e : {s0, s1}) {
         const double h = std::fabs(n.normalized().dot(e - a));
+        for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
+          radii.push_back(r);
+        }
+      }
+      // How far the nearer end lies beyond each edge, in the plane: where
+      // the edge refusal decides.
+      const Vec3* v[3] = {&a, &b, &c};
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 out = (*v[(k + 1) % 3] - *v[k]).cross(n.normalized()).normalized();
+        const double h = std::min(out.dot(s0 - *v[k]), out.dot(s1 - *v[k]));
+        if (!(h > 0)) continue;
         for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
           radii.push_back(r);
         }
@@ -586,6 +598,21 @@ TEST(DistanceTest, SegmentTriangleWithinAboveAFloor) {
   const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
   EXPECT_NEAR(d, 0.1, 1e-15);
   for (double r : {0.05, 0.0999, d, 0.1001, 0.2}) {
+    EXPECT_EQ(SegmentTriangleWithin(s0, s1, a, b, c, r), d <= r) << r;
+  }
+  EXPECT_FALSE(SegmentTriangleWithin(s0, s1, a, b, c, 0.0999));
+  EXPECT_TRUE(SegmentTriangleWithin(s0, s1, a, b, c, 0.1001));
+}
+
+// The edge refusal: a segment in the triangle's plane band, 0.1 m beyond its
+// edge ab (and nearest that edge), is refused when the radius falls short of
+// 0.1 m and accepted when it reaches it; the answers are the distance's.
+TEST(DistanceTest, SegmentTriangleWithinBesideAnEdge) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0.5, 0, 1);
+  const Vec3 s0(0.3, 0.05, -0.1), s1(0.6, -0.02, -0.1);
+  const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
+  EXPECT_NEAR(d, 0.1, 1e-15);
+  for (double r : {0.05, 0.0999, std::nextafter(d, 0.0), d, 0.1001, 0.2}) {
     EXPECT_EQ(SegmentTriangleWithin(s0, s1, a, b, c, r), d <= r) << r;
   }
   EXPECT_FALSE(SegmentTriangleWithin(s0, s1, a, b, c, 0.0999));
