@@ -59,6 +59,24 @@ void BM_SweptCapsule(benchmark::State& state) {
 }
 BENCHMARK(BM_SweptCapsule);
 
+// The motion of one pair of a 30 Hz walk (every link's relative transform,
+// bounds, and poses and segments at s = 0, 0.5 and 1): the part of a pair's
+// fixed cost that comes before any culling.
+void BM_PairMotionWalk(benchmark::State& state) {
+  MocapImportOptions mo;
+  mo.frame_step = 4;
+  const MocapClip clip = ImportBvhFile(kData + "/mocap/cmu_02_01_walk.bvh.gz", mo);
+  size_t k = 0;
+  for (auto _ : state) {
+    const size_t i = k++ % (clip.poses.size() - 1);
+    const PairMotion motion(clip.skeleton, clip.poses[i], clip.poses[i + 1],
+                            MotionModel::kArticulated);
+    benchmark::DoNotOptimize(motion);
+  }
+  state.counters["links"] = clip.skeleton.num_links();
+}
+BENCHMARK(BM_PairMotionWalk)->Unit(benchmark::kMicrosecond);
+
 // One pair of a 30 Hz walk through the grey & white room (143k triangles).
 void BM_QueryWalkGreyRoom(benchmark::State& state) {
   static const Environment env =

@@ -104,6 +104,65 @@ double SecondOrderGrowth(double chord, double accel, double angular_accel, doubl
       .hi();
 }
 
+LinkBounds LinkBoundsByIntervals(double half_angle, double own_speed_hi, double lever_hi,
+                                 const LinkBounds* parent) {
+  // Slerp turns at the constant rate 2 * half_angle; the nlerp fallback
+  // below kNlerpAngle turns at most (1 + 1e-12) times that: 2 * half_angle,
+  // widened for the rounding of atan2 and the nlerp fallback.
+  const Interval own_angular = Interval(2.0) * Interval::Outward(half_angle, half_angle, 8) *
+                               Interval(1.0, 1.0 + 1e-12);
+  // Only the upper end of |p1 - p0| reaches a bound: sums' upper ends add
+  // upper ends, and its one product, with 2 w_k (upper end >= |lower end|),
+  // peaks at the two upper ends whatever its lower end. So the point at the
+  // upper end gives the same bits as the interval norm (and so for |c|).
+  const Interval own_speed(own_speed_hi);
+  LinkBounds out;
+  if (parent == nullptr) {
+    // Linear position, and slerp turns about a fixed world axis: no
+    // acceleration at all.
+    out.angular = own_angular.hi();
+    out.speed = own_speed.hi();
+    return out;
+  }
+  // Composition adds angular velocities, and the position of a child
+  // p_k + R_k c moves at most |p_k'| + |w_k| |c| + |c'|.
+  const Interval lever(lever_hi);
+  const Interval wk(parent->angular);
+  out.angular = (wk + own_angular).hi();
+  out.speed = (Interval(parent->speed) + wk * lever + own_speed).hi();
+  // The relative slerp turns at a constant rate about an axis fixed in the
+  // parent frame, so w_i = w_k + R_k u with |u| = own angle and
+  // w_i' = w_k' + w_k x (R_k u). For p_i = p_k + R_k c(s), c linear:
+  // p_i'' = p_k'' + w_k' x R_k c + w_k x (w_k x R_k c) + 2 w_k x R_k c'.
+  out.angular_accel = (Interval(parent->angular_accel) + wk * own_angular).hi();
+  out.accel = (Interval(parent->accel) + Interval(parent->angular_accel) * lever +
+               wk * wk * lever + Interval(2.0) * wk * own_speed)
+                  .hi();
+  return out;
+}
+
+bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
+                           const LinkBounds* parent, LinkBounds* out) {
+  const double own_angular = Up(Up(2.0 * Interval::StepUp(half_angle, 8)) * (1.0 + 1e-12));
+  LinkBounds b;
+  if (parent == nullptr) {
+    b.angular = own_angular;
+    b.speed = own_speed;
+  } else {
+    const double wk = parent->angular;
+    b.angular = Up(wk + own_angular);
+    b.speed = Up(Up(parent->speed + Up(wk * lever)) + own_speed);
+    b.angular_accel = Up(parent->angular_accel + Up(wk * own_angular));
+    b.accel = Up(Up(Up(parent->accel + Up(parent->angular_accel * lever)) + Up(Up(wk * wk) * lever)) +
+                 Up(Up(2.0 * wk) * own_speed));
+  }
+  if (!Finite(b.angular) || !Finite(b.speed) || !Finite(b.accel) || !Finite(b.angular_accel)) {
+    return false;
+  }
+  *out = b;
+  return true;
+}
+
 }  // namespace internal
 
 Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
@@ -128,7 +187,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     LinkMotion& m = links_[i];
     m.a_L = link.a_L;
     m.b_L = link.b_L;
-    m.extent = std::max(NormHi(link.a_L), NormHi(link.b_L));  // Hull(...).hi()
+    m.extent = skeleton.extent(i);  // Hull(Norm(a), Norm(b)).hi()
     const LinkPose& x0 = pose0.links[i];
     const LinkPose& x1 = pose1.links[i];
     if (model == MotionModel::kArticulated && link.parent >= 0) {
@@ -155,42 +214,25 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
                       m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
-  // Speed bounds, parents first. Slerp turns at the constant rate
-  // 2 * half_angle; the nlerp fallback below kNlerpAngle turns at most
-  // (1 + 1e-12) times that. Composition adds angular velocities, and the
-  // position of a child p_k + R_k c moves at most |p_k'| + |w_k| |c| + |c'|.
+  // Speed bounds, parents first (internal::LinkBoundsByIntervals).
   for (int i : order_) {
     LinkMotion& m = links_[i];
-    // 2 * half_angle, widened for the rounding of atan2 and the nlerp fallback.
-    const Interval own_angular = Interval(2.0) * Interval::Outward(m.half_angle, m.half_angle, 8) *
-                                 Interval(1.0, 1.0 + 1e-12);
-    // Only the upper end of this norm reaches a bound: sums' upper ends add
-    // upper ends, and its one product, with 2 w_k (upper end >= |lower end|),
-    // peaks at the two upper ends whatever its lower end. So the point at the
-    // upper end gives the same bits as Norm(m.p1 - m.p0).
-    const Interval own_speed(NormHi(m.p1 - m.p0));
-    if (m.parent < 0) {
-      // Linear position, and slerp turns about a fixed world axis: no
-      // acceleration at all.
-      m.angular_bound = own_angular.hi();
-      m.speed_bound = own_speed.hi();
-      m.accel_bound = 0;
-      m.angular_accel_bound = 0;
-    } else {
+    internal::LinkBounds parent;
+    if (m.parent >= 0) {
       const LinkMotion& k = links_[m.parent];
-      const Interval lever(std::max(NormHi(m.p0), NormHi(m.p1)));  // Hull(...).hi()
-      const Interval wk(k.angular_bound);
-      m.angular_bound = (wk + own_angular).hi();
-      m.speed_bound = (Interval(k.speed_bound) + wk * lever + own_speed).hi();
-      // The relative slerp turns at a constant rate about an axis fixed in the
-      // parent frame, so w_i = w_k + R_k u with |u| = own angle and
-      // w_i' = w_k' + w_k x (R_k u). For p_i = p_k + R_k c(s), c linear:
-      // p_i'' = p_k'' + w_k' x R_k c + w_k x (w_k x R_k c) + 2 w_k x R_k c'.
-      m.angular_accel_bound = (Interval(k.angular_accel_bound) + wk * own_angular).hi();
-      m.accel_bound = (Interval(k.accel_bound) + Interval(k.angular_accel_bound) * lever +
-                       wk * wk * lever + Interval(2.0) * wk * own_speed)
-                          .hi();
+      parent = {k.speed_bound, k.angular_bound, k.accel_bound, k.angular_accel_bound};
     }
+    const double own_speed = NormHi(m.p1 - m.p0);
+    const double lever = m.parent < 0 ? 0.0 : std::max(NormHi(m.p0), NormHi(m.p1));
+    const internal::LinkBounds* k = m.parent < 0 ? nullptr : &parent;
+    internal::LinkBounds b;
+    if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, k, &b)) {
+      b = internal::LinkBoundsByIntervals(m.half_angle, own_speed, lever, k);
+    }
+    m.speed_bound = b.speed;
+    m.angular_bound = b.angular;
+    m.accel_bound = b.accel;
+    m.angular_accel_bound = b.angular_accel;
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.

@@ -41,6 +41,23 @@ double FirstOrderGrowth(double speed, double angular, double extent, double slac
 double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
                          double extent, double slack, double s0, double s1);
 
+/// A link's bounds over the pair (upper ends, per unit s): origin speed,
+/// angular speed, origin acceleration, angular acceleration.
+struct LinkBounds {
+  double speed = 0, angular = 0, accel = 0, angular_accel = 0;
+};
+/// PairMotion's bounds of one link in interval arithmetic, from its own
+/// slerp half angle (radians, >= 0), the upper ends of its own speed
+/// |p1 - p0| and of its lever max(|p0|, |p1|) (positions relative to its
+/// parent; both >= 0), and its parent's bounds (null: it moves on its own,
+/// and the lever is unused).
+LinkBounds LinkBoundsByIntervals(double half_angle, double own_speed, double lever,
+                                 const LinkBounds* parent);
+/// The same bits from the upper ends alone, as the growth bounds above: false
+/// (leaving *out) where a step does not stay finite.
+bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
+                           const LinkBounds* parent, LinkBounds* out);
+
 }  // namespace internal
 
 /// The interpolated motion of every link of a skeleton between two valid poses

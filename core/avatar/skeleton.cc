@@ -9,6 +9,7 @@
 
 #include "core/bounded_file.h"
 #include "core/errors.h"
+#include "core/geometry/interval.h"
 #include "core/json_text.h"
 #include "core/avatar/pose.h"
 
@@ -109,6 +110,11 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
   }
   SWEPTCCD_CHECK(static_cast<int>(skel.order_.size()) == n);
   skel.links_ = std::move(links);
+  skel.extents_.reserve(n);
+  for (const Link& l : skel.links_) {
+    skel.extents_.push_back(std::max(NormUpper(l.a_L.x(), l.a_L.y(), l.a_L.z()),
+                                     NormUpper(l.b_L.x(), l.b_L.y(), l.b_L.z())));
+  }
   return skel;
 }
 

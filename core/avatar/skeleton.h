@@ -31,6 +31,9 @@ class Skeleton {
   const Link& link(int i) const { return links_[i]; }
   const std::vector<Link>& links() const { return links_; }
   int root() const { return root_; }
+  /// max(|a_L|, |b_L|) of link i, rounded up (the upper end of the
+  /// interval norm): the farthest point of its segment from its origin.
+  double extent(int i) const { return extents_[i]; }
   /// Every link after its parent (root first).
   const std::vector<int>& topological_order() const { return order_; }
   /// Index of the link called `name`, or -1.
@@ -41,6 +44,7 @@ class Skeleton {
   std::vector<Link> links_;
   int root_ = -1;
   std::vector<int> order_;
+  std::vector<double> extents_;  // By link index.
 };
 
 /// Default limit on a skeleton's link count: the engine's cost per pair grows

@@ -895,5 +895,59 @@ TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
   }
 }
 
+// The link bounds from upper ends alone give the interval arithmetic's bits
+// wherever they answer, and decline only where a step overflows (an operand
+// above 1e100 here): random
+// half angles (0 to pi, zero, subnormal), speeds, levers and parent bounds
+// from 0 through subnormals to 1e300, roots and children.
+TEST(MotionTest, LinkBoundsUpperEndsMatchIntervalsBitForBit) {
+  std::mt19937_64 g(0xb0b5);
+  std::uniform_real_distribution<double> u01(0, 1);
+  auto value = [&]() {
+    const double r = u01(g);
+    if (r < 0.1) return 0.0;
+    if (r < 0.15) return std::ldexp(u01(g), -1060);  // Subnormal.
+    if (r < 0.6) return 10 * u01(g);
+    return std::pow(10.0, -300 + 600 * u01(g)) * u01(g);
+  };
+  auto angle = [&]() {
+    const double r = u01(g);
+    if (r < 0.1) return 0.0;
+    if (r < 0.15) return std::ldexp(u01(g), -1060);
+    if (r < 0.3) return 1e-6 * u01(g);  // Around the nlerp fallback.
+    return M_PI * u01(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  int declined = 0;
+  for (int k = 0; k < 1'000'000; ++k) {
+    const double half_angle = angle(), own_speed = value(), lever = value();
+    internal::LinkBounds parent{value(), value(), value(), value()};
+    const internal::LinkBounds* p = u01(g) < 0.2 ? nullptr : &parent;
+    const internal::LinkBounds want =
+        internal::LinkBoundsByIntervals(half_angle, own_speed, lever, p);
+    internal::LinkBounds got;
+    if (!internal::LinkBoundsByUpperEnds(half_angle, own_speed, lever, p, &got)) {
+      // Declining is safe (the caller then takes the intervals' bounds); it
+      // must only happen where some operand is huge.
+      ++declined;
+      const double largest = std::max({own_speed, lever, parent.speed, parent.angular,
+                                       parent.accel, parent.angular_accel});
+      ASSERT_GT(largest, 1e100) << k << ": declined with every operand at most 1e100";
+      continue;
+    }
+    ASSERT_EQ(bits(got.speed), bits(want.speed)) << k;
+    ASSERT_EQ(bits(got.angular), bits(want.angular)) << k;
+    ASSERT_EQ(bits(got.accel), bits(want.accel)) << k;
+    ASSERT_EQ(bits(got.angular_accel), bits(want.angular_accel)) << k;
+  }
+  // Products of two values up to 1e300 overflow often: both paths are taken.
+  EXPECT_GT(declined, 10000);
+  EXPECT_LT(declined, 900000);
+}
+
 }  // namespace
 }  // namespace sweptccd
