@@ -182,6 +182,34 @@ TEST(SkeletonTest, RandomTreesInAnyOrderAreAccepted) {
   }
 }
 
+// Each link's extent bounds the distance of its segment's ends from its
+// origin from above, by a few ulps at most: the brute force is the larger
+// of the two ends' norms, in long double.
+TEST(SkeletonTest, ExtentIsTheFartherEndRoundedUp) {
+  std::mt19937_64 g(0xe7e47);
+  std::uniform_real_distribution<double> u(-2, 2);
+  std::vector<Link> links(200);
+  for (int i = 0; i < 200; ++i) {
+    links[i].name = "l" + std::to_string(i);
+    links[i].parent = i - 1;
+    links[i].radius = 0.05;
+    const double scale = std::pow(10.0, std::uniform_int_distribution<int>(-6, 2)(g));
+    links[i].a_L = scale * Eigen::Vector3d(u(g), u(g), u(g));
+    links[i].b_L = scale * Eigen::Vector3d(u(g), u(g), u(g));
+    if (i % 7 == 0) links[i].b_L.setZero();
+  }
+  const Skeleton s = Skeleton::FromLinks("random", links, kSource);
+  for (int i = 0; i < 200; ++i) {
+    auto norm = [](const Eigen::Vector3d& v) {
+      const long double x = v.x(), y = v.y(), z = v.z();
+      return std::sqrt(x * x + y * y + z * z);
+    };
+    const long double want = std::max(norm(links[i].a_L), norm(links[i].b_L));
+    EXPECT_GE(static_cast<long double>(s.extent(i)), want) << i;
+    EXPECT_LE(static_cast<long double>(s.extent(i)), want * (1 + 1e-14L)) << i;
+  }
+}
+
 TEST(SkeletonTest, SphereLinkIsAccepted) {
   Entry e = Named("ball", "null");
   e.a = e.b = "[0.1, 0.2, 0.3]";
