@@ -44,7 +44,7 @@ bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, doub
     double search = reach;
     bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
       bvh.Triangle(slot, &ta, &tb, &tc);
-      touches = SegmentTriangleDistance(a, b, ta, tb, tc).distance <= reach;
+      touches = SegmentTriangleWithin(a, b, ta, tb, tc, reach);  // The distance's answer.
       return !touches;
     });
   }
