@@ -58,6 +58,11 @@ Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::
 // bit, without its lower end (interval.h, NormUpper): every bound below reads
 // only the upper end of a norm.
 double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
+// max(NormHi(u), NormHi(v)), bit for bit, with one square root.
+double MaxNormHi(const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
+  return NormUpperOfSum(std::max(SumOfSquaresUpper(u.x(), u.y(), u.z()),
+                                 SumOfSquaresUpper(v.x(), v.y(), v.z())));
+}
 
 }  // namespace
 
@@ -223,7 +228,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       parent = {k.speed_bound, k.angular_bound, k.accel_bound, k.angular_accel_bound};
     }
     const double own_speed = NormHi(m.p1 - m.p0);
-    const double lever = m.parent < 0 ? 0.0 : std::max(NormHi(m.p0), NormHi(m.p1));
+    const double lever = m.parent < 0 ? 0.0 : MaxNormHi(m.p0, m.p1);
     const internal::LinkBounds* k = m.parent < 0 ? nullptr : &parent;
     internal::LinkBounds b;
     if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, k, &b)) {
@@ -398,7 +403,7 @@ void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
   const double first_order = SweepRadius(link, s0, s1);
   // Any link point x: |P''| <= |p''| + (|w'| + |w|^2) |x|. Each of the
   // three evaluated segments is off by at most rounding_slack_.
-  const double chord = std::max(NormHi(a1 - a0), NormHi(b1 - b0));
+  const double chord = MaxNormHi(a1 - a0, b1 - b0);
   const double second_order =
       internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
                                   m.extent, rounding_slack_, s0, s1);

@@ -134,12 +134,21 @@ inline Interval Sqrt(const Interval& x) {
 /// same roundings of the upper ends), without the lower ends: the motion's
 /// bounds only ever read the upper end of a norm. Each Sqr's upper end is
 /// x * x stepped up once (for x = 0 too: Sqr clamps the lower end only).
-inline double NormUpper(double x, double y, double z) {
-  const double sum = Interval::StepUp(
+/// NormUpper's two steps: the rounded-up sum of squares, then its rounded-up
+/// square root. Both are nondecreasing, so the larger of two NormUppers is
+/// NormUpperOfSum of the larger sum (one square root instead of two).
+inline double SumOfSquaresUpper(double x, double y, double z) {
+  return Interval::StepUp(
       Interval::StepUp(Interval::StepUp(x * x, 1) + Interval::StepUp(y * y, 1), 1) +
           Interval::StepUp(z * z, 1),
       1);
+}
+inline double NormUpperOfSum(double sum) {
   return Interval::StepUp(std::sqrt(std::max(0.0, sum)), Interval::kLibmUlps);
+}
+
+inline double NormUpper(double x, double y, double z) {
+  return NormUpperOfSum(SumOfSquaresUpper(x, y, z));
 }
 
 /// sin over an interval, using monotone pieces between the extrema.

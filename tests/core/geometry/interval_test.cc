@@ -385,6 +385,35 @@ TEST(IntervalTest, NormUpperEqualsIntervalNormBitForBit) {
   EXPECT_EQ(checks, 2'000'000);
 }
 
+// The larger of two NormUppers from one square root (NormUpperOfSum of the
+// larger SumOfSquaresUpper): its twin is the larger of the two NormUppers,
+// bit for bit, on finite coordinates from subnormal to overflowing squares.
+TEST(IntervalTest, LargerNormFromTheLargerSumBitForBit) {
+  std::mt19937_64 g(0x4a11);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  auto pick = [&]() {
+    const double r = u01(g);
+    if (r < 0.05) return 0.0;
+    if (r < 0.5) return std::uniform_real_distribution<double>(-3, 3)(g);
+    return RandomValue(g);
+  };
+  auto bits = [](double v) {
+    uint64_t b;
+    std::memcpy(&b, &v, sizeof b);
+    return b;
+  };
+  for (int k = 0; k < 1'000'000; ++k) {
+    const double x0 = pick(), y0 = pick(), z0 = pick();
+    double x1 = pick(), y1 = pick(), z1 = pick();
+    if (u01(g) < 0.1) x1 = x0, y1 = y0, z1 = std::nextafter(z0, kInf);  // Near ties.
+    if (!std::isfinite(x1) || !std::isfinite(y1) || !std::isfinite(z1)) continue;
+    const double want = std::max(NormUpper(x0, y0, z0), NormUpper(x1, y1, z1));
+    const double got = NormUpperOfSum(
+        std::max(SumOfSquaresUpper(x0, y0, z0), SumOfSquaresUpper(x1, y1, z1)));
+    ASSERT_EQ(bits(got), bits(want)) << k << ": " << Num(got) << " vs " << Num(want);
+  }
+}
+
 // operator* takes a shortcut for valid, finite, non-negative operands; its
 // brute-force twin is the general rule (Outward of the least and greatest of
 // the four end products), compared bit for bit.
