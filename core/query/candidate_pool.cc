@@ -23,7 +23,7 @@ bool CandidatePool::CollectFromBvh(const LinkCapsule& cap, ObjectIndex object,
         cap.a, cap.b, &radius,
         [&](uint32_t slot) {
           const Candidate c{static_cast<uint32_t>(o.value()), slot};
-          if (!Within(cap, c)) return true;
+          if (!WithinFromQuery(cap, c)) return true;
           entries_.push_back(c);
           // Past the cap the list is not worth keeping: stop early.
           overflow = entries_.size() - start > static_cast<size_t>(max_candidates_);
@@ -43,7 +43,7 @@ bool CandidatePool::AnyWithin(const LinkCapsule& cap, ObjectIndex object, uint32
   target_.bvh(object).QueryCapsuleShrinking(
       cap.a, cap.b, &radius,
       [&](uint32_t slot) {
-        found = Within(cap, Candidate{static_cast<uint32_t>(object.value()), slot});
+        found = WithinFromQuery(cap, Candidate{static_cast<uint32_t>(object.value()), slot});
         return !found;
       },
       start_node);

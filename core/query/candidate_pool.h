@@ -60,6 +60,11 @@ class CandidatePool {
     ++*triangle_tests_;
     return target_.WithinCapsule(capsule, candidate);
   }
+  // Within, for a candidate the BVH query with this capsule just passed.
+  bool WithinFromQuery(const LinkCapsule& capsule, Candidate candidate) {
+    ++*triangle_tests_;
+    return target_.WithinCapsuleFromQuery(capsule, candidate);
+  }
 
   const EnvironmentTarget& target_;
   int max_candidates_;

@@ -44,6 +44,11 @@ class EnvironmentTarget {
   /// Whether the candidate's triangle comes within the capsule (conservative
   /// towards "inside" by a relative 1e-9 on the cheap tests, exact otherwise).
   bool WithinCapsule(const LinkCapsule& capsule, Candidate candidate) const;
+  /// As WithinCapsule (the same answer), for a candidate that a BVH query
+  /// with this capsule's segment and radius has just passed: the query has
+  /// applied the bounding-sphere refusal already, with wider margins, so it
+  /// is not repeated.
+  bool WithinCapsuleFromQuery(const LinkCapsule& capsule, Candidate candidate) const;
 
   /// As CcdEngine::TouchesAt and CcdEngine::Separation (which call these).
   bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const;
@@ -60,6 +65,10 @@ class EnvironmentTarget {
                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                            const SegmentTriangleResult& r, const Eigen::Vector3d& ta,
                            const Eigen::Vector3d& tb, const Eigen::Vector3d& tc) const;
+
+  static bool VertexInsideOrWithin(const LinkCapsule& cap, const Eigen::Vector3d& d, double dd,
+                                   double da, const Eigen::Vector3d& ta, const Eigen::Vector3d& tb,
+                                   const Eigen::Vector3d& tc);
 
   const Skeleton& skeleton_;
   const Environment& env_;
@@ -79,6 +88,25 @@ inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c
   const double da = PointSegmentDistanceSquared(ta, cap.a, d, dd);
   const double far = cap.radius + reach;
   if (da > far * far * (1 + 1e-9)) return false;
+  return VertexInsideOrWithin(cap, d, dd, da, ta, tb, tc);
+}
+
+inline bool EnvironmentTarget::WithinCapsuleFromQuery(const LinkCapsule& cap, Candidate c) const {
+  Eigen::Vector3d ta, tb, tc;
+  env_.object(static_cast<int>(c.object)).bvh.Triangle(c.slot, &ta, &tb, &tc);
+  const Eigen::Vector3d d = cap.b - cap.a;
+  const double dd = d.squaredNorm();
+  return VertexInsideOrWithin(cap, d, dd, PointSegmentDistanceSquared(ta, cap.a, d, dd), ta, tb,
+                              tc);
+}
+
+// WithinCapsule after its sphere refusal: a vertex inside the capsule
+// (accept; da is ta's squared distance to the segment), else the exact test.
+inline bool EnvironmentTarget::VertexInsideOrWithin(const LinkCapsule& cap,
+                                                    const Eigen::Vector3d& d, double dd, double da,
+                                                    const Eigen::Vector3d& ta,
+                                                    const Eigen::Vector3d& tb,
+                                                    const Eigen::Vector3d& tc) {
   if (da <= cap.radius * cap.radius * (1 - 1e-9) ||
       PointSegmentDistanceSquared(tb, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9) ||
       PointSegmentDistanceSquared(tc, cap.a, d, dd) <= cap.radius * cap.radius * (1 - 1e-9)) {

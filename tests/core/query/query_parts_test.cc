@@ -5,11 +5,16 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <vector>
 
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+#include "core/geometry/distance.h"
+#include "core/query/candidate_pool.h"
 #include "core/query/cull_batcher.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
@@ -56,6 +61,93 @@ class FakeCuller : public CapsuleCuller {
   mutable std::vector<LinkCapsule> asked;
   mutable int round_trips = 0;
 };
+
+// The candidate tests against their brute-force twin, the exact distance:
+// for random capsules among a random soup of small and large, thin and
+// sliver triangles (two objects), the pool's BVH collection lists exactly
+// the triangles within the capsule, AnyWithin says whether there is one,
+// and WithinCapsule gives each triangle the distance's answer; capsules are
+// also shrunk to just below and just above a listed triangle's distance.
+TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
+  Rng rng(0xca9d);
+  Environment env;
+  for (int o = 0; o < 2; ++o) {
+    TriangleMesh mesh;
+    for (int t = 0; t < 400; ++t) {
+      const Eigen::Vector3d c = rng.Box(1.5);
+      const double size = rng.P(0.2) ? rng.U(0.5, 3) : rng.U(0.005, 0.3);
+      Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
+      if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
+      if (rng.P(0.05)) d = b = a;                                                 // A point.
+      for (const Eigen::Vector3d& v : {a, b, d}) {
+        mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
+        mesh.vertices.push_back(v.cast<float>());
+      }
+    }
+    env.AddMesh(mesh, "soup" + std::to_string(o));
+  }
+  std::vector<Link> links(1);
+  links[0].name = "l";
+  links[0].radius = 0.05;
+  const Skeleton skeleton = Skeleton::FromLinks("one", links, "query_parts_test");
+  const CollisionFilter filter(1, env.num_objects());
+  const EnvironmentTarget target(skeleton, env, filter);
+  int64_t tests = 0;
+  int listed_total = 0, disagreements = 0;
+  auto check = [&](const LinkCapsule& cap) {
+    std::vector<Candidate> want;
+    for (int o = 0; o < env.num_objects(); ++o) {
+      const TriangleBvh& bvh = env.object(o).bvh;
+      for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
+        Eigen::Vector3d ta, tb, tc;
+        bvh.Triangle(slot, &ta, &tb, &tc);
+        const bool within = SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
+        const Candidate c{static_cast<uint32_t>(o), slot};
+        disagreements += target.WithinCapsule(cap, c) != within;
+        if (within) want.push_back(c);
+      }
+    }
+    CandidatePool pool(target, 1 << 20, &tests);
+    EXPECT_TRUE(pool.CollectFromBvh(cap));
+    std::vector<Candidate> got(pool.entries().begin(), pool.entries().end());
+    auto key = [](const Candidate& c) { return (uint64_t{c.object} << 32) | c.slot; };
+    auto less = [&](const Candidate& x, const Candidate& y) { return key(x) < key(y); };
+    std::sort(got.begin(), got.end(), less);
+    std::sort(want.begin(), want.end(), less);
+    EXPECT_EQ(got.size(), want.size());
+    for (size_t k = 0; k < std::min(got.size(), want.size()); ++k) {
+      EXPECT_EQ(key(got[k]), key(want[k]));
+    }
+    for (int o = 0; o < env.num_objects(); ++o) {
+      const bool any = std::any_of(want.begin(), want.end(),
+                                   [&](const Candidate& c) { return c.object == uint32_t(o); });
+      EXPECT_EQ(pool.AnyWithin(cap, ObjectIndex(o), 0), any);
+    }
+    listed_total += static_cast<int>(want.size());
+    return want;
+  };
+  for (int i = 0; i < 300; ++i) {
+    LinkCapsule cap;
+    cap.link = LinkIndex(0);
+    cap.a = rng.Box(1.8);
+    cap.b = rng.P(0.1) ? cap.a : Eigen::Vector3d(cap.a + rng.U(0, 1) * rng.Dir());
+    cap.radius = rng.U(0.001, 0.4);
+    const std::vector<Candidate> listed = check(cap);
+    if (listed.empty()) continue;
+    // At a listed triangle's distance: the radius one step either side.
+    const Candidate c = listed[rng.I(static_cast<int>(listed.size()))];
+    Eigen::Vector3d ta, tb, tc;
+    env.object(static_cast<int>(c.object)).bvh.Triangle(c.slot, &ta, &tb, &tc);
+    const double d = SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance;
+    if (d <= 0) continue;
+    for (double r : {std::nextafter(d, 0.0), d, d * (1 + 1e-9)}) {
+      cap.radius = r;
+      check(cap);
+    }
+  }
+  EXPECT_EQ(disagreements, 0);
+  EXPECT_GT(listed_total, 1000);  // Capsules that meet triangles, not only misses.
+}
 
 TEST(QueryPartsTest, SweptCapsuleIsOneRadiusComputedOneWay) {
   Rng rng(11);
