@@ -80,7 +80,8 @@ inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c
   Eigen::Vector3d ta, tb, tc;
   env_.object(static_cast<int>(c.object)).bvh.Triangle(c.slot, &ta, &tb, &tc);
   // Cheap answers first: the triangle's bounding sphere around ta misses
-  // the capsule (reject), or a vertex is inside it (accept). Both compare
+  // the capsule (reject), its box misses the capsule's (reject, below), or
+  // a vertex is inside it (accept). The sphere and vertex tests compare
   // squared distances with a relative margin of 1e-9 towards "inside".
   const Eigen::Vector3d d = cap.b - cap.a;
   const double dd = d.squaredNorm();
@@ -88,6 +89,18 @@ inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c
   const double da = PointSegmentDistanceSquared(ta, cap.a, d, dd);
   const double far = cap.radius + reach;
   if (da > far * far * (1 + 1e-9)) return false;
+  // The triangle's box clear of the capsule's (the segment's box grown by
+  // the radius) on some axis, by more than 1e-9 of the magnitudes: every
+  // point of it is farther than the radius (the BVH query's leaf test, which
+  // refinements from a list do not pass through).
+  const Eigen::Vector3d seg_lo = cap.a.cwiseMin(cap.b), seg_hi = cap.a.cwiseMax(cap.b);
+  const double grow =
+      cap.radius + 1e-9 * (1 + cap.radius + std::max(seg_lo.cwiseAbs().maxCoeff(),
+                                                     seg_hi.cwiseAbs().maxCoeff()));
+  if ((ta.cwiseMax(tb).cwiseMax(tc).array() < seg_lo.array() - grow).any() ||
+      (ta.cwiseMin(tb).cwiseMin(tc).array() > seg_hi.array() + grow).any()) {
+    return false;
+  }
   return VertexInsideOrWithin(cap, d, dd, da, ta, tb, tc);
 }
 
