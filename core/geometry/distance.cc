@@ -345,9 +345,15 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
       }
     }
     if (radius != nullptr) {
-      for (const Eigen::Vector3d* p : {&s0, &s1}) {
-        const Eigen::Vector3d q = ProjectOntoPlane(*p, n, a, b, c);
-        if (InsideTriangle(q, n, a, b, c) && std::sqrt((*p - q).squaredNorm()) <= *radius) {
+      // The ends' projections, kept for their face tests below (the same
+      // bits as ClosestPointOnProperTriangle's).
+      Eigen::Vector3d q[2];
+      bool inside[2];
+      const Eigen::Vector3d* ends[2] = {&s0, &s1};
+      for (int k = 0; k < 2; ++k) {
+        q[k] = ProjectOntoPlane(*ends[k], n, a, b, c);
+        inside[k] = InsideTriangle(q[k], n, a, b, c);
+        if (inside[k] && std::sqrt((*ends[k] - q[k]).squaredNorm()) <= *radius) {
           *within = true;
           return best;
         }
@@ -356,11 +362,25 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
         *within = false;
         return best;
       }
+      // Only whether the least distance is at most radius matters: the
+      // square root is nondecreasing, so it is, exactly when one of the
+      // distances considered is. Stop at the first.
+      for (int k = 0; k < 2; ++k) {
+        const Eigen::Vector3d& p = *ends[k];
+        const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
+        const Eigen::Vector3d& face =
+            inside[k] && (q[k] - p).squaredNorm() <= (edge - p).squaredNorm() ? q[k] : edge;
+        if (std::sqrt((p - face).squaredNorm()) <= *radius) {
+          *within = true;
+          return best;
+        }
+      }
+    } else {
+      // Segment endpoints against the face (ClosestPointOnTriangle: the
+      // triangle is proper and n its StableUnitNormal).
+      consider(s0, ClosestPointOnProperTriangle(s0, n, a, b, c));
+      consider(s1, ClosestPointOnProperTriangle(s1, n, a, b, c));
     }
-    // Segment endpoints against the face (ClosestPointOnTriangle: the
-    // triangle is proper and n its StableUnitNormal).
-    consider(s0, ClosestPointOnProperTriangle(s0, n, a, b, c));
-    consider(s1, ClosestPointOnProperTriangle(s1, n, a, b, c));
   }
   // Segment against the three edges (for a degenerate triangle, this is all).
   Eigen::Vector3d c1, c2;
@@ -368,6 +388,10 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
   for (int e = 0; e < 3; ++e) {
     SegmentSegmentDistanceSquared(s0, s1, *verts[e], *verts[(e + 1) % 3], &c1, &c2);
     consider(c1, c2);
+    if (radius != nullptr && std::sqrt(best_d2) <= *radius) {  // As above: the first suffices.
+      *within = true;
+      return best;
+    }
   }
   best.distance = std::sqrt(best_d2);
   if (radius != nullptr) *within = best.distance <= *radius;
