@@ -300,7 +300,11 @@ namespace {
 //   full steps consider that end against its closest point on the
 //   triangle (ClosestPointOnTriangle: this projection, by the same
 //   arithmetic, or an edge point nearer still), so their distance is at
-//   most this one.
+//   most this one;
+// - both ends beyond one edge, in the plane, farther than radius
+//   (BeyondAnEdge; the plane refusal's margin and triangles);
+// - otherwise the full steps, stopping at the first distance within
+//   radius (the least is within exactly when one is).
 SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                            const Eigen::Vector3d& c, const double* radius,

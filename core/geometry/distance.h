@@ -36,10 +36,11 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
 
 /// SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius, the same
 /// answer for every input, often without the edge tests: a segment beyond
-/// the triangle's plane by more than radius (with a margin far above the
-/// rounding) is refused, and an end whose projection inside the triangle is
-/// within radius is accepted; the rest are measured. The test of the
-/// descent's candidates (EnvironmentTarget::WithinCapsule).
+/// the triangle's plane, or beyond one of its edges in its plane, by more
+/// than radius (with a margin far above the rounding) is refused, and an end
+/// whose projection inside the triangle is within radius is accepted; the
+/// rest are measured, up to the first distance within radius. The test of
+/// the descent's candidates (EnvironmentTarget::WithinCapsule).
 bool SegmentTriangleWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                            const Eigen::Vector3d& c, double radius);
