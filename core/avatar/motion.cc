@@ -158,7 +158,8 @@ bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
     b.angular = Up(wk + own_angular);
     b.speed = Up(Up(parent->speed + Up(wk * lever)) + own_speed);
     b.angular_accel = Up(parent->angular_accel + Up(wk * own_angular));
-    b.accel = Up(Up(Up(parent->accel + Up(parent->angular_accel * lever)) + Up(Up(wk * wk) * lever)) +
+    b.accel = Up(Up(Up(parent->accel + Up(parent->angular_accel * lever)) +
+                    Up(Up(wk * wk) * lever)) +
                  Up(Up(2.0 * wk) * own_speed));
   }
   if (!Finite(b.angular) || !Finite(b.speed) || !Finite(b.accel) || !Finite(b.angular_accel)) {
@@ -222,22 +223,12 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // Speed bounds, parents first (internal::LinkBoundsByIntervals).
   for (int i : order_) {
     LinkMotion& m = links_[i];
-    internal::LinkBounds parent;
-    if (m.parent >= 0) {
-      const LinkMotion& k = links_[m.parent];
-      parent = {k.speed_bound, k.angular_bound, k.accel_bound, k.angular_accel_bound};
-    }
+    const internal::LinkBounds* parent = m.parent < 0 ? nullptr : &links_[m.parent].bounds;
     const double own_speed = NormHi(m.p1 - m.p0);
-    const double lever = m.parent < 0 ? 0.0 : MaxNormHi(m.p0, m.p1);
-    const internal::LinkBounds* k = m.parent < 0 ? nullptr : &parent;
-    internal::LinkBounds b;
-    if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, k, &b)) {
-      b = internal::LinkBoundsByIntervals(m.half_angle, own_speed, lever, k);
+    const double lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
+    if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, parent, &m.bounds)) {
+      m.bounds = internal::LinkBoundsByIntervals(m.half_angle, own_speed, lever, parent);
     }
-    m.speed_bound = b.speed;
-    m.angular_bound = b.angular;
-    m.accel_bound = b.accel;
-    m.angular_accel_bound = b.angular_accel;
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
@@ -370,7 +361,7 @@ void PairMotion::SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* 
 double PairMotion::SweepRadius(int link, double s0, double s1) const {
   const LinkMotion& m = links_[link];
   // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
-  return internal::FirstOrderGrowth(m.speed_bound, m.angular_bound, m.extent, rounding_slack_,
+  return internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_,
                                     s0, s1);
 }
 
@@ -405,15 +396,15 @@ void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
   // three evaluated segments is off by at most rounding_slack_.
   const double chord = MaxNormHi(a1 - a0, b1 - b0);
   const double second_order =
-      internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
+      internal::SecondOrderGrowth(chord, m.bounds.accel, m.bounds.angular_accel, m.bounds.angular,
                                   m.extent, rounding_slack_, s0, s1);
   *growth = std::min(first_order, second_order);
 }
 
 double PairMotion::SecondOrderRadius(int link, double chord, double s0, double s1) const {
   const LinkMotion& m = links_[link];
-  return internal::SecondOrderGrowth(chord, m.accel_bound, m.angular_accel_bound, m.angular_bound,
-                                     m.extent, rounding_slack_, s0, s1);
+  return internal::SecondOrderGrowth(chord, m.bounds.accel, m.bounds.angular_accel,
+                                     m.bounds.angular, m.extent, rounding_slack_, s0, s1);
 }
 
 }  // namespace sweptccd

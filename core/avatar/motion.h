@@ -98,9 +98,9 @@ class PairMotion {
                      Eigen::Vector3d* p_WB) const;
 
   /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
-  double origin_speed_bound(int link) const { return links_[link].speed_bound; }
+  double origin_speed_bound(int link) const { return links_[link].bounds.speed; }
   /// Upper bound on the angular speed of the link frame (radians per unit s).
-  double angular_speed_bound(int link) const { return links_[link].angular_bound; }
+  double angular_speed_bound(int link) const { return links_[link].bounds.angular; }
 
   /// Upper bound on how far any point of link i's segment can be, at any s in
   /// [s0, s1], from where the same point of the link is at the midpoint
@@ -156,10 +156,7 @@ class PairMotion {
     // 0.5 and 1 needs no other sine (SlerpPrepared's values, bit for bit).
     double sin_half = 0, inv_sin_half = 0, sin_quarter = 0;
     Eigen::Vector3d a_L, b_L;
-    double speed_bound = 0;
-    double angular_bound = 0;
-    double accel_bound = 0;
-    double angular_accel_bound = 0;
+    internal::LinkBounds bounds;  // Over the whole pair.
     double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
     int depth = 1;      // Links from the root to this one, both counted.
   };

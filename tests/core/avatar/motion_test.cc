@@ -99,6 +99,13 @@ Eigen::Vector3d RandomUnitVector(std::mt19937_64& g) {
   return v.normalized();
 }
 
+// The bits of a double, for bit-for-bit comparisons.
+uint64_t Bits(double v) {
+  uint64_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+
 double LogUniform(std::mt19937_64& g, double lo_exp, double hi_exp) {
   return std::pow(10.0, std::uniform_real_distribution<double>(lo_exp, hi_exp)(g));
 }
@@ -862,11 +869,6 @@ TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
     if (r < 0.5) return 10 * u01(g);
     return std::pow(10.0, -300 + 600 * u01(g)) * u01(g);
   };
-  auto bits = [](double v) {
-    uint64_t b;
-    std::memcpy(&b, &v, sizeof b);
-    return b;
-  };
   for (int k = 0; k < 1'000'000; ++k) {
     const double speed = value(), angular = value(), extent = value(), slack = value();
     const double accel = value(), angular_accel = value(), chord = value();
@@ -886,11 +888,11 @@ TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
     const double second = (Interval(chord) * Interval(0.5) + Interval(0.25) * Sqr(width) * acc +
                            Interval(4.0) * Interval(slack))
                               .hi();
-    ASSERT_EQ(bits(internal::FirstOrderGrowth(speed, angular, extent, slack, s0, s1)), bits(first))
+    ASSERT_EQ(Bits(internal::FirstOrderGrowth(speed, angular, extent, slack, s0, s1)), Bits(first))
         << k;
-    ASSERT_EQ(bits(internal::SecondOrderGrowth(chord, accel, angular_accel, angular, extent, slack,
+    ASSERT_EQ(Bits(internal::SecondOrderGrowth(chord, accel, angular_accel, angular, extent, slack,
                                                s0, s1)),
-              bits(second))
+              Bits(second))
         << k;
   }
 }
@@ -917,11 +919,6 @@ TEST(MotionTest, LinkBoundsUpperEndsMatchIntervalsBitForBit) {
     if (r < 0.3) return 1e-6 * u01(g);  // Around the nlerp fallback.
     return M_PI * u01(g);
   };
-  auto bits = [](double v) {
-    uint64_t b;
-    std::memcpy(&b, &v, sizeof b);
-    return b;
-  };
   int declined = 0;
   for (int k = 0; k < 1'000'000; ++k) {
     const double half_angle = angle(), own_speed = value(), lever = value();
@@ -939,10 +936,10 @@ TEST(MotionTest, LinkBoundsUpperEndsMatchIntervalsBitForBit) {
       ASSERT_GT(largest, 1e100) << k << ": declined with every operand at most 1e100";
       continue;
     }
-    ASSERT_EQ(bits(got.speed), bits(want.speed)) << k;
-    ASSERT_EQ(bits(got.angular), bits(want.angular)) << k;
-    ASSERT_EQ(bits(got.accel), bits(want.accel)) << k;
-    ASSERT_EQ(bits(got.angular_accel), bits(want.angular_accel)) << k;
+    ASSERT_EQ(Bits(got.speed), Bits(want.speed)) << k;
+    ASSERT_EQ(Bits(got.angular), Bits(want.angular)) << k;
+    ASSERT_EQ(Bits(got.accel), Bits(want.accel)) << k;
+    ASSERT_EQ(Bits(got.angular_accel), Bits(want.angular_accel)) << k;
   }
   // Products of two values up to 1e300 overflow often: both paths are taken.
   EXPECT_GT(declined, 10000);

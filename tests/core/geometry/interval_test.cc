@@ -64,6 +64,13 @@ bool Encloses(const Interval& r, LD v) {
   return static_cast<LD>(r.lo()) <= v && v <= static_cast<LD>(r.hi());
 }
 
+// The bits of a double, for bit-for-bit comparisons.
+uint64_t Bits(double v) {
+  uint64_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+
 // A random double from a mix of scales: ordinary, huge, tiny, subnormal,
 // integers, and values next to multiples of pi/2 (where sin/cos turn or vanish).
 double RandomValue(std::mt19937_64& g) {
@@ -374,11 +381,8 @@ TEST(IntervalTest, NormUpperEqualsIntervalNormBitForBit) {
     const double x = pick(), y = pick(), z = pick();
     const Interval full = Sqrt(Sqr(Interval(x)) + Sqr(Interval(y)) + Sqr(Interval(z)));
     const double upper = NormUpper(x, y, z);
-    uint64_t a, b;
-    std::memcpy(&a, &upper, sizeof a);
     const double want = full.hi();
-    std::memcpy(&b, &want, sizeof b);
-    ASSERT_EQ(a, b) << "x " << Num(x) << " y " << Num(y) << " z " << Num(z) << ": " << Num(upper)
+    ASSERT_EQ(Bits(upper), Bits(want)) << "x " << Num(x) << " y " << Num(y) << " z " << Num(z) << ": " << Num(upper)
                     << " vs " << Num(want);
     ++checks;
   }
@@ -397,11 +401,6 @@ TEST(IntervalTest, LargerNormFromTheLargerSumBitForBit) {
     if (r < 0.5) return std::uniform_real_distribution<double>(-3, 3)(g);
     return RandomValue(g);
   };
-  auto bits = [](double v) {
-    uint64_t b;
-    std::memcpy(&b, &v, sizeof b);
-    return b;
-  };
   for (int k = 0; k < 1'000'000; ++k) {
     const double x0 = pick(), y0 = pick(), z0 = pick();
     double x1 = pick(), y1 = pick(), z1 = pick();
@@ -410,7 +409,7 @@ TEST(IntervalTest, LargerNormFromTheLargerSumBitForBit) {
     const double want = std::max(NormUpper(x0, y0, z0), NormUpper(x1, y1, z1));
     const double got = NormUpperOfSum(
         std::max(SumOfSquaresUpper(x0, y0, z0), SumOfSquaresUpper(x1, y1, z1)));
-    ASSERT_EQ(bits(got), bits(want)) << k << ": " << Num(got) << " vs " << Num(want);
+    ASSERT_EQ(Bits(got), Bits(want)) << k << ": " << Num(got) << " vs " << Num(want);
   }
 }
 
@@ -429,11 +428,6 @@ TEST(IntervalTest, ProductShortcutEqualsFourProductRuleBitForBit) {
     if (r < 0.6) return std::fabs(RandomValue(g));
     return RandomValue(g);
   };
-  auto bits = [](double v) {
-    uint64_t b;
-    std::memcpy(&b, &v, sizeof b);
-    return b;
-  };
   for (int k = 0; k < 2'000'000; ++k) {
     double a0 = pick(), a1 = pick(), b0 = pick(), b1 = pick();
     if (u01(g) < 0.9) {  // Mostly valid intervals; some inverted ones too.
@@ -446,8 +440,8 @@ TEST(IntervalTest, ProductShortcutEqualsFourProductRuleBitForBit) {
     const Interval want =
         Interval::Outward(*std::min_element(p, p + 4), *std::max_element(p, p + 4), 1);
     const Interval got = A * B;
-    ASSERT_EQ(bits(got.lo()), bits(want.lo())) << Describe(A) << " * " << Describe(B);
-    ASSERT_EQ(bits(got.hi()), bits(want.hi())) << Describe(A) << " * " << Describe(B);
+    ASSERT_EQ(Bits(got.lo()), Bits(want.lo())) << Describe(A) << " * " << Describe(B);
+    ASSERT_EQ(Bits(got.hi()), Bits(want.hi())) << Describe(A) << " * " << Describe(B);
   }
 }
 
