@@ -109,6 +109,17 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
     for (int c : children[skel.order_[head]]) skel.order_.push_back(c);
   }
   SWEPTCCD_CHECK(static_cast<int>(skel.order_.size()) == n);
+  // Preorder with an explicit stack (chains may be deep): children pushed
+  // last-first, so they come out in index order.
+  skel.depth_first_.reserve(n);
+  std::vector<int> stack{root};
+  while (!stack.empty()) {
+    const int k = stack.back();
+    stack.pop_back();
+    skel.depth_first_.push_back(k);
+    stack.insert(stack.end(), children[k].rbegin(), children[k].rend());
+  }
+  SWEPTCCD_CHECK(static_cast<int>(skel.depth_first_.size()) == n);
   skel.links_ = std::move(links);
   skel.extents_.reserve(n);
   for (const Link& l : skel.links_) {

@@ -36,6 +36,10 @@ class Skeleton {
   double extent(int i) const { return extents_[i]; }
   /// Every link after its parent (root first).
   const std::vector<int>& topological_order() const { return order_; }
+  /// Every link after its parent, each subtree contiguous (root first,
+  /// children in index order): links near each other in the tree are near
+  /// each other in this order.
+  const std::vector<int>& depth_first_order() const { return depth_first_; }
   /// Index of the link called `name`, or -1.
   int FindLink(const std::string& name) const;
 
@@ -44,6 +48,7 @@ class Skeleton {
   std::vector<Link> links_;
   int root_ = -1;
   std::vector<int> order_;
+  std::vector<int> depth_first_;
   std::vector<double> extents_;  // By link index.
 };
 

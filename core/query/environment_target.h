@@ -35,6 +35,7 @@ class EnvironmentTarget {
                     const CollisionFilter& filter)
       : skeleton_(skeleton), env_(environment), filter_(filter) {}
 
+  const Skeleton& skeleton() const { return skeleton_; }
   int num_objects() const { return env_.num_objects(); }
   const TriangleBvh& bvh(ObjectIndex object) const { return env_.object(object).bvh; }
   /// Whether the link is never tested (filtered from every object).

@@ -81,7 +81,7 @@ void QueryRun::CullWholePair() {
 // Which links the whole-pair capsules leave open (of those the culler did
 // not clear).
 void QueryRun::CollectRoots() {
-  roots_.emplace(target_, bounds_, num_links_, &pool_);
+  roots_.emplace(target_, bounds_, &pool_);
   roots_->FindOpen(cleared_by_culler_);
 }
 

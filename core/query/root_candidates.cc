@@ -6,9 +6,9 @@
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
-                               int num_links, CandidatePool* pool)
-    : target_(target), pool_(*pool) {
-  const int n = num_links;
+                               CandidatePool* pool)
+    : target_(target), pool_(*pool), depth_first_(target.skeleton().depth_first_order()) {
+  const int n = target.skeleton().num_links();
   links_.resize(n);
   for (LinkIndex l(0); l < n; ++l) {
     links_[l].capsule = bounds.Over(l, 0, 1);
@@ -21,10 +21,10 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
 }
 
 void RootCandidates::FindOpen(const std::vector<bool>& skip) {
-  const int n = static_cast<int>(links_.size());
   for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
     link_order_.clear();
-    for (LinkIndex l(0); l < n; ++l) {
+    for (int i : depth_first_) {
+      const LinkIndex l(i);
       if (!target_.Ignores(l, o) && !skip[l] && !links_[l].open) link_order_.push_back(l);
     }
     if (link_order_.empty()) continue;
@@ -47,14 +47,6 @@ void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last
     link_nodes_[index] = node;
     return;
   }
-  int axis = 0;
-  (node.box.hi - node.box.lo).maxCoeff(&axis);
-  std::sort(link_order_.begin() + first, link_order_.begin() + last,
-            [&](LinkIndex x, LinkIndex y) {
-              const double cx = links_[x].box.lo[axis] + links_[x].box.hi[axis];
-              const double cy = links_[y].box.lo[axis] + links_[y].box.hi[axis];
-              return cx != cy ? cx < cy : x < y;
-            });
   const uint32_t half = first + node.count / 2;
   node.left = static_cast<uint32_t>(link_nodes_.size());  // Children side by side.
   link_nodes_[index] = node;

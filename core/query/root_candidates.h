@@ -17,8 +17,7 @@ namespace sweptccd::internal {
 class RootCandidates {
  public:
   /// The whole-pair capsules; nothing is open (Find marks them).
-  RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, int num_links,
-                 CandidatePool* pool);
+  RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool);
 
   /// Marks open every link not in `skip` (cleared by the culler already)
   /// whose whole-pair capsule meets some primitive. A link leaves at its
@@ -27,6 +26,8 @@ class RootCandidates {
   /// tested against the whole avatar's box once, not against every link's;
   /// a link is still tested against every node its own box meets, and
   /// searched (AnyWithin) from the node where it is alone, as in Collect.
+  /// Which links are open does not depend on the tree's shape (only the
+  /// work and the triangle-test count do).
   void FindOpen(const std::vector<bool>& skip);
   bool Open(LinkIndex link) const { return links_[link].open; }
   /// Collects into the pool, for every open link not in `skip` (closed
@@ -66,8 +67,9 @@ class RootCandidates {
     uint32_t waiting = 0;
   };
   // Fills link_nodes_[index] with link_order_[first, last) and builds its
-  // subtree (halves at the median of the box centres along the widest axis
-  // of the union, as SplitLinks).
+  // subtree from the halves of that range. link_order_ follows the
+  // skeleton's depth-first order, in which every subtree of the kinematic
+  // tree is contiguous, so a limb's links share nodes: no sorting per query.
   void BuildLinkTree(uint32_t index, uint32_t first, uint32_t last, uint32_t parent);
   void FindDual(uint32_t link_node, ObjectIndex object, uint32_t env_node);
 
@@ -84,6 +86,7 @@ class RootCandidates {
   CandidatePool& pool_;
   std::vector<LinkRoot> links_;  // By link index.
   std::vector<LinkIndex> scratch_;
+  const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;  // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
 };

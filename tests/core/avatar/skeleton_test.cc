@@ -144,10 +144,12 @@ TEST(SkeletonTest, ChildBeforeParentIsAccepted) {
   EXPECT_EQ(s.link(0).parent, 1);
   EXPECT_EQ(s.link(1).parent, 2);
   EXPECT_EQ(s.topological_order(), (std::vector<int>{2, 1, 0}));
+  EXPECT_EQ(s.depth_first_order(), (std::vector<int>{2, 1, 0}));
 }
 
 // Random trees of 1-30 links written in a random order: each parses, keeps the
-// file's indices, and the topological order puts every parent first.
+// file's indices, the topological order puts every parent first, and the
+// depth-first order keeps every subtree together.
 TEST(SkeletonTest, RandomTreesInAnyOrderAreAccepted) {
   std::mt19937_64 g(0x5ce1e701);
   for (int c = 0; c < 2000; ++c) {
@@ -177,6 +179,39 @@ TEST(SkeletonTest, RandomTreesInAnyOrderAreAccepted) {
       ASSERT_GE(position[i], 0);
       if (s.link(i).parent >= 0) {
         EXPECT_LT(position[s.link(i).parent], position[i]);
+      }
+    }
+    // The depth-first order: a permutation in which every subtree (found by
+    // walking each link's ancestors) fills the positions right after its
+    // root, and siblings come in index order.
+    const std::vector<int>& dfs = s.depth_first_order();
+    ASSERT_EQ(static_cast<int>(dfs.size()), n);
+    std::vector<int> at(n, -1);
+    for (int k = 0; k < n; ++k) {
+      ASSERT_EQ(at[dfs[k]], -1);
+      at[dfs[k]] = k;
+    }
+    for (int top = 0; top < n; ++top) {
+      int size = 0;
+      for (int i = 0; i < n; ++i) {
+        int k = i;
+        while (k != -1 && k != top) k = s.link(k).parent;
+        if (k != top) continue;
+        ++size;
+      }
+      for (int i = 0; i < n; ++i) {
+        int k = i;
+        while (k != -1 && k != top) k = s.link(k).parent;
+        if (k != top) continue;
+        EXPECT_GE(at[i], at[top]);
+        EXPECT_LT(at[i], at[top] + size);
+      }
+      for (int i = 0; i < n; ++i) {
+        for (int j = i + 1; j < n; ++j) {
+          if (s.link(i).parent == top && s.link(j).parent == top) {
+            EXPECT_LT(at[i], at[j]);
+          }
+        }
       }
     }
   }
