@@ -182,7 +182,33 @@ double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1) {
 
 PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
                        MotionModel model)
-    : model_(model), order_(skeleton.topological_order()) {
+    : PairMotion(skeleton, pose0, pose1, model, nullptr) {}
+
+PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
+                       MotionModel model, Storage* storage)
+    : model_(model) {
+  if (storage != nullptr) {
+    links_ = std::move(storage->links);
+    order_ = std::move(storage->order);
+    poses_at_ends_ = std::move(storage->poses);
+    segments_at_ends_ = std::move(storage->segments);
+  }
+  order_.assign(skeleton.topological_order().begin(), skeleton.topological_order().end());
+  Build(skeleton, pose0, pose1);
+}
+
+void PairMotion::Release(Storage* storage) {
+  storage->links = std::move(links_);
+  storage->order = std::move(order_);
+  storage->poses = std::move(poses_at_ends_);
+  storage->segments = std::move(segments_at_ends_);
+  links_.clear();
+  order_.clear();
+  poses_at_ends_.clear();
+  segments_at_ends_.clear();
+}
+
+void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1) {
   const int n = skeleton.num_links();
   SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
   SWEPTCCD_CHECK(static_cast<int>(pose1.links.size()) == n);
@@ -191,12 +217,15 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   for (int i = 0; i < n; ++i) {
     const Link& link = skeleton.link(i);
     LinkMotion& m = links_[i];
+    // Every field is written below: the array may hold an earlier motion.
+    m.parent = -1;
+    m.depth = 1;
     m.a_L = link.a_L;
     m.b_L = link.b_L;
     m.extent = skeleton.extent(i);  // Hull(Norm(a), Norm(b)).hi()
     const LinkPose& x0 = pose0.links[i];
     const LinkPose& x1 = pose1.links[i];
-    if (model == MotionModel::kArticulated && link.parent >= 0) {
+    if (model_ == MotionModel::kArticulated && link.parent >= 0) {
       const LinkPose& k0 = pose0.links[link.parent];
       const LinkPose& k1 = pose1.links[link.parent];
       m.parent = link.parent;
@@ -212,6 +241,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     }
     m.q1 = ShortestArcTarget(m.q0, m.q1);
     m.half_angle = QuatAngle4D(m.q0, m.q1);
+    m.sin_half = m.inv_sin_half = m.sin_quarter = 0;
     if (m.half_angle >= kNlerpAngle) {
       m.sin_half = std::sin(m.half_angle);
       m.inv_sin_half = 1.0 / m.sin_half;

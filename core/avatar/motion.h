@@ -69,6 +69,17 @@ class PairMotion {
   /// quaternions and finite numbers (as ValidateAndNormalizePose leaves them).
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model);
 
+  /// The arrays of a motion no longer needed, for the next one to reuse (a
+  /// query keeps one per thread, so a pair allocates nothing for its
+  /// motion). Holds no motion; its contents are overwritten.
+  struct Storage;
+  /// As above, built in `storage`'s arrays (taken; null: fresh ones). The
+  /// same motion, bit for bit.
+  PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
+             Storage* storage);
+  /// Gives the arrays back for another motion; this motion is left empty.
+  void Release(Storage* storage);
+
   int num_links() const { return static_cast<int>(links_.size()); }
   MotionModel model() const { return model_; }
 
@@ -167,6 +178,9 @@ class PairMotion {
   // PosesAt into num_links() poses at X_WL.
   void PosesAtInto(double s, LinkPose* X_WL) const;
 
+  // Fills every field of links_ (storage may hold an earlier motion's).
+  void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1);
+
   MotionModel model_;
   std::vector<LinkMotion> links_;
   std::vector<int> order_;
@@ -179,6 +193,14 @@ class PairMotion {
   // order, 6 per link: the whole-pair swept capsule of every link reads
   // exactly those.
   std::vector<Eigen::Vector3d> segments_at_ends_;
+
+ public:
+  struct Storage {
+    std::vector<LinkMotion> links;
+    std::vector<int> order;
+    std::vector<LinkPose> poses;
+    std::vector<Eigen::Vector3d> segments;
+  };
 };
 
 }  // namespace sweptccd

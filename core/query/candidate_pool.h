@@ -28,6 +28,14 @@ class CandidatePool {
  public:
   CandidatePool(const EnvironmentTarget& target, int max_candidates, int64_t* triangle_tests);
 
+  /// Starts the pool in `storage`'s array (emptied; its capacity kept), so a
+  /// query can reuse an earlier one's; Release gives it back.
+  void Adopt(std::vector<Candidate>&& storage) {
+    entries_ = std::move(storage);
+    entries_.clear();
+  }
+  std::vector<Candidate> Release() { return std::move(entries_); }
+
   /// Appends every unfiltered primitive within the capsule (of capsule.link),
   /// found through the target's BVHs: all objects, or only `object` from BVH
   /// node `start_node` when object is valid. Returns false, appending

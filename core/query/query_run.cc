@@ -6,20 +6,64 @@
 
 namespace sweptccd::internal {
 
+namespace {
+
+// One set of arrays per thread, between its queries. Past these sizes they
+// are freed instead (a rare large query should not pin its memory).
+thread_local std::unique_ptr<QueryBuffers> spare_buffers;
+constexpr size_t kKeptLinks = 1024;
+constexpr size_t kKeptCandidates = size_t{1} << 16;
+constexpr size_t kKeptIntervals = 4096;
+
+std::unique_ptr<QueryBuffers> TakeBuffers() {
+  if (spare_buffers != nullptr) return std::move(spare_buffers);
+  return std::make_unique<QueryBuffers>();
+}
+
+template <class T>
+void FreeIfAbove(std::vector<T>* v, size_t most) {
+  if (v->capacity() > most) std::vector<T>().swap(*v);
+}
+
+}  // namespace
+
 QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
                    const QueryOptions& options, const PairMotion* motion)
     : options_(options),
       num_links_(engine.skeleton().num_links()),
-      motion_(motion != nullptr
-                  ? *motion
-                  : own_motion_.emplace(engine.skeleton(), pose0, pose1, options.motion)),
+      buffers_(TakeBuffers()),
+      motion_(motion != nullptr ? *motion
+                                : own_motion_.emplace(engine.skeleton(), pose0, pose1,
+                                                      options.motion, &buffers_->motion)),
       target_(engine.skeleton(), engine.environment(), engine.filter()),
       bounds_(engine.skeleton(), motion_, SweptBounds::Tolerance(engine.environment(), motion_)),
       slicer_(pose0.utime, pose1.utime, options.eps_s),
       pool_(target_, options.max_candidates, &stats_.triangle_tests),
       cull_(engine.culler(), bounds_, &stats_),
       witnesses_(target_, motion_, num_links_),
-      cleared_by_culler_(num_links_, false) {}
+      cleared_by_culler_(num_links_, false) {
+  pool_.Adopt(std::move(buffers_->pool));
+  queue_.Adopt(std::move(buffers_->queue));
+}
+
+QueryRun::~QueryRun() {
+  QueryBuffers& b = *buffers_;
+  if (own_motion_.has_value()) own_motion_->Release(&b.motion);
+  if (roots_.has_value()) roots_->Release(&b.roots);
+  b.pool = pool_.Release();
+  b.queue = queue_.Release();
+  FreeIfAbove(&b.motion.links, kKeptLinks);
+  FreeIfAbove(&b.motion.order, kKeptLinks);
+  FreeIfAbove(&b.motion.poses, 3 * kKeptLinks);
+  FreeIfAbove(&b.motion.segments, 6 * kKeptLinks);
+  FreeIfAbove(&b.roots.links, kKeptLinks);
+  FreeIfAbove(&b.roots.scratch, 4 * kKeptLinks + 16);
+  FreeIfAbove(&b.roots.link_order, kKeptLinks);
+  FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
+  FreeIfAbove(&b.pool, kKeptCandidates);
+  FreeIfAbove(&b.queue, kKeptIntervals);
+  if (spare_buffers == nullptr) spare_buffers = std::move(buffers_);
+}
 
 QueryResult QueryRun::Run() {
   // The whole-pair bounds first: a link they clear cannot touch at s = 0
@@ -81,7 +125,7 @@ void QueryRun::CullWholePair() {
 // Which links the whole-pair capsules leave open (of those the culler did
 // not clear).
 void QueryRun::CollectRoots() {
-  roots_.emplace(target_, bounds_, &pool_);
+  roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
   roots_->FindOpen(cleared_by_culler_);
 }
 

@@ -11,9 +11,21 @@
 #include "core/query/time_slicer.h"
 #include "core/query/witnesses.h"
 
+#include <memory>
 #include <optional>
+#include <vector>
 
 namespace sweptccd::internal {
+
+/// The arrays a query fills (its motion, the whole-pair candidates, the
+/// pool, the queue), kept per thread between queries so that a pair
+/// allocates almost nothing. Contents are overwritten; only capacity carries.
+struct QueryBuffers {
+  PairMotion::Storage motion;
+  RootCandidates::Buffers roots;
+  std::vector<Candidate> pool;
+  std::vector<Interval> queue;
+};
 
 /// Runs one query. Single-use and single-threaded; holds references to the
 /// engine's skeleton, environment and filter, and to the options.
@@ -23,6 +35,10 @@ class QueryRun {
   /// engine's skeleton, pose0, pose1 and options.motion), else built here.
   QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
            const QueryOptions& options, const PairMotion* motion = nullptr);
+  /// Hands the arrays back to the thread for its next query.
+  ~QueryRun();
+  QueryRun(const QueryRun&) = delete;
+  QueryRun& operator=(const QueryRun&) = delete;
 
   QueryResult Run();
 
@@ -51,6 +67,9 @@ class QueryRun {
 
   const QueryOptions& options_;
   const int num_links_;
+  // This thread's spare arrays (or new ones when a query on this thread is
+  // running already), first so that everything below can start in them.
+  std::unique_ptr<QueryBuffers> buffers_;
   std::optional<PairMotion> own_motion_;  // When the caller gave none.
   const PairMotion& motion_;
   EnvironmentTarget target_;

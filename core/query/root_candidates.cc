@@ -6,18 +6,36 @@
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
-                               CandidatePool* pool)
+                               CandidatePool* pool, Buffers* buffers)
     : target_(target), pool_(*pool), depth_first_(target.skeleton().depth_first_order()) {
+  if (buffers != nullptr) {
+    links_ = std::move(buffers->links);
+    scratch_ = std::move(buffers->scratch);
+    link_order_ = std::move(buffers->link_order);
+    link_nodes_ = std::move(buffers->link_nodes);
+    scratch_.clear();
+    link_order_.clear();
+    link_nodes_.clear();
+  }
   const int n = target.skeleton().num_links();
   links_.resize(n);
   for (LinkIndex l(0); l < n; ++l) {
-    links_[l].capsule = bounds.Over(l, 0, 1);
-    const LinkCapsule& c = links_[l].capsule;
-    links_[l].box = Aabb::OfCapsule(c.a, c.b, c.radius);
+    LinkRoot& root = links_[l];  // Every field: the array may hold an earlier query's.
+    root.capsule = bounds.Over(l, 0, 1);
+    root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
+    root.begin = root.count = 0;
+    root.overflow = root.open = false;
   }
   scratch_.reserve(static_cast<size_t>(4 * n + 16));
   link_order_.reserve(static_cast<size_t>(n));
   link_nodes_.reserve(static_cast<size_t>(2 * n));  // A binary tree over n leaves.
+}
+
+void RootCandidates::Release(Buffers* buffers) {
+  buffers->links = std::move(links_);
+  buffers->scratch = std::move(scratch_);
+  buffers->link_order = std::move(link_order_);
+  buffers->link_nodes = std::move(link_nodes_);
 }
 
 void RootCandidates::FindOpen(const std::vector<bool>& skip) {

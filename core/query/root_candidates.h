@@ -17,7 +17,13 @@ namespace sweptccd::internal {
 class RootCandidates {
  public:
   /// The whole-pair capsules; nothing is open (Find marks them).
-  RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool);
+  /// `buffers`: the arrays of an earlier RootCandidates (Release) to reuse,
+  /// or null.
+  struct Buffers;
+  RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool,
+                 Buffers* buffers = nullptr);
+  /// Gives the arrays back for the next query; this object is left unusable.
+  void Release(Buffers* buffers);
 
   /// Marks open every link not in `skip` (cleared by the culler already)
   /// whose whole-pair capsule meets some primitive. A link leaves at its
@@ -89,6 +95,13 @@ class RootCandidates {
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;  // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
+
+ public:
+  struct Buffers {
+    std::vector<LinkRoot> links;
+    std::vector<LinkIndex> scratch, link_order;
+    std::vector<LinkNode> link_nodes;
+  };
 };
 
 }  // namespace sweptccd::internal

@@ -36,6 +36,13 @@ struct IntervalLater {
 class IntervalQueue : public std::priority_queue<Interval, std::vector<Interval>, IntervalLater> {
  public:
   const std::vector<Interval>& pending() const { return c; }
+  /// Starts empty in `storage`'s array (its capacity kept); Release gives
+  /// it back. The order of the intervals does not depend on the capacity.
+  void Adopt(std::vector<Interval>&& storage) {
+    c = std::move(storage);
+    c.clear();
+  }
+  std::vector<Interval> Release() { return std::move(c); }
 };
 
 /// The pair's time: when an interval is narrow enough (G2), and where it

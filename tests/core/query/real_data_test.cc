@@ -22,11 +22,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/geometry/bvh.h"
 #include "core/query/ccd_query.h"
+#include "core/query/result_json.h"
 #include "tests/common/test_scale.h"
 #include "tests/core/query/backend_under_test.h"
 #include "core/scene/collision_filter.h"
@@ -510,6 +513,80 @@ TEST(RealDataTest, DragonInThePath) {
               &tally, Straddle{true, up, 0.0});
   }
   Report("stanford_dragon_vrip_res2 x8", tally);
+}
+
+// A query reuses its thread's arrays from the last one (QueryBuffers in
+// core/query/query_run.h), so nothing may carry over: a mixed sequence on
+// one thread (skeletons of 16 and 3 links, both modes, both motion models,
+// a candidate cap of 4 so that lists overflow) gives every record,
+// statistics included, exactly as the same queries each on a new thread,
+// which starts with none.
+TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
+  const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
+  const int up = 1;
+  MocapClip walk = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
+  Place(&walk, up, Vector3d(2.0, 0, -1.5), -0.01);
+  MocapClip dance = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
+  Place(&dance, up, Vector3d(2.4, 0, -1.3), -0.02);
+  std::vector<Link> links(3);
+  for (int i = 0; i < 3; ++i) {
+    links[i].name = "c" + std::to_string(i);
+    links[i].parent = i - 1;
+    links[i].b_L = Vector3d(0, 0.4, 0);
+    links[i].radius = 0.05;
+  }
+  const Skeleton chain = Skeleton::FromLinks("chain", links, "real_data_test");
+  std::mt19937_64 g(0xb0ffe5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto chain_pose = [&](int64_t utime) {
+    Pose p;
+    p.utime = utime;
+    for (int i = 0; i < 3; ++i) {
+      p.links.push_back(LinkPose{Vector3d(2 + 1.5 * u(g), 0.5 + 0.5 * u(g), -1.5 + 1.5 * u(g)),
+                                 Eigen::Quaterniond(u(g), u(g), u(g), u(g))});
+    }
+    EXPECT_EQ(ValidateAndNormalizePose(&p, 3), "");
+    return p;
+  };
+  const CollisionFilter filter31(kMocapNumLinks, env.num_objects());
+  const CollisionFilter filter3(3, env.num_objects());
+  const CcdEngine walk_engine(walk.skeleton, env, filter31);
+  const CcdEngine dance_engine(dance.skeleton, env, filter31);
+  const CcdEngine chain_engine(chain, env, filter3);
+  struct Job {
+    const CcdEngine* engine;
+    Pose p0, p1;
+    QueryOptions options;
+  };
+  std::vector<Job> jobs;
+  QueryOptions first, per_link, overflow, independent;
+  per_link.per_link = true;
+  overflow.max_candidates = 4;
+  independent.motion = MotionModel::kIndependent;
+  for (size_t k = 0; k < 40; ++k) {
+    jobs.push_back({&walk_engine, walk.poses[k], walk.poses[k + 1], first});
+    jobs.push_back({&dance_engine, dance.poses[3 * k], dance.poses[3 * k + 1], per_link});
+    jobs.push_back({&chain_engine, chain_pose(0), chain_pose(33333), k % 2 ? per_link : first});
+    jobs.push_back({&walk_engine, walk.poses[k + 1], walk.poses[k + 2], independent});
+    jobs.push_back({&dance_engine, dance.poses[3 * k + 1], dance.poses[3 * k + 2], overflow});
+  }
+  auto record = [](const Job& job) {
+    return ResultToJson(0, job.p0.utime, job.p1.utime,
+                        job.engine->Query(job.p0, job.p1, job.options), job.options.per_link, 0);
+  };
+  int contacts = 0, overflowed = 0;
+  for (const Job& job : jobs) {
+    const std::string reused = record(job);
+    std::string fresh;
+    std::thread([&] { fresh = record(job); }).join();
+    ASSERT_EQ(reused, fresh);
+    contacts += reused.find("\"result\":\"contact\"") != std::string::npos;
+    overflowed += job.options.max_candidates == 4 &&
+                  job.engine->Query(job.p0, job.p1, job.options).stats.intervals > 0;
+  }
+  // The sequence does reach contacts and overflowing lists.
+  EXPECT_GT(contacts, 20);
+  EXPECT_GT(overflowed, 5);
 }
 
 }  // namespace
