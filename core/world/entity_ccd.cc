@@ -54,11 +54,15 @@ class AvatarTarget : public OtherTarget {
 
   std::vector<int> RootCandidates(int link_a) const override {
     std::vector<int> out;
-    out.reserve(static_cast<size_t>(e_.skeleton.num_links()));
-    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      if (!filtered_ || !world_.IgnoresLinkPair(a_, link_a, b_, j)) out.push_back(j);
-    }
+    RootCandidatesInto(link_a, &out);
     return out;
+  }
+  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+    out->clear();
+    out->reserve(static_cast<size_t>(e_.skeleton.num_links()));
+    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+      if (!filtered_ || !world_.IgnoresLinkPair(a_, link_a, b_, j)) out->push_back(j);
+    }
   }
 
   Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
@@ -270,8 +274,14 @@ class ObjectTarget : public OtherTarget {
   }
 
   std::vector<int> RootCandidates(int link_a) const override {
-    if (bvh_.num_triangles() == 0 || world_.IgnoresObject(a_, link_a, o_)) return {};
-    return {0};
+    std::vector<int> out;
+    RootCandidatesInto(link_a, &out);
+    return out;
+  }
+  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+    out->clear();
+    if (bvh_.num_triangles() == 0 || world_.IgnoresObject(a_, link_a, o_)) return;
+    out->push_back(0);
   }
 
   Aabb PieceBox(const Piece& piece, double tau0, double tau1) const override {
@@ -378,6 +388,43 @@ struct Later {
     if (x.link != y.link) return x.link > y.link;
     return x.piece > y.piece;
   }
+};
+
+// AnswerOther's arrays, kept per thread between calls so that an entry
+// allocates almost nothing (an avatar record asks for 15-31 of them). Only
+// capacity carries over: every array is cleared or overwritten before use.
+struct AnswerScratch {
+  std::vector<std::vector<int>> roots, cands;
+  std::vector<Aabb> boxes_e, piece_boxes, unions;
+  std::vector<char> near;
+  std::vector<Item> queue;
+  std::vector<int> arena, work;
+};
+thread_local std::unique_ptr<AnswerScratch> spare_scratch;
+
+// This thread's spare scratch for one call (a new one when it is taken),
+// handed back at the end; arrays past a bound are freed instead.
+class ScratchLease {
+ public:
+  ScratchLease()
+      : s_(spare_scratch != nullptr ? std::move(spare_scratch)
+                                    : std::make_unique<AnswerScratch>()) {}
+  ~ScratchLease() {
+    constexpr size_t kKept = size_t{1} << 16;
+    if (s_->arena.capacity() > kKept) std::vector<int>().swap(s_->arena);
+    if (s_->work.capacity() > kKept) std::vector<int>().swap(s_->work);
+    if (s_->queue.capacity() > kKept) std::vector<Item>().swap(s_->queue);
+    if (s_->cands.size() > kKept) std::vector<std::vector<int>>().swap(s_->cands);
+    if (s_->near.capacity() > kKept) std::vector<char>().swap(s_->near);
+    if (s_->boxes_e.capacity() > kKept) std::vector<Aabb>().swap(s_->boxes_e);
+    if (spare_scratch == nullptr) spare_scratch = std::move(s_);
+  }
+  ScratchLease(const ScratchLease&) = delete;
+  ScratchLease& operator=(const ScratchLease&) = delete;
+  AnswerScratch& operator*() { return *s_; }
+
+ private:
+  std::unique_ptr<AnswerScratch> s_;
 };
 
 }  // namespace
@@ -614,13 +661,20 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   // (every item culled, none past the work limit, none touching at the
   // start) with no pose composed and no root candidate listed.
   const size_t num_pieces = pieces.size();
-  std::vector<std::vector<int>> roots(num_links);
-  std::vector<std::vector<int>> cands;  // Empty: the target has no link boxes.
-  std::vector<Aabb> boxes_e;            // Piece p's link j at p * num_e + j.
+  ScratchLease lease;
+  AnswerScratch& scratch = *lease;
+  std::vector<std::vector<int>>& roots = scratch.roots;
+  if (roots.size() < static_cast<size_t>(num_links)) roots.resize(num_links);
+  for (int l = 0; l < num_links; ++l) roots[l].clear();
+  std::vector<std::vector<int>>& cands = scratch.cands;
+  bool use_cands = false;  // False: the target has no link boxes.
+  std::vector<Aabb>& boxes_e = scratch.boxes_e;  // Piece p's link j at p * num_e + j.
+  boxes_e.clear();
   size_t num_e = 0;
   bool have = true;
   {
-    std::vector<Aabb> piece_boxes;
+    std::vector<Aabb>& piece_boxes = scratch.piece_boxes;
+    piece_boxes.clear();
     for (size_t p = 0; p < num_pieces && have; ++p) {
       have = target.LinkBoxes(pieces[p], &piece_boxes);
       if (p == 0) num_e = piece_boxes.size();
@@ -636,12 +690,14 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     }
     SWEPTCCD_CHECK(static_cast<int>(link_boxes_a->size()) == num_links);
     const double margin = 2 * tol * (1 + 1e-8);
-    std::vector<Aabb> unions(num_pieces, Aabb::Empty());
+    std::vector<Aabb>& unions = scratch.unions;
+    unions.assign(num_pieces, Aabb::Empty());
     for (size_t p = 0; p < num_pieces; ++p) {
       for (size_t j = 0; j < num_e; ++j) unions[p].Grow(boxes_e[p * num_e + j]);
     }
     // near[l * num_pieces + p]: some link of E (a root or not) near A's l.
-    std::vector<char> near(static_cast<size_t>(num_links) * num_pieces, 0);
+    std::vector<char>& near = scratch.near;
+    near.assign(static_cast<size_t>(num_links) * num_pieces, 0);
     bool any = false;
     for (int l = 0; l < num_links; ++l) {
       const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
@@ -661,8 +717,11 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       answer.culled_by_box = true;
       return answer;
     }
-    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
-    cands.resize(static_cast<size_t>(num_links) * num_pieces);
+    for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
+    const size_t num_cands = static_cast<size_t>(num_links) * num_pieces;
+    if (cands.size() < num_cands) cands.resize(num_cands);
+    for (size_t i = 0; i < num_cands; ++i) cands[i].clear();
+    use_cands = true;
     int64_t root_items = 0;
     any = false;
     for (int l = 0; l < num_links; ++l) {
@@ -685,10 +744,10 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       return answer;
     }
   } else {
-    for (int l = 0; l < num_links; ++l) roots[l] = target.RootCandidates(l);
+    for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
   }
   auto cands_of = [&](int l, size_t p) -> const std::vector<int>& {
-    return cands.empty() ? roots[l] : cands[static_cast<size_t>(l) * num_pieces + p];
+    return use_cands ? cands[static_cast<size_t>(l) * num_pieces + p] : roots[l];
   };
   std::vector<bool> done(num_links, false);
   std::vector<OtherBracket> brackets;  // In chronological order.
@@ -745,8 +804,11 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   // arena (no allocation per item); `work` holds the popped item's while
   // Cull narrows it. Lists of items no longer queued are dropped when the
   // arena has doubled since it was last compacted.
-  std::vector<Item> queue;
-  std::vector<int> arena, work;
+  std::vector<Item>& queue = scratch.queue;
+  std::vector<int>& arena = scratch.arena;
+  std::vector<int>& work = scratch.work;
+  queue.clear();
+  arena.clear();
   size_t compacted = 0;
   auto push = [&](const Item& item) {
     queue.push_back(item);

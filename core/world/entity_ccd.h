@@ -95,6 +95,10 @@ class OtherTarget {
   virtual ~OtherTarget() = default;
   /// Unfiltered candidates of A's link at the start.
   virtual std::vector<int> RootCandidates(int link_a) const = 0;
+  /// The same into *out (replaced; its capacity reused).
+  virtual void RootCandidatesInto(int link_a, std::vector<int>* out) const {
+    *out = RootCandidates(link_a);
+  }
   /// A box holding E over the piece (the entity-level broad phase).
   virtual Aabb PieceBox(const Piece& piece, double tau0, double tau1) const = 0;
   /// box.Overlaps(PieceBox(piece, tau0, tau1)), which a target may answer

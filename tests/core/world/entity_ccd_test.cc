@@ -28,6 +28,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -761,7 +762,8 @@ TEST(EntityCcdCases, SplitWindowAtSampleTimes) {
 // The world's broad phase (per-entity boxes of every sample interval) never
 // changes an answer: every (record, entity) of random worlds of four avatars
 // and two objects, through WorldAnswerer, equals AnswerOther run directly,
-// and an entity the boxes clear is free by AnswerOther too.
+// and an entity the boxes clear is free by AnswerOther too. AnswerOther on
+// a new thread (no kept arrays) gives the direct answer bit for bit.
 TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
   int culled = 0, contacts = 0;
   for (int seed = 0; seed < 12; ++seed) {
@@ -854,6 +856,24 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           const OtherAnswer direct = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
                                                  rec.pose1.utime, pieces, *target, eo);
           ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
+          {
+            // The same call on a new thread, which starts without the
+            // arrays AnswerOther keeps per thread: bit for bit the same
+            // (nothing carries over from the calls before it).
+            OtherAnswer fresh;
+            std::thread([&] {
+              fresh = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime,
+                                  pieces, *target, eo);
+            }).join();
+            EXPECT_EQ(fresh.contact, direct.contact);
+            EXPECT_EQ(fresh.culled_by_box, direct.culled_by_box);
+            EXPECT_EQ(fresh.intervals, direct.intervals);
+            if (direct.contact) ExpectSameBracket(fresh.bracket, direct.bracket);
+            // And as the world's answer, made on this thread after other
+            // targets' calls (of other sizes): the same descent.
+            EXPECT_EQ(fresh.culled_by_box, via_world.culled_by_box);
+            if (!fresh.culled_by_box) EXPECT_EQ(fresh.intervals, via_world.intervals);
+          }
           culled += i < reversed.size() && via_world.culled_by_box;
           contacts += i < reversed.size() && direct.contact;
           if (!via_world.culled_by_box) {
