@@ -659,7 +659,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   // descent would drop those (their boxes lie inside these), so the
   // descent's answer is unchanged; when none is left anywhere, it is `free`
   // (every item culled, none past the work limit, none touching at the
-  // start) with no pose composed and no root candidate listed.
+  // start) with no pose composed.
   const size_t num_pieces = pieces.size();
   ScratchLease lease;
   AnswerScratch& scratch = *lease;
@@ -695,41 +695,22 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     for (size_t p = 0; p < num_pieces; ++p) {
       for (size_t j = 0; j < num_e; ++j) unions[p].Grow(boxes_e[p * num_e + j]);
     }
-    // near[l * num_pieces + p]: some link of E (a root or not) near A's l.
-    std::vector<char>& near = scratch.near;
-    near.assign(static_cast<size_t>(num_links) * num_pieces, 0);
-    bool any = false;
-    for (int l = 0; l < num_links; ++l) {
-      const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
-      for (size_t p = 0; p < num_pieces; ++p) {
-        if (BoxesApart(box_a, unions[p], margin)) continue;
-        for (size_t j = 0; j < num_e; ++j) {
-          if (!BoxesApart(box_a, boxes_e[p * num_e + j], margin)) {
-            near[static_cast<size_t>(l) * num_pieces + p] = 1;
-            any = true;
-            break;
-          }
-        }
-      }
-    }
-    if (!any && static_cast<int64_t>(num_links) * static_cast<int64_t>(num_pieces) <=
-                    options.max_intervals) {
-      answer.culled_by_box = true;
-      return answer;
-    }
+    // One pass: a link apart from the union of E's boxes over a piece is
+    // apart from each of them (each lies inside the union), so its list
+    // stays empty without testing them.
     for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
     const size_t num_cands = static_cast<size_t>(num_links) * num_pieces;
     if (cands.size() < num_cands) cands.resize(num_cands);
     for (size_t i = 0; i < num_cands; ++i) cands[i].clear();
     use_cands = true;
     int64_t root_items = 0;
-    any = false;
+    bool any = false;
     for (int l = 0; l < num_links; ++l) {
       if (roots[l].empty()) continue;
       const Aabb& box_a = (*link_boxes_a)[static_cast<size_t>(l)];
       for (size_t p = 0; p < num_pieces; ++p) {
         ++root_items;
-        if (!near[static_cast<size_t>(l) * num_pieces + p]) continue;
+        if (BoxesApart(box_a, unions[p], margin)) continue;
         std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces + p];
         for (int j : roots[l]) {
           if (!BoxesApart(box_a, boxes_e[p * num_e + static_cast<size_t>(j)], margin)) {
