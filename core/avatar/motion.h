@@ -71,13 +71,15 @@ class PairMotion {
 
   /// The arrays of a motion no longer needed, for the next one to reuse (a
   /// query keeps one per thread, so a pair allocates nothing for its
-  /// motion). Holds no motion; its contents are overwritten.
+  /// motion). Holds no motion; its contents are overwritten. Like any
+  /// vector, used by one thread at a time.
   struct Storage;
   /// As above, built in `storage`'s arrays (taken; null: fresh ones). The
   /// same motion, bit for bit.
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
              Storage* storage);
   /// Gives the arrays back for another motion; this motion is left empty.
+  /// Not const: no other thread may be reading this motion.
   void Release(Storage* storage);
 
   int num_links() const { return static_cast<int>(links_.size()); }
@@ -193,14 +195,13 @@ class PairMotion {
   // order, 6 per link: the whole-pair swept capsule of every link reads
   // exactly those.
   std::vector<Eigen::Vector3d> segments_at_ends_;
+};
 
- public:
-  struct Storage {
-    std::vector<LinkMotion> links;
-    std::vector<int> order;
-    std::vector<LinkPose> poses;
-    std::vector<Eigen::Vector3d> segments;
-  };
+struct PairMotion::Storage {
+  std::vector<LinkMotion> links;
+  std::vector<int> order;
+  std::vector<LinkPose> poses;
+  std::vector<Eigen::Vector3d> segments;
 };
 
 }  // namespace sweptccd

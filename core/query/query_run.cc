@@ -3,27 +3,14 @@
 #include <algorithm>
 #include <vector>
 
-
 namespace sweptccd::internal {
 
 namespace {
 
-// One set of arrays per thread, between its queries. Past these sizes they
-// are freed instead (a rare large query should not pin its memory).
-thread_local std::unique_ptr<QueryBuffers> spare_buffers;
+// Past these sizes a query's arrays are freed instead of kept.
 constexpr size_t kKeptLinks = 1024;
 constexpr size_t kKeptCandidates = size_t{1} << 16;
 constexpr size_t kKeptIntervals = 4096;
-
-std::unique_ptr<QueryBuffers> TakeBuffers() {
-  if (spare_buffers != nullptr) return std::move(spare_buffers);
-  return std::make_unique<QueryBuffers>();
-}
-
-template <class T>
-void FreeIfAbove(std::vector<T>* v, size_t most) {
-  if (v->capacity() > most) std::vector<T>().swap(*v);
-}
 
 }  // namespace
 
@@ -31,7 +18,6 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
                    const QueryOptions& options, const PairMotion* motion)
     : options_(options),
       num_links_(engine.skeleton().num_links()),
-      buffers_(TakeBuffers()),
       motion_(motion != nullptr ? *motion
                                 : own_motion_.emplace(engine.skeleton(), pose0, pose1,
                                                       options.motion, &buffers_->motion)),
@@ -62,7 +48,6 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
   FreeIfAbove(&b.pool, kKeptCandidates);
   FreeIfAbove(&b.queue, kKeptIntervals);
-  if (spare_buffers == nullptr) spare_buffers = std::move(buffers_);
 }
 
 QueryResult QueryRun::Run() {

@@ -11,15 +11,17 @@
 #include "core/query/time_slicer.h"
 #include "core/query/witnesses.h"
 
-#include <memory>
 #include <optional>
 #include <vector>
+
+#include "core/thread_spare.h"
 
 namespace sweptccd::internal {
 
 /// The arrays a query fills (its motion, the whole-pair candidates, the
-/// pool, the queue), kept per thread between queries so that a pair
-/// allocates almost nothing. Contents are overwritten; only capacity carries.
+/// pool, the queue), kept per thread between queries (ThreadSpare) so that
+/// a pair allocates almost nothing. Contents are overwritten; only capacity
+/// carries.
 struct QueryBuffers {
   PairMotion::Storage motion;
   RootCandidates::Buffers roots;
@@ -68,8 +70,9 @@ class QueryRun {
   const QueryOptions& options_;
   const int num_links_;
   // This thread's spare arrays (or new ones when a query on this thread is
-  // running already), first so that everything below can start in them.
-  std::unique_ptr<QueryBuffers> buffers_;
+  // running already), first so that everything below can start in them
+  // and they are handed back last.
+  ThreadSpare<QueryBuffers> buffers_;
   std::optional<PairMotion> own_motion_;  // When the caller gave none.
   const PairMotion& motion_;
   EnvironmentTarget target_;

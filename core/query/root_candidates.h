@@ -18,7 +18,7 @@ class RootCandidates {
  public:
   /// The whole-pair capsules; nothing is open (Find marks them).
   /// `buffers`: the arrays of an earlier RootCandidates (Release) to reuse,
-  /// or null.
+  /// or null (the query's thread keeps them; see QueryBuffers).
   struct Buffers;
   RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool,
                  Buffers* buffers = nullptr);
@@ -95,13 +95,12 @@ class RootCandidates {
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;  // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
+};
 
- public:
-  struct Buffers {
-    std::vector<LinkRoot> links;
-    std::vector<LinkIndex> scratch, link_order;
-    std::vector<LinkNode> link_nodes;
-  };
+struct RootCandidates::Buffers {
+  std::vector<LinkRoot> links;
+  std::vector<LinkIndex> scratch, link_order;
+  std::vector<LinkNode> link_nodes;
 };
 
 }  // namespace sweptccd::internal

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <memory>
 #include <unordered_map>
 #include <utility>
 
@@ -13,6 +14,7 @@
 #include "core/geometry/distance.h"
 #include "core/geometry/segment_gap.h"
 #include "core/query/ccd_query.h"
+#include "core/thread_spare.h"
 #include "core/world/link_sweep_boxes.h"
 
 namespace sweptccd::world {
@@ -390,41 +392,34 @@ struct Later {
   }
 };
 
-// AnswerOther's arrays, kept per thread between calls so that an entry
-// allocates almost nothing (an avatar record asks for 15-31 of them). Only
-// capacity carries over: every array is cleared or overwritten before use.
+// AnswerOther's arrays, kept per thread between calls (ThreadSpare) so
+// that an entry allocates almost nothing (an avatar record asks for 15-31
+// of them). Only capacity carries over: every array is cleared or
+// overwritten before use.
 struct AnswerScratch {
-  std::vector<std::vector<int>> roots, cands;
+  std::vector<std::vector<int>> roots, cands;  // Lists: at most the links of an entity each.
   std::vector<Aabb> boxes_e, piece_boxes, unions;
-  std::vector<char> near;
   std::vector<Item> queue;
   std::vector<int> arena, work;
 };
-thread_local std::unique_ptr<AnswerScratch> spare_scratch;
 
-// This thread's spare scratch for one call (a new one when it is taken),
-// handed back at the end; arrays past a bound are freed instead.
-class ScratchLease {
+// This thread's AnswerScratch for one call; what a rare large call left
+// past these sizes is freed instead of kept.
+class ScratchLease : public ThreadSpare<AnswerScratch> {
  public:
-  ScratchLease()
-      : s_(spare_scratch != nullptr ? std::move(spare_scratch)
-                                    : std::make_unique<AnswerScratch>()) {}
   ~ScratchLease() {
+    constexpr size_t kKeptLists = 4096;
     constexpr size_t kKept = size_t{1} << 16;
-    if (s_->arena.capacity() > kKept) std::vector<int>().swap(s_->arena);
-    if (s_->work.capacity() > kKept) std::vector<int>().swap(s_->work);
-    if (s_->queue.capacity() > kKept) std::vector<Item>().swap(s_->queue);
-    if (s_->cands.size() > kKept) std::vector<std::vector<int>>().swap(s_->cands);
-    if (s_->near.capacity() > kKept) std::vector<char>().swap(s_->near);
-    if (s_->boxes_e.capacity() > kKept) std::vector<Aabb>().swap(s_->boxes_e);
-    if (spare_scratch == nullptr) spare_scratch = std::move(s_);
+    AnswerScratch& s = **this;
+    if (s.roots.size() > kKeptLists) std::vector<std::vector<int>>().swap(s.roots);
+    if (s.cands.size() > kKeptLists) std::vector<std::vector<int>>().swap(s.cands);
+    FreeIfAbove(&s.boxes_e, kKept);
+    FreeIfAbove(&s.piece_boxes, kKept);
+    FreeIfAbove(&s.unions, kKept);
+    FreeIfAbove(&s.queue, kKept);
+    FreeIfAbove(&s.arena, kKept);
+    FreeIfAbove(&s.work, kKept);
   }
-  ScratchLease(const ScratchLease&) = delete;
-  ScratchLease& operator=(const ScratchLease&) = delete;
-  AnswerScratch& operator*() { return *s_; }
-
- private:
-  std::unique_ptr<AnswerScratch> s_;
 };
 
 }  // namespace

@@ -763,9 +763,10 @@ TEST(EntityCcdCases, SplitWindowAtSampleTimes) {
 // changes an answer: every (record, entity) of random worlds of four avatars
 // and two objects, through WorldAnswerer, equals AnswerOther run directly,
 // and an entity the boxes clear is free by AnswerOther too. AnswerOther on
-// a new thread (no kept arrays) gives the direct answer bit for bit.
+// a new thread (no kept arrays) gives the direct answer bit for bit, also
+// per link with a small work limit.
 TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
-  int culled = 0, contacts = 0;
+  int culled = 0, contacts = 0, undecided = 0, per_link_brackets = 0;
   for (int seed = 0; seed < 12; ++seed) {
     Rng rng(9000 + seed);
     LoadedWorld lw;
@@ -811,7 +812,9 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
       w.objects.push_back(std::move(O));
     }
     QueryOptions qo;
-    EntityQueryOptions eo;
+    EntityQueryOptions eo, eo_pl;
+    eo_pl.per_link = true;
+    eo_pl.max_intervals = 40;
     // The records avatar by avatar, then in reverse time order from a fresh
     // answerer (its memos and kept interval motions see other orders).
     std::vector<std::pair<int, size_t>> order;
@@ -859,20 +862,36 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           {
             // The same call on a new thread, which starts without the
             // arrays AnswerOther keeps per thread: bit for bit the same
-            // (nothing carries over from the calls before it).
-            OtherAnswer fresh;
+            // (nothing carries over from the calls before it); also in
+            // per-link mode with a small work limit, on both threads.
+            OtherAnswer fresh, fresh_pl;
+            const OtherAnswer direct_pl = AnswerOther(w.avatars[a].skeleton, motion,
+                                                      rec.pose0.utime, rec.pose1.utime, pieces,
+                                                      *target, eo_pl);
             std::thread([&] {
               fresh = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime,
                                   pieces, *target, eo);
+              fresh_pl = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
+                                     rec.pose1.utime, pieces, *target, eo_pl);
             }).join();
             EXPECT_EQ(fresh.contact, direct.contact);
             EXPECT_EQ(fresh.culled_by_box, direct.culled_by_box);
             EXPECT_EQ(fresh.intervals, direct.intervals);
             if (direct.contact) ExpectSameBracket(fresh.bracket, direct.bracket);
-            // And as the world's answer, made on this thread after other
-            // targets' calls (of other sizes): the same descent.
-            EXPECT_EQ(fresh.culled_by_box, via_world.culled_by_box);
-            if (!fresh.culled_by_box) EXPECT_EQ(fresh.intervals, via_world.intervals);
+            EXPECT_EQ(fresh_pl.contact, direct_pl.contact);
+            EXPECT_EQ(fresh_pl.culled_by_box, direct_pl.culled_by_box);
+            EXPECT_EQ(fresh_pl.intervals, direct_pl.intervals);
+            ASSERT_EQ(fresh_pl.links.size(), direct_pl.links.size());
+            for (size_t k = 0; k < fresh_pl.links.size(); ++k) {
+              ExpectSameBracket(fresh_pl.links[k], direct_pl.links[k]);
+            }
+            undecided += direct_pl.contact && direct_pl.bracket.undecided;
+            per_link_brackets += static_cast<int>(direct_pl.links.size());
+            // And as the world's answer, made on this thread after calls for
+            // other targets (of other sizes): the same descent.
+            if (!fresh.culled_by_box && !via_world.culled_by_box) {
+              EXPECT_EQ(fresh.intervals, via_world.intervals);
+            }
           }
           culled += i < reversed.size() && via_world.culled_by_box;
           contacts += i < reversed.size() && direct.contact;
@@ -896,9 +915,13 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
       }
     }
   }
-  std::printf("%d culled by the world's boxes, %d contacts\n", culled, contacts);
+  std::printf("%d culled by the world's boxes, %d contacts; per-link, limit 40: %d brackets, "
+              "%d answers out of work\n",
+              culled, contacts, per_link_brackets, undecided);
   EXPECT_GT(culled, 50);
   EXPECT_GT(contacts, 10);
+  EXPECT_GT(per_link_brackets, 10);
+  EXPECT_GT(undecided, 0);
 }
 
 // The broad phase's boxes against dense sampling: every link's capsule (its
