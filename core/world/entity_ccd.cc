@@ -54,11 +54,6 @@ class AvatarTarget : public OtherTarget {
     filtered_ = names(a, b) || names(b, a);
   }
 
-  std::vector<int> RootCandidates(int link_a) const override {
-    std::vector<int> out;
-    RootCandidatesInto(link_a, &out);
-    return out;
-  }
   void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
     out->clear();
     out->reserve(static_cast<size_t>(e_.skeleton.num_links()));
@@ -275,11 +270,6 @@ class ObjectTarget : public OtherTarget {
     tol_ = e_.mesh->coordinate_tolerance() + std::ldexp(scale + 10.0, -22) + 1e-9;
   }
 
-  std::vector<int> RootCandidates(int link_a) const override {
-    std::vector<int> out;
-    RootCandidatesInto(link_a, &out);
-    return out;
-  }
   void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
     out->clear();
     if (bvh_.num_triangles() == 0 || world_.IgnoresObject(a_, link_a, o_)) return;
@@ -411,8 +401,8 @@ class ScratchLease : public ThreadSpare<AnswerScratch> {
     constexpr size_t kKeptLists = 4096;
     constexpr size_t kKept = size_t{1} << 16;
     AnswerScratch& s = **this;
-    if (s.roots.size() > kKeptLists) std::vector<std::vector<int>>().swap(s.roots);
-    if (s.cands.size() > kKeptLists) std::vector<std::vector<int>>().swap(s.cands);
+    FreeIfAbove(&s.roots, kKeptLists);
+    FreeIfAbove(&s.cands, kKeptLists);
     FreeIfAbove(&s.boxes_e, kKept);
     FreeIfAbove(&s.piece_boxes, kKept);
     FreeIfAbove(&s.unions, kKept);
@@ -660,7 +650,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   AnswerScratch& scratch = *lease;
   std::vector<std::vector<int>>& roots = scratch.roots;
   if (roots.size() < static_cast<size_t>(num_links)) roots.resize(num_links);
-  for (int l = 0; l < num_links; ++l) roots[l].clear();
+  for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
   std::vector<std::vector<int>>& cands = scratch.cands;
   bool use_cands = false;  // False: the target has no link boxes.
   std::vector<Aabb>& boxes_e = scratch.boxes_e;  // Piece p's link j at p * num_e + j.
@@ -693,7 +683,6 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     // One pass: a link apart from the union of E's boxes over a piece is
     // apart from each of them (each lies inside the union), so its list
     // stays empty without testing them.
-    for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
     const size_t num_cands = static_cast<size_t>(num_links) * num_pieces;
     if (cands.size() < num_cands) cands.resize(num_cands);
     for (size_t i = 0; i < num_cands; ++i) cands[i].clear();
@@ -719,8 +708,6 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       answer.culled_by_box = true;
       return answer;
     }
-  } else {
-    for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
   }
   auto cands_of = [&](int l, size_t p) -> const std::vector<int>& {
     return use_cands ? cands[static_cast<size_t>(l) * num_pieces + p] : roots[l];

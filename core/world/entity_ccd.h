@@ -93,11 +93,14 @@ std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
 class OtherTarget {
  public:
   virtual ~OtherTarget() = default;
-  /// Unfiltered candidates of A's link at the start.
-  virtual std::vector<int> RootCandidates(int link_a) const = 0;
-  /// The same into *out (replaced; its capacity reused).
-  virtual void RootCandidatesInto(int link_a, std::vector<int>* out) const {
-    *out = RootCandidates(link_a);
+  /// Unfiltered candidates of A's link at the start, into *out (replaced;
+  /// its capacity reused).
+  virtual void RootCandidatesInto(int link_a, std::vector<int>* out) const = 0;
+  /// The same, returned.
+  std::vector<int> RootCandidates(int link_a) const {
+    std::vector<int> out;
+    RootCandidatesInto(link_a, &out);
+    return out;
   }
   /// A box holding E over the piece (the entity-level broad phase).
   virtual Aabb PieceBox(const Piece& piece, double tau0, double tau1) const = 0;

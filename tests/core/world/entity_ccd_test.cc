@@ -521,7 +521,9 @@ TEST(EntityCcdLinkBoxes, ApartMeansSeparatedAtDenseSamples) {
 class WithoutLinkBoxes : public OtherTarget {
  public:
   explicit WithoutLinkBoxes(const OtherTarget& t) : t_(t) {}
-  std::vector<int> RootCandidates(int link_a) const override { return t_.RootCandidates(link_a); }
+  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+    t_.RootCandidatesInto(link_a, out);
+  }
   Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
     return t_.PieceBox(p, tau0, tau1);
   }
