@@ -283,6 +283,38 @@ bool BeyondAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Ei
   return false;
 }
 
+// Whether the segment and the triangle are apart by more than radius along
+// the axis across the segment and one edge (the unit vector of d x e). Both
+// project onto it as intervals (the segment's nearly a point). Any unit
+// axis gives a lower bound on the distance, so the rounding of the axis
+// only turns it (still an axis; the segment's two ends are both projected,
+// so a turned axis is not assumed across it); the margin is the plane
+// refusal's. It decides where the segment passes an edge, whose nearest
+// points neither the plane nor the edge normals separate.
+bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                       const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                       const Eigen::Vector3d& c, double radius, double longest2) {
+  const Eigen::Vector3d d = s1 - s0;
+  const Eigen::Vector3d e[3] = {b - a, c - b, a - c};
+  const Eigen::Vector3d s = s0 - a;
+  const double scale =
+      radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+  const double apart = radius + 1e-9 * scale;
+  for (int k = 0; k < 3; ++k) {
+    Eigen::Vector3d m = d.cross(e[k]);
+    const double len = m.norm();
+    if (!(len > 0)) continue;  // Parallel (or a point): no axis.
+    m /= len;
+    const double s_at = m.dot(s), s_to = s_at + m.dot(d);  // a at 0.
+    const double pb = m.dot(e[0]), pc = -m.dot(e[2]);
+    if (std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
+        std::min({0.0, pb, pc}) - std::max(s_at, s_to) > apart) {
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 namespace {
@@ -296,13 +328,17 @@ namespace {
 //   distances and of the full distance, for a triangle whose height is at
 //   least 1e-3 of its longest edge (its normal is then known to ~1e-13
 //   radians); thinner ones go on;
+// - both ends beyond one edge, in the plane, farther than radius
+//   (BeyondAnEdge), or the segment and the triangle apart along the axis
+//   across the segment and an edge (ApartAcrossAnEdge); the plane
+//   refusal's margin and triangles. A refusal means the distance exceeds
+//   radius by more than any rounding, so it cannot meet an acceptance
+//   below and the order of the two does not matter;
 // - an end whose projection lies inside the triangle, within radius: the
 //   full steps consider that end against its closest point on the
 //   triangle (ClosestPointOnTriangle: this projection, by the same
 //   arithmetic, or an edge point nearer still), so their distance is at
 //   most this one;
-// - both ends beyond one edge, in the plane, farther than radius
-//   (BeyondAnEdge; the plane refusal's margin and triangles);
 // - otherwise the full steps, stopping at the first distance within
 //   radius (the least is within exactly when one is).
 SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
@@ -349,6 +385,14 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
       }
     }
     if (radius != nullptr) {
+      // Refusals, each only where the distance exceeds radius by more than
+      // the margin, so none can change what the steps below decide.
+      if (shape.HeightAbove(1e-6) &&
+          (BeyondAnEdge(s0, s1, n, a, b, c, *radius, shape) ||
+           ApartAcrossAnEdge(s0, s1, a, b, c, *radius, shape.longest2))) {
+        *within = false;
+        return best;
+      }
       // The ends' projections, kept for their face tests below (the same
       // bits as ClosestPointOnProperTriangle's).
       Eigen::Vector3d q[2];
@@ -361,10 +405,6 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
           *within = true;
           return best;
         }
-      }
-      if (shape.HeightAbove(1e-6) && BeyondAnEdge(s0, s1, n, a, b, c, *radius, shape)) {
-        *within = false;
-        return best;
       }
       // Only whether the least distance is at most radius matters: the
       // square root is nondecreasing, so it is, exactly when one of the

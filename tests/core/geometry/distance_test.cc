@@ -568,6 +568,22 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
         }
       }
     }
+    // How far apart the segment and the triangle lie along each axis across
+    // the segment and an edge: where that refusal decides.
+    for (int k = 0; k < 3; ++k) {
+      const Vec3* v[3] = {&a, &b, &c};
+      const Vec3 m = (s1 - s0).cross(*v[(k + 1) % 3] - *v[k]);
+      if (!(m.norm() > 0)) continue;
+      const Vec3 u = m.normalized();
+      const double s_lo = std::min(u.dot(s0), u.dot(s1)), s_hi = std::max(u.dot(s0), u.dot(s1));
+      const double t_lo = std::min({u.dot(a), u.dot(b), u.dot(c)});
+      const double t_hi = std::max({u.dot(a), u.dot(b), u.dot(c)});
+      const double h = std::max(s_lo - t_hi, t_lo - s_hi);
+      if (!(h > 0)) continue;
+      for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
+        radii.push_back(r);
+      }
+    }
     for (double r : radii) {
       if (!(r > 0)) continue;
       ++tested;
