@@ -315,6 +315,42 @@ bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
   return false;
 }
 
+// Whether the segment and the triangle are apart by more than radius along
+// the axis from the vertex nearest the segment to its nearest point there.
+// Where the least distance is from a vertex (to an end or to the segment's
+// inside), that is its direction and the test is decisive. Any unit axis
+// bounds the distance from below; all five points are projected, so the
+// rounding of the axis does not matter; the margin is the plane refusal's.
+bool ApartFromNearestVertex(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                            const Eigen::Vector3d& c, double radius, double longest2) {
+  const Eigen::Vector3d d = s1 - s0;
+  const double dd = d.squaredNorm();
+  const Eigen::Vector3d* v[3] = {&a, &b, &c};
+  double nearest = HUGE_VAL;
+  Eigen::Vector3d axis(0, 0, 0);
+  for (int k = 0; k < 3; ++k) {
+    const double t = dd > 0 ? std::clamp((*v[k] - s0).dot(d) / dd, 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d w = *v[k] - (s0 + t * d);
+    const double w2 = w.squaredNorm();
+    if (w2 < nearest) {
+      nearest = w2;
+      axis = w;
+    }
+  }
+  const double len = axis.norm();
+  if (!(len > 0) || !std::isfinite(len)) return false;
+  axis /= len;
+  const Eigen::Vector3d s = s0 - a;
+  const double scale =
+      radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+  const double apart = radius + 1e-9 * scale;
+  const double s_at = axis.dot(s), s_to = axis.dot(s1 - a);  // a at 0.
+  const double pb = axis.dot(b - a), pc = axis.dot(c - a);
+  return std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
+         std::min({0.0, pb, pc}) - std::max(s_at, s_to) > apart;
+}
+
 }  // namespace
 
 namespace {
@@ -389,7 +425,8 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
       // the margin, so none can change what the steps below decide.
       if (shape.HeightAbove(1e-6) &&
           (BeyondAnEdge(s0, s1, n, a, b, c, *radius, shape) ||
-           ApartAcrossAnEdge(s0, s1, a, b, c, *radius, shape.longest2))) {
+           ApartAcrossAnEdge(s0, s1, a, b, c, *radius, shape.longest2) ||
+           ApartFromNearestVertex(s0, s1, a, b, c, *radius, shape.longest2))) {
         *within = false;
         return best;
       }

@@ -584,6 +584,34 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
         radii.push_back(r);
       }
     }
+    // How far apart they lie along the axis from the vertex nearest the
+    // segment to its nearest point there: where that refusal decides.
+    {
+      const Vec3 d = s1 - s0;
+      Vec3 axis(0, 0, 0);
+      double nearest = HUGE_VAL;
+      for (const Vec3& v : {a, b, c}) {
+        const double t =
+            d.squaredNorm() > 0 ? std::clamp((v - s0).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+        const Vec3 w = v - (s0 + t * d);
+        if (w.squaredNorm() < nearest) {
+          nearest = w.squaredNorm();
+          axis = w;
+        }
+      }
+      if (axis.norm() > 0) {
+        const Vec3 u = axis.normalized();
+        const double s_lo = std::min(u.dot(s0), u.dot(s1)), s_hi = std::max(u.dot(s0), u.dot(s1));
+        const double t_lo = std::min({u.dot(a), u.dot(b), u.dot(c)});
+        const double t_hi = std::max({u.dot(a), u.dot(b), u.dot(c)});
+        const double h = std::max(s_lo - t_hi, t_lo - s_hi);
+        if (h > 0) {
+          for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
+            radii.push_back(r);
+          }
+        }
+      }
+    }
     for (double r : radii) {
       if (!(r > 0)) continue;
       ++tested;
