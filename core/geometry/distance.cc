@@ -283,14 +283,28 @@ bool BeyondAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Ei
   return false;
 }
 
+// v / |v| to within a few ulps of unit length, for any finite nonzero v:
+// v is first divided by its largest magnitude, so the squared norm is
+// neither subnormal nor overflowing (a norm taken from a subnormal square
+// is off by up to 22 %, and an axis divided by it would be as much too
+// long, its gaps too). False for a zero, infinite or NaN v.
+bool UnitAxis(const Eigen::Vector3d& v, Eigen::Vector3d* unit) {
+  const double largest = v.cwiseAbs().maxCoeff();
+  if (!(largest > 0) || !std::isfinite(largest)) return false;
+  const Eigen::Vector3d w = v / largest;  // Largest component +-1.
+  *unit = w / w.norm();
+  return true;
+}
+
 // Whether the segment and the triangle are apart by more than radius along
 // the axis across the segment and one edge (the unit vector of d x e). Both
 // project onto it as intervals (the segment's nearly a point). Any unit
-// axis gives a lower bound on the distance, so the rounding of the axis
-// only turns it (still an axis; the segment's two ends are both projected,
-// so a turned axis is not assumed across it); the margin is the plane
-// refusal's. It decides where the segment passes an edge, whose nearest
-// points neither the plane nor the edge normals separate.
+// axis gives a lower bound on the distance, so the rounding of the axis's
+// direction only turns it (still an axis; the segment's two ends are both
+// projected, so a turned axis is not assumed across it), and UnitAxis keeps
+// its length to a few ulps; the margin is the plane refusal's. It decides
+// where the segment passes an edge, whose nearest points neither the plane
+// nor the edge normals separate.
 bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                        const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                        const Eigen::Vector3d& c, double radius, double longest2) {
@@ -301,10 +315,8 @@ bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
       radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
   const double apart = radius + 1e-9 * scale;
   for (int k = 0; k < 3; ++k) {
-    Eigen::Vector3d m = d.cross(e[k]);
-    const double len = m.norm();
-    if (!(len > 0)) continue;  // Parallel (or a point): no axis.
-    m /= len;
+    Eigen::Vector3d m;
+    if (!UnitAxis(d.cross(e[k]), &m)) continue;  // Parallel (or a point): no axis.
     const double s_at = m.dot(s), s_to = s_at + m.dot(d);  // a at 0.
     const double pb = m.dot(e[0]), pc = -m.dot(e[2]);
     if (std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
@@ -320,7 +332,8 @@ bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
 // Where the least distance is from a vertex (to an end or to the segment's
 // inside), that is its direction and the test is decisive. Any unit axis
 // bounds the distance from below; all five points are projected, so the
-// rounding of the axis does not matter; the margin is the plane refusal's.
+// rounding of the axis's direction does not matter, and UnitAxis keeps its
+// length to a few ulps; the margin is the plane refusal's.
 bool ApartFromNearestVertex(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                             const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                             const Eigen::Vector3d& c, double radius, double longest2) {
@@ -338,9 +351,7 @@ bool ApartFromNearestVertex(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1
       axis = w;
     }
   }
-  const double len = axis.norm();
-  if (!(len > 0) || !std::isfinite(len)) return false;
-  axis /= len;
+  if (!UnitAxis(axis, &axis)) return false;
   const Eigen::Vector3d s = s0 - a;
   const double scale =
       radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
@@ -366,7 +377,8 @@ namespace {
 //   radians); thinner ones go on;
 // - both ends beyond one edge, in the plane, farther than radius
 //   (BeyondAnEdge), or the segment and the triangle apart along the axis
-//   across the segment and an edge (ApartAcrossAnEdge); the plane
+//   across the segment and an edge (ApartAcrossAnEdge) or along the axis
+//   from the vertex nearest the segment (ApartFromNearestVertex); the plane
 //   refusal's margin and triangles. A refusal means the distance exceeds
 //   radius by more than any rounding, so it cannot meet an acceptance
 //   below and the order of the two does not matter;

@@ -34,13 +34,19 @@ SegmentTriangleResult SegmentTriangleDistance(const Eigen::Vector3d& s0, const E
                                               const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                               const Eigen::Vector3d& c);
 
-/// SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius, the same
-/// answer for every input, often without the edge tests: a segment beyond
-/// the triangle's plane, or beyond one of its edges in its plane, by more
-/// than radius (with a margin far above the rounding) is refused, and an end
-/// whose projection inside the triangle is within radius is accepted; the
-/// rest are measured, up to the first distance within radius. The test of
-/// the descent's candidates (EnvironmentTarget::WithinCapsule).
+/// SegmentTriangleDistance(s0, s1, a, b, c).distance <= radius, often
+/// without the edge tests: a segment apart from the triangle by more than
+/// radius (with a margin of 1e-9 of the magnitudes, far above the rounding)
+/// along its plane's normal, an edge's outward normal in the plane, the
+/// axis across the segment and an edge, or the axis from the vertex nearest
+/// the segment, is refused; an end whose projection inside the triangle is
+/// within radius is accepted; the rest are measured, up to the first
+/// distance within radius. The same answer as the distance's, except where
+/// the points lie farther from the origin than about 1e7 times the
+/// triangle, segment and radius: the distance then rounds in absolute
+/// coordinates by more than the margin, and a refusal (measured relative
+/// to a vertex) is the more accurate answer. The test of the descent's
+/// candidates (EnvironmentTarget::WithinCapsule).
 bool SegmentTriangleWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                            const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                            const Eigen::Vector3d& c, double radius);

@@ -524,7 +524,8 @@ TEST(DistanceTest, SegmentTriangleDistanceMatchesFullySampledTwin) {
 // triangles, crossing, grazing and zero-length segments, scales 1e-3 to
 // 1e2 m), each at radii around its distance (the distance, one step either
 // side, relative 1e-12, 1e-6 and 1e-3 either side, half, double) and around
-// its ends' distances to the plane and beyond each edge, where the early
+// its ends' distances to the plane, beyond each edge, across the segment
+// and each edge, and from the vertex nearest the segment, where the early
 // refusals decide.
 TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
   Gen g(0x3171a5ULL);
@@ -629,6 +630,67 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
     }
   }
   EXPECT_GT(tested, 2000000);
+  EXPECT_EQ(disagreements, 0) << "first: " << first;
+}
+
+// A segment parallel to an edge but for a component of 2.72e-162 m: the
+// cross product of its direction with that edge has a subnormal square, so
+// a length taken as the square root of the squared norm is off by up to
+// 22 % and an axis divided by it is too long. The distance is 10 m; a
+// refusal along such an axis said "apart" up to a radius of 12.2 m.
+TEST(DistanceTest, SegmentTriangleWithinWithASubnormalCrossProduct) {
+  const Vec3 a(0, -1, 0), b(1, -1, 0), c(0, 1, 0);
+  const Vec3 s0(0.25, 0, 10), s1(1.25, 2.72e-162, 10);
+  const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
+  EXPECT_EQ(d, 10.0);
+  for (double r : {10.0, 10.2, 11.0, 12.0, 12.2}) {
+    EXPECT_TRUE(SegmentTriangleWithin(s0, s1, a, b, c, r)) << r;
+  }
+  EXPECT_FALSE(SegmentTriangleWithin(s0, s1, a, b, c, std::nextafter(10.0, 0.0)));
+}
+
+// Segments nearly parallel to an axis-aligned edge, off it in one
+// coordinate by 0 or +-1e-170 to 1e-140 (exactly representable: that
+// coordinate is 0 at the start), so that the cross products of the
+// segment with the edges have squares near or below the subnormal range;
+// axes permuted at random. SegmentTriangleWithin still gives the
+// distance's answer at radii around the distance.
+TEST(DistanceTest, SegmentTriangleWithinWithTinyComponents) {
+  Gen g(0x7195ULL);
+  int disagreements = 0, tested = 0;
+  std::string first;
+  for (int i = 0; i < 20000; ++i) {
+    const double len = std::pow(10.0, g.U(-2, 1));
+    Vec3 a(0, 0, 0), b(len * g.U(0.2, 2), 0, 0), c(g.U(-1, 1), g.U(0.1, 2), 0);
+    c *= len;
+    const double tiny = g.I(4) == 0 ? 0.0 : (g.I(2) ? 1 : -1) * std::pow(10.0, g.U(-170, -140));
+    const double x0 = len * g.U(-1, 2), z = len * g.U(-2, 2) * (g.I(4) == 0 ? 0 : 1);
+    // The start's second coordinate is 0 (on the edge's line, or off it only
+    // in the third); the end is off by `tiny` there.
+    Vec3 s0(x0, 0, z), s1(x0 + len * g.U(0.1, 2), tiny, z);
+    if (g.I(2)) std::swap(s0, s1);
+    const int perm = g.I(6);
+    auto permute = [perm](Vec3 v) {
+      static const int order[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
+      return Vec3(v[order[perm][0]], v[order[perm][1]], v[order[perm][2]]);
+    };
+    a = permute(a), b = permute(b), c = permute(c), s0 = permute(s0), s1 = permute(s1);
+    const double d = SegmentTriangleDistance(s0, s1, a, b, c).distance;
+    for (double r : {d, d * (1 - 1e-9), d * (1 + 1e-9), d * (1 + 1e-6), d * 1.1, d * 1.25}) {
+      if (!(r > 0)) continue;
+      ++tested;
+      const bool within = SegmentTriangleWithin(s0, s1, a, b, c, r);
+      if (within != (d <= r) && disagreements++ == 0) {
+        std::ostringstream os;
+        os.precision(17);
+        os << "case " << i << " s0=" << Fmt(s0) << " s1=" << Fmt(s1) << " a=" << Fmt(a)
+           << " b=" << Fmt(b) << " c=" << Fmt(c) << " distance=" << d << " radius=" << r
+           << " within=" << within;
+        first = os.str();
+      }
+    }
+  }
+  EXPECT_GT(tested, 80000);
   EXPECT_EQ(disagreements, 0) << "first: " << first;
 }
 
