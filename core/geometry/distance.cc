@@ -283,16 +283,22 @@ bool BeyondAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Ei
   return false;
 }
 
-// v / |v| to within a few ulps of unit length, for any finite nonzero v:
-// v is first divided by its largest magnitude, so the squared norm is
-// neither subnormal nor overflowing (a norm taken from a subnormal square
-// is off by up to 22 %, and an axis divided by it would be as much too
-// long, its gaps too). False for a zero, infinite or NaN v.
+// v / |v| to within a few ulps of unit length, for any finite nonzero v.
+// A norm taken from a subnormal (or overflowing) square is off by up to
+// 22 % (or infinite), and an axis divided by it would be as much too long,
+// its gaps too; such a v is first divided by its largest magnitude. A
+// square of at least 1e-290 holds every component's square to better than
+// 1e-17 of itself. False for a zero, infinite or NaN v.
 bool UnitAxis(const Eigen::Vector3d& v, Eigen::Vector3d* unit) {
+  const double square = v.squaredNorm();
+  if (square >= 1e-290 && square <= 1e290) {
+    *unit = v * (1.0 / std::sqrt(square));
+    return true;
+  }
   const double largest = v.cwiseAbs().maxCoeff();
   if (!(largest > 0) || !std::isfinite(largest)) return false;
   const Eigen::Vector3d w = v / largest;  // Largest component +-1.
-  *unit = w / w.norm();
+  *unit = w * (1.0 / w.norm());
   return true;
 }
 
