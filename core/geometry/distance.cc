@@ -260,6 +260,27 @@ Eigen::Vector3d ClosestPointOnTriangle(const Eigen::Vector3d& p, const Eigen::Ve
 
 namespace {
 
+// The radius plus the early refusals' margin: 1e-9 of the magnitudes (the
+// radius, the longest edge, the segment's ends measured from a).
+double RefusalDistance(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                       const Eigen::Vector3d& a, double radius, double longest2) {
+  const double scale = radius + std::sqrt(longest2) +
+                       std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
+  return radius + 1e-9 * scale;
+}
+
+// Whether the segment's projection onto the unit axis u and the
+// triangle's (its three vertices) lie more than `apart` apart. Everything
+// is measured from a.
+bool ApartAlong(const Eigen::Vector3d& u, const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
+                const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                double apart) {
+  const double s_at = u.dot(s0 - a), s_to = u.dot(s1 - a);
+  const double pb = u.dot(b - a), pc = u.dot(c - a);
+  return std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
+         std::min({0.0, pb, pc}) - std::max(s_at, s_to) > apart;
+}
+
 // Whether the segment lies beyond one edge of the triangle, in its plane,
 // by more than radius: both ends farther than radius + margin out along the
 // edge's outward normal within the plane (e x n, unit). The triangle lies on
@@ -267,13 +288,11 @@ namespace {
 // radius from every point of the triangle. For a triangle at least 1e-3 as
 // high as long, n, and so each edge normal, is known to ~1e-13 radians; the
 // margin (1e-9 of the magnitudes, as the plane refusal's) is far above that
-// and above the rounding of the full distance.
+// and above the rounding of the full distance. `beyond`: radius plus that
+// margin (RefusalDistance).
 bool BeyondAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& n,
                   const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                  double radius, const TriangleShape& shape) {
-  const double scale = radius + std::sqrt(shape.longest2) +
-                       std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
-  const double beyond = radius + 1e-9 * scale;
+                  double beyond) {
   const Eigen::Vector3d* v[3] = {&a, &b, &c};
   for (int e = 0; e < 3; ++e) {
     const Eigen::Vector3d& p = *v[e];
@@ -308,27 +327,18 @@ bool UnitAxis(const Eigen::Vector3d& v, Eigen::Vector3d* unit) {
 // axis gives a lower bound on the distance, so the rounding of the axis's
 // direction only turns it (still an axis; the segment's two ends are both
 // projected, so a turned axis is not assumed across it), and UnitAxis keeps
-// its length to a few ulps; the margin is the plane refusal's. It decides
-// where the segment passes an edge, whose nearest points neither the plane
-// nor the edge normals separate.
+// its length to a few ulps; `apart` is RefusalDistance. It decides where
+// the segment passes an edge, whose nearest points neither the plane nor
+// the edge normals separate.
 bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                        const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                       const Eigen::Vector3d& c, double radius, double longest2) {
+                       const Eigen::Vector3d& c, double apart) {
   const Eigen::Vector3d d = s1 - s0;
   const Eigen::Vector3d e[3] = {b - a, c - b, a - c};
-  const Eigen::Vector3d s = s0 - a;
-  const double scale =
-      radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
-  const double apart = radius + 1e-9 * scale;
-  for (int k = 0; k < 3; ++k) {
+  for (const Eigen::Vector3d& edge : e) {
     Eigen::Vector3d m;
-    if (!UnitAxis(d.cross(e[k]), &m)) continue;  // Parallel (or a point): no axis.
-    const double s_at = m.dot(s), s_to = s_at + m.dot(d);  // a at 0.
-    const double pb = m.dot(e[0]), pc = -m.dot(e[2]);
-    if (std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
-        std::min({0.0, pb, pc}) - std::max(s_at, s_to) > apart) {
-      return true;
-    }
+    if (!UnitAxis(d.cross(edge), &m)) continue;  // Parallel (or a point): no axis.
+    if (ApartAlong(m, s0, s1, a, b, c, apart)) return true;
   }
   return false;
 }
@@ -339,33 +349,21 @@ bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
 // inside), that is its direction and the test is decisive. Any unit axis
 // bounds the distance from below; all five points are projected, so the
 // rounding of the axis's direction does not matter, and UnitAxis keeps its
-// length to a few ulps; the margin is the plane refusal's.
+// length to a few ulps; `apart` is RefusalDistance.
 bool ApartFromNearestVertex(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
                             const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                            const Eigen::Vector3d& c, double radius, double longest2) {
-  const Eigen::Vector3d d = s1 - s0;
-  const double dd = d.squaredNorm();
-  const Eigen::Vector3d* v[3] = {&a, &b, &c};
+                            const Eigen::Vector3d& c, double apart) {
   double nearest = HUGE_VAL;
-  Eigen::Vector3d axis(0, 0, 0);
-  for (int k = 0; k < 3; ++k) {
-    const double t = dd > 0 ? std::clamp((*v[k] - s0).dot(d) / dd, 0.0, 1.0) : 0.0;
-    const Eigen::Vector3d w = *v[k] - (s0 + t * d);
-    const double w2 = w.squaredNorm();
-    if (w2 < nearest) {
-      nearest = w2;
+  Eigen::Vector3d axis(0, 0, 0), on_segment;
+  for (const Eigen::Vector3d* v : {&a, &b, &c}) {
+    ClosestPointOnSegment(*v, s0, s1, &on_segment);
+    const Eigen::Vector3d w = *v - on_segment;
+    if (w.squaredNorm() < nearest) {
+      nearest = w.squaredNorm();
       axis = w;
     }
   }
-  if (!UnitAxis(axis, &axis)) return false;
-  const Eigen::Vector3d s = s0 - a;
-  const double scale =
-      radius + std::sqrt(longest2) + std::max(s.cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
-  const double apart = radius + 1e-9 * scale;
-  const double s_at = axis.dot(s), s_to = axis.dot(s1 - a);  // a at 0.
-  const double pb = axis.dot(b - a), pc = axis.dot(c - a);
-  return std::min(s_at, s_to) - std::max({0.0, pb, pc}) > apart ||
-         std::min({0.0, pb, pc}) - std::max(s_at, s_to) > apart;
+  return UnitAxis(axis, &axis) && ApartAlong(axis, s0, s1, a, b, c, apart);
 }
 
 }  // namespace
@@ -413,10 +411,11 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
   if (shape.HeightAbove(1e-16)) {  // Not IsDegenerateTriangle.
     const Eigen::Vector3d n = StableUnitNormal(a, b, c);
     const double d0 = n.dot(s0 - a), d1 = n.dot(s1 - a);
-    if (radius != nullptr && (d0 > 0) == (d1 > 0) && shape.HeightAbove(1e-6)) {
-      const double scale = *radius + std::sqrt(shape.longest2) +
-                           std::max((s0 - a).cwiseAbs().maxCoeff(), (s1 - a).cwiseAbs().maxCoeff());
-      if (std::min(std::abs(d0), std::abs(d1)) > *radius + 1e-9 * scale) {
+    // The early refusals' triangles and distance (radius plus margin).
+    const bool refusals = radius != nullptr && shape.HeightAbove(1e-6);
+    const double apart = refusals ? RefusalDistance(s0, s1, a, *radius, shape.longest2) : 0.0;
+    if (refusals && (d0 > 0) == (d1 > 0)) {
+      if (std::min(std::abs(d0), std::abs(d1)) > apart) {
         *within = false;
         return best;
       }
@@ -441,10 +440,9 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
     if (radius != nullptr) {
       // Refusals, each only where the distance exceeds radius by more than
       // the margin, so none can change what the steps below decide.
-      if (shape.HeightAbove(1e-6) &&
-          (BeyondAnEdge(s0, s1, n, a, b, c, *radius, shape) ||
-           ApartAcrossAnEdge(s0, s1, a, b, c, *radius, shape.longest2) ||
-           ApartFromNearestVertex(s0, s1, a, b, c, *radius, shape.longest2))) {
+      if (refusals && (BeyondAnEdge(s0, s1, n, a, b, c, apart) ||
+                       ApartAcrossAnEdge(s0, s1, a, b, c, apart) ||
+                       ApartFromNearestVertex(s0, s1, a, b, c, apart))) {
         *within = false;
         return best;
       }

@@ -549,24 +549,29 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
                                  d * (1 + 1e-3),
                                  0.5 * d,
                                  2 * d};
+    // Radii at a refusal's gap h and just either side of it, where it decides.
+    auto around = [&radii](double h) {
+      for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
+        radii.push_back(r);
+      }
+    };
+    // The gap between the segment's and the triangle's projections on the
+    // unit axis u (<= 0 where they overlap).
+    auto gap_along = [&](const Vec3& u) {
+      const double s_lo = std::min(u.dot(s0), u.dot(s1)), s_hi = std::max(u.dot(s0), u.dot(s1));
+      const double t_lo = std::min({u.dot(a), u.dot(b), u.dot(c)});
+      const double t_hi = std::max({u.dot(a), u.dot(b), u.dot(c)});
+      return std::max(s_lo - t_hi, t_lo - s_hi);
+    };
     const Vec3 n = (b - a).cross(c - a);
     if (n.norm() > 0) {
-      for (const Vec3& e : {s0, s1}) {
-        const double h = std::fabs(n.normalized().dot(e - a));
-        for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
-          radii.push_back(r);
-        }
-      }
+      for (const Vec3& e : {s0, s1}) around(std::fabs(n.normalized().dot(e - a)));
       // How far the nearer end lies beyond each edge, in the plane: where
       // the edge refusal decides.
       const Vec3* v[3] = {&a, &b, &c};
       for (int k = 0; k < 3; ++k) {
         const Vec3 out = (*v[(k + 1) % 3] - *v[k]).cross(n.normalized()).normalized();
-        const double h = std::min(out.dot(s0 - *v[k]), out.dot(s1 - *v[k]));
-        if (!(h > 0)) continue;
-        for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
-          radii.push_back(r);
-        }
+        around(std::min(out.dot(s0 - *v[k]), out.dot(s1 - *v[k])));
       }
     }
     // How far apart the segment and the triangle lie along each axis across
@@ -574,16 +579,7 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
     for (int k = 0; k < 3; ++k) {
       const Vec3* v[3] = {&a, &b, &c};
       const Vec3 m = (s1 - s0).cross(*v[(k + 1) % 3] - *v[k]);
-      if (!(m.norm() > 0)) continue;
-      const Vec3 u = m.normalized();
-      const double s_lo = std::min(u.dot(s0), u.dot(s1)), s_hi = std::max(u.dot(s0), u.dot(s1));
-      const double t_lo = std::min({u.dot(a), u.dot(b), u.dot(c)});
-      const double t_hi = std::max({u.dot(a), u.dot(b), u.dot(c)});
-      const double h = std::max(s_lo - t_hi, t_lo - s_hi);
-      if (!(h > 0)) continue;
-      for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
-        radii.push_back(r);
-      }
+      if (m.norm() > 0) around(gap_along(m.normalized()));
     }
     // How far apart they lie along the axis from the vertex nearest the
     // segment to its nearest point there: where that refusal decides.
@@ -600,18 +596,7 @@ TEST(DistanceTest, SegmentTriangleWithinGivesTheDistancesAnswer) {
           axis = w;
         }
       }
-      if (axis.norm() > 0) {
-        const Vec3 u = axis.normalized();
-        const double s_lo = std::min(u.dot(s0), u.dot(s1)), s_hi = std::max(u.dot(s0), u.dot(s1));
-        const double t_lo = std::min({u.dot(a), u.dot(b), u.dot(c)});
-        const double t_hi = std::max({u.dot(a), u.dot(b), u.dot(c)});
-        const double h = std::max(s_lo - t_hi, t_lo - s_hi);
-        if (h > 0) {
-          for (double r : {h, h * (1 - 1e-9), h * (1 + 1e-9), h * (1 - 1e-6), h * (1 + 1e-6)}) {
-            radii.push_back(r);
-          }
-        }
-      }
+      if (axis.norm() > 0) around(gap_along(axis.normalized()));
     }
     for (double r : radii) {
       if (!(r > 0)) continue;
