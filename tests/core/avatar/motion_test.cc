@@ -20,66 +20,14 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/geometry/interval.h"
+#include "tests/common/twin_motion.h"
 
 namespace sweptccd {
 namespace {
 
-using LD = long double;
-using Vec3L = Eigen::Matrix<LD, 3, 1>;
-using Mat3L = Eigen::Matrix<LD, 3, 3>;
+using namespace sweptccd::twin;  // NOLINT: the twin's small vocabulary (QL, Mul, ...).
 
 constexpr double kPi = 3.14159265358979323846;
-
-// ---------------------------------------------------------------------------
-// The twin: quaternions as (w, x, y, z) in long double, with our own product,
-// rotation matrix and slerp.
-
-struct QL {
-  LD w = 1, x = 0, y = 0, z = 0;
-};
-
-QL ToQL(const Eigen::Quaterniond& q) { return {q.w(), q.x(), q.y(), q.z()}; }
-LD Dot(const QL& a, const QL& b) { return a.w * b.w + a.x * b.x + a.y * b.y + a.z * b.z; }
-QL Neg(const QL& a) { return {-a.w, -a.x, -a.y, -a.z}; }
-QL Conj(const QL& a) { return {a.w, -a.x, -a.y, -a.z}; }
-QL Mul(const QL& a, const QL& b) {
-  return {
-      a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z, a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
-      a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x, a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w};
-}
-QL Normalised(const QL& a) {
-  const LD n = std::sqrt(Dot(a, a));
-  return {a.w / n, a.x / n, a.y / n, a.z / n};
-}
-
-Mat3L RotL(const QL& q) {
-  const LD w = q.w, x = q.x, y = q.y, z = q.z;
-  Mat3L r;
-  r << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),  //
-      2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),   //
-      2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
-  return r;
-}
-
-// Shortest-arc slerp as q0 * exp(s * log(conj(q0) * q1')).
-QL TwinSlerp(const QL& q0, QL q1, LD s) {
-  if (Dot(q0, q1) < 0) q1 = Neg(q1);
-  const QL d = Mul(Conj(q0), q1);
-  const LD vn = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-  if (vn == 0) return q0;
-  const LD half = std::atan2(vn, d.w);  // Half the rotation angle.
-  const LD c = std::cos(s * half), k = std::sin(s * half) / vn;
-  return Mul(q0, QL{c, k * d.x, k * d.y, k * d.z});
-}
-
-// Rotation angle (in [0, pi]) from q0 to q1.
-LD TwinAngle(const QL& q0, const QL& q1) {
-  const QL d = Mul(Conj(q0), q1);
-  const LD vn = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-  return 2 * std::atan2(vn, std::fabs(d.w));
-}
-
-Vec3L ToL(const Eigen::Vector3d& v) { return v.cast<LD>(); }
 
 LD MaxDiff(const Mat3L& a, const Mat3L& b) { return (a - b).cwiseAbs().maxCoeff(); }
 LD MaxDiff(const Vec3L& a, const Vec3L& b) { return (a - b).cwiseAbs().maxCoeff(); }
@@ -275,80 +223,6 @@ MotionModel RandomModel(std::mt19937_64& g) {
   return std::uniform_int_distribution<int>(0, 1)(g) ? MotionModel::kArticulated
                                                      : MotionModel::kIndependent;
 }
-
-// ---------------------------------------------------------------------------
-// The articulated and independent models, written from SPEC section 3.
-
-struct TwinPose {
-  Vec3L p;
-  QL q;
-};
-
-class TwinMotion {
- public:
-  TwinMotion(const Skeleton& skel, const Pose& pose0, const Pose& pose1, MotionModel model)
-      : skel_(skel), pose0_(pose0), pose1_(pose1), model_(model) {}
-
-  // True when every slerp's sign decision is clear (|dot| well away from 0),
-  // so that the twin and the core (in double) take the same arc.
-  bool Unambiguous() const {
-    for (int i = 0; i < skel_.num_links(); ++i) {
-      QL a, b;
-      Ends(i, &a, &b);
-      if (std::fabs(Dot(a, b)) < 1e-9) return false;
-    }
-    return true;
-  }
-
-  std::vector<TwinPose> PosesAt(LD s) const {
-    std::vector<TwinPose> out(skel_.num_links());
-    std::vector<bool> done(skel_.num_links(), false);
-    for (int i = 0; i < skel_.num_links(); ++i) Compose(i, s, &out, &done);
-    return out;
-  }
-
- private:
-  bool Articulated(int i) const {
-    return model_ == MotionModel::kArticulated && skel_.link(i).parent >= 0;
-  }
-  // Own rotations at the two ends: world for roots/independent, r_i otherwise.
-  void Ends(int i, QL* a, QL* b) const {
-    const QL q0 = ToQL(pose0_.links[i].q), q1 = ToQL(pose1_.links[i].q);
-    if (!Articulated(i)) {
-      *a = q0;
-      *b = q1;
-      return;
-    }
-    const int k = skel_.link(i).parent;
-    *a = Normalised(Mul(Conj(ToQL(pose0_.links[k].q)), q0));
-    *b = Normalised(Mul(Conj(ToQL(pose1_.links[k].q)), q1));
-  }
-  // Recursion from the root down (independent of the core's order).
-  void Compose(int i, LD s, std::vector<TwinPose>* out, std::vector<bool>* done) const {
-    if ((*done)[i]) return;
-    QL ra, rb;
-    Ends(i, &ra, &rb);
-    const QL r = TwinSlerp(ra, rb, s);
-    const Vec3L p0 = ToL(pose0_.links[i].p), p1 = ToL(pose1_.links[i].p);
-    if (!Articulated(i)) {
-      (*out)[i] = {(1 - s) * p0 + s * p1, r};
-    } else {
-      const int k = skel_.link(i).parent;
-      Compose(k, s, out, done);
-      const Vec3L c0 = RotL(ToQL(pose0_.links[k].q)).transpose() * (p0 - ToL(pose0_.links[k].p));
-      const Vec3L c1 = RotL(ToQL(pose1_.links[k].q)).transpose() * (p1 - ToL(pose1_.links[k].p));
-      const Vec3L c = (1 - s) * c0 + s * c1;
-      const TwinPose& K = (*out)[k];
-      (*out)[i] = {K.p + RotL(K.q) * c, Mul(K.q, r)};
-    }
-    (*done)[i] = true;
-  }
-
-  const Skeleton& skel_;
-  const Pose& pose0_;
-  const Pose& pose1_;
-  MotionModel model_;
-};
 
 Mat3L RotOf(const Eigen::Quaterniond& q) { return q.toRotationMatrix().cast<LD>(); }
 
@@ -774,7 +648,6 @@ TEST(MotionTest, PoseAtEndsAndMiddleMatchPosesAtOnDeepChains) {
   }
 }
 
-
 // The slerp sines cached per link (s = 0, 0.5, 1 and the inverse of
 // sin(half angle) everywhere) and the segments cached at s = 0, 0.5, 1 give
 // the same bits as computing them afresh: the twin is Slerp() (fresh sines)
@@ -854,7 +727,6 @@ TEST(MotionTest, CachedSinesAndSegmentsMatchFreshComputationBitForBit) {
   }
 }
 
-
 // The growth bounds' upper-end arithmetic against its twin, the interval
 // expressions it replaced (verbatim), bit for bit, on random non-negative
 // bounds of every magnitude (zeros and subnormals included) and intervals
@@ -875,9 +747,12 @@ TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
     double s0 = u01(g), s1 = u01(g);
     if (s1 < s0) std::swap(s0, s1);
     const double r = u01(g);
-    if (r < 0.1) s1 = s0;
-    else if (r < 0.2) s1 = std::nextafter(s0, 2.0);
-    else if (r < 0.3) s0 = 0, s1 = 1;
+    if (r < 0.1)
+      s1 = s0;
+    else if (r < 0.2)
+      s1 = std::nextafter(s0, 2.0);
+    else if (r < 0.3)
+      s0 = 0, s1 = 1;
     // The expressions as PairMotion wrote them with intervals.
     const Interval half_width = (Interval(s1) - Interval(s0)) * Interval(0.5);
     const Interval speed_all = Interval(speed) + Interval(angular) * Interval(extent);
@@ -931,8 +806,8 @@ TEST(MotionTest, LinkBoundsUpperEndsMatchIntervalsBitForBit) {
       // Declining is safe (the caller then takes the intervals' bounds); it
       // must only happen where some operand is huge.
       ++declined;
-      const double largest = std::max({own_speed, lever, parent.speed, parent.angular,
-                                       parent.accel, parent.angular_accel});
+      const double largest = std::max(
+          {own_speed, lever, parent.speed, parent.angular, parent.accel, parent.angular_accel});
       ASSERT_GT(largest, 1e100) << k << ": declined with every operand at most 1e100";
       continue;
     }

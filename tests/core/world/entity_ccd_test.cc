@@ -8,7 +8,9 @@
 //
 // The reference places every triangle in the world at each sample time
 // (x + R v) and takes the minimum over all (unfiltered) primitives, so it
-// shares neither the engine's object frame, its bounds, nor its BVH. It
+// shares neither the engine's object frame, its bounds, nor its BVH; every
+// pose (avatars' links, objects) comes from the long double twin of SPEC 3's
+// motion (tests/common/twin_motion.h), not from core/avatar. It
 // checks SPEC 8's certificate: `free` only when no dense sample touches;
 // `contact`: G1 (no sample before t_lo touches), G2 (t_hi - t_lo <= eps),
 // G3 (the witness time is in the bracket and the separation there, by the
@@ -29,6 +31,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -37,6 +40,7 @@
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
+#include "tests/common/twin_motion.h"
 
 namespace sweptccd::world {
 namespace {
@@ -69,7 +73,9 @@ void Locate(const std::vector<T>& samples, double t, int* k, double* s,
 int64_t PoseUtime(const Pose& p) { return p.utime; }
 int64_t RigidUtime(const RigidSample& x) { return x.utime; }
 
-// Separation of A's link l (or all links, l = -1) from entity E at utime t.
+// Separation of A's link l (or all links, l = -1) from entity E at utime t,
+// with every pose from the long double twin of SPEC 3 (tests/common/
+// twin_motion.h), not from core/avatar.
 struct Reference {
   Reference(const World& w_in, int a_in, int b_in, int o_in, const Pose& p0, const Pose& p1)
       : w(w_in),
@@ -78,38 +84,53 @@ struct Reference {
         o(o_in),
         pose0(p0),
         pose1(p1),
-        ma(w.avatars[a].skeleton, p0, p1, w.avatars[a].motion) {}
+        ma(w.avatars[a].skeleton, pose0, pose1, w.avatars[a].motion) {}
   const World& w;
   int a;
   int b = -1, o = -1;  // The other entity.
   Pose pose0, pose1;
-  PairMotion ma;
-  mutable std::map<int, PairMotion> mb_;  // B's motion per sample bracket.
+  twin::TwinMotion ma;
+  mutable std::map<int, twin::TwinMotion> mb_;  // B's motion per sample bracket.
+
+  // Link l's segment at pose X (twin), in double for the distance routines.
+  static void Segment(const Skeleton& skeleton, int l, const twin::TwinPose& X, Vector3d* p,
+                      Vector3d* q) {
+    const twin::Mat3L R = twin::RotL(X.q);
+    *p = (X.p + R * twin::ToL(skeleton.link(l).a_L)).cast<double>();
+    *q = (X.p + R * twin::ToL(skeleton.link(l).b_L)).cast<double>();
+  }
 
   double Sep(double t, int only_link = -1) const {
     const AvatarEntity& A = w.avatars[a];
     const double sa = std::clamp((t - pose0.utime) / double(pose1.utime - pose0.utime), 0.0, 1.0);
+    const std::vector<twin::TwinPose> xa = ma.PosesAt(sa);
+    std::vector<twin::TwinPose> xb;
+    if (b >= 0) {
+      const AvatarEntity& B = w.avatars[b];
+      int k;
+      double s;
+      Locate(B.used, t, &k, &s, &PoseUtime);
+      const int k1 = std::min<int>(k + 1, B.used.size() - 1);
+      auto it = mb_.find(k);
+      if (it == mb_.end()) {
+        it = mb_.emplace(std::piecewise_construct, std::forward_as_tuple(k),
+                         std::forward_as_tuple(B.skeleton, B.used[k], B.used[k1], B.motion))
+                 .first;
+      }
+      xb = it->second.PosesAt(s);
+    }
     double best = HUGE_VAL;
     for (int l = 0; l < A.skeleton.num_links(); ++l) {
       if (only_link >= 0 && l != only_link) continue;
       Vector3d pa, pb;
-      ma.SegmentAt(l, sa, &pa, &pb);
+      Segment(A.skeleton, l, xa[l], &pa, &pb);
       const double ra = A.skeleton.link(l).radius;
       if (b >= 0) {
         const AvatarEntity& B = w.avatars[b];
-        int k;
-        double s;
-        Locate(B.used, t, &k, &s, &PoseUtime);
-        const int k1 = std::min<int>(k + 1, B.used.size() - 1);
-        auto it = mb_.find(k);
-        if (it == mb_.end()) {
-          it = mb_.emplace(k, PairMotion(B.skeleton, B.used[k], B.used[k1], B.motion)).first;
-        }
-        const PairMotion& mb = it->second;
         for (int j = 0; j < B.skeleton.num_links(); ++j) {
           if (w.IgnoresLinkPair(a, l, b, j)) continue;
           Vector3d qa, qb, c1, c2;
-          mb.SegmentAt(j, s, &qa, &qb);
+          Segment(B.skeleton, j, xb[j], &qa, &qb);
           best = std::min(best, std::sqrt(SegmentSegmentDistanceSquared(pa, pb, qa, qb, &c1, &c2)) -
                                     ra - B.skeleton.link(j).radius);
         }
@@ -120,15 +141,19 @@ struct Reference {
         double s;
         Locate(O.used, t, &k, &s, &RigidUtime);
         const int k1 = std::min<int>(k + 1, O.used.size() - 1);
-        const Vector3d x = (1 - s) * O.used[k].p + s * O.used[k1].p;
-        const Eigen::Matrix3d R = Slerp(O.used[k].q, O.used[k1].q, s).toRotationMatrix();
+        const twin::LD sl = s;
+        const twin::Vec3L x = (1 - sl) * twin::ToL(O.used[k].p) + sl * twin::ToL(O.used[k1].p);
+        const twin::Mat3L R =
+            twin::RotL(twin::TwinSlerp(twin::ToQL(O.used[k].q), twin::ToQL(O.used[k1].q), sl));
         const TriangleBvh& bvh = O.mesh->object(0).bvh;
+        auto place = [&](const Vector3d& v) -> Vector3d {
+          return (x + R * twin::ToL(v)).cast<double>();
+        };
         for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
           Vector3d ta, tb, tc;
           bvh.Triangle(slot, &ta, &tb, &tc);
           best = std::min(
-              best,
-              SegmentTriangleDistance(pa, pb, x + R * ta, x + R * tb, x + R * tc).distance - ra);
+              best, SegmentTriangleDistance(pa, pb, place(ta), place(tb), place(tc)).distance - ra);
         }
       }
     }
@@ -363,8 +388,64 @@ void RandomObjectWorld(Rng& rng, World* w, Pose* p0, Pose* p1) {
   }
 }
 
+// The cases the issue lists, read off a generated world (the generators'
+// random draws are untouched): each seed counts for every case it holds, with
+// whether its answer was a contact, so that the suite can show it exercised
+// every case both ways where that matters.
+bool TurnedByHalf(const Quaterniond& from, const Quaterniond& to) {
+  return to.coeffs() == (from * Quaterniond(0, 0, 0, 1)).coeffs() ||
+         to.coeffs() == (from * Quaterniond(0, 1, 0, 0)).coeffs();
+}
+bool AnyHalfTurn(const std::vector<Pose>& poses) {
+  for (size_t k = 0; k + 1 < poses.size(); ++k) {
+    for (size_t l = 0; l < poses[k].links.size(); ++l) {
+      if (TurnedByHalf(poses[k].links[l].q, poses[k + 1].links[l].q)) return true;
+    }
+  }
+  return false;
+}
+bool AnyZeroLength(const Skeleton& skeleton) {
+  for (int l = 0; l < skeleton.num_links(); ++l) {
+    if (skeleton.link(l).a_L == skeleton.link(l).b_L) return true;
+  }
+  return false;
+}
+
+struct CaseTally {
+  std::map<std::string, std::pair<int, int>> seeds_and_contacts;
+  void Add(const std::string& name, bool holds, bool contact) {
+    if (!holds) return;
+    auto& [seeds, contacts] = seeds_and_contacts[name];
+    ++seeds;
+    contacts += contact;
+  }
+  // Every case seen at least `min_seeds` times, with at least `min_contacts`
+  // contacts among them.
+  void Expect(const std::string& name, int min_seeds, int min_contacts) const {
+    const auto it = seeds_and_contacts.find(name);
+    const std::pair<int, int> got =
+        it == seeds_and_contacts.end() ? std::pair<int, int>{0, 0} : it->second;
+    std::printf("  %-34s %4d seeds, %4d contacts\n", name.c_str(), got.first, got.second);
+    EXPECT_GE(got.first, min_seeds) << name;
+    EXPECT_GE(got.second, min_contacts) << name;
+  }
+};
+
+// The entity's samples against A's pair [u0, u1].
+void AddWindowCases(const std::vector<int64_t>& times, int64_t u0, int64_t u1, bool contact,
+                    CaseTally* cases) {
+  const int64_t first = times.front(), last = times.back();
+  cases->Add("starts mid-pair", first > u0 && first < u1, contact);
+  cases->Add("stops mid-pair", last > u0 && last < u1, contact);
+  cases->Add("one sample in the pair", times.size() == 1 && first >= u0 && first <= u1, contact);
+  cases->Add("ends as the pair starts", last == u0, contact);
+  cases->Add("starts as the pair ends", first == u1, contact);
+  cases->Add("no overlap (no window)", last < u0 || first > u1, contact);
+}
+
 TEST(EntityCcdRandom, LinkLinkAgainstDenseSampling) {
   Tally tally;
+  CaseTally cases;
   for (int seed = 0; seed < 600; ++seed) {
     Rng rng(1000 + seed);
     World w;
@@ -373,21 +454,56 @@ TEST(EntityCcdRandom, LinkLinkAgainstDenseSampling) {
     EntityQueryOptions opt;
     opt.eps_s = rng.P(0.5) ? 1e-4 : 1e-3;
     opt.per_link = rng.P(0.3);
+    const int contacts_before = tally.contact, initially_before = tally.initially;
     CheckPair(w, 0, 1, -1, p0, p1, opt, &tally, 600, "seed " + std::to_string(seed));
     if (HasFatalFailure()) return;
+    const bool contact = tally.contact > contacts_before;
+    const AvatarEntity& B = w.avatars[1];
+    std::vector<int64_t> times;
+    for (const Pose& p : B.used) times.push_back(p.utime);
+    AddWindowCases(times, p0.utime, p1.utime, contact, &cases);
+    cases.Add("90 Hz against 72 Hz", B.used.size() > 1 && times[1] - times[0] == 11'111, contact);
+    cases.Add("a 180-degree turn (A or B)", AnyHalfTurn(w.avatars[0].used) || AnyHalfTurn(B.used),
+              contact);
+    cases.Add("a zero-length link (A or B)",
+              AnyZeroLength(w.avatars[0].skeleton) || AnyZeroLength(B.skeleton), contact);
+    cases.Add("initially interpenetrating", tally.initially > initially_before, contact);
+    cases.Add(
+        "both articulated",
+        w.avatars[0].motion == MotionModel::kArticulated && B.motion == MotionModel::kArticulated,
+        contact);
+    cases.Add(
+        "both independent",
+        w.avatars[0].motion == MotionModel::kIndependent && B.motion == MotionModel::kIndependent,
+        contact);
+    cases.Add("per link", opt.per_link, contact);
   }
   // The generator makes both answers common (not a test of the engine, of
-  // the suite: it must exercise both).
+  // the suite: it must exercise both, and every listed case).
   std::printf("%d contact (%d initially), %d free (%d by box)\n", tally.contact, tally.initially,
               tally.free, tally.culled);
   EXPECT_GT(tally.contact, 60);
   EXPECT_GT(tally.initially, 10);
   EXPECT_GT(tally.free, 40);
   EXPECT_EQ(tally.undecided, 0);
+  cases.Expect("starts mid-pair", 40, 10);
+  cases.Expect("stops mid-pair", 40, 10);
+  cases.Expect("one sample in the pair", 10, 2);
+  cases.Expect("ends as the pair starts", 10, 2);
+  cases.Expect("starts as the pair ends", 10, 2);
+  cases.Expect("no overlap (no window)", 5, 0);
+  cases.Expect("90 Hz against 72 Hz", 200, 40);
+  cases.Expect("a 180-degree turn (A or B)", 100, 20);
+  cases.Expect("a zero-length link (A or B)", 100, 20);
+  cases.Expect("initially interpenetrating", 10, 10);
+  cases.Expect("both articulated", 60, 10);
+  cases.Expect("both independent", 60, 10);
+  cases.Expect("per link", 100, 20);
 }
 
 TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
   Tally tally;
+  CaseTally cases;
   for (int seed = 0; seed < 600; ++seed) {
     Rng rng(5000 + seed);
     World w;
@@ -396,8 +512,31 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
     EntityQueryOptions opt;
     opt.eps_s = rng.P(0.5) ? 1e-4 : 1e-3;
     opt.per_link = rng.P(0.3);
+    const int contacts_before = tally.contact, initially_before = tally.initially;
     CheckPair(w, 0, -1, 0, p0, p1, opt, &tally, 600, "seed " + std::to_string(seed));
     if (HasFatalFailure()) return;
+    const bool contact = tally.contact > contacts_before;
+    const ObjectEntity& O = w.objects[0];
+    std::vector<int64_t> times;
+    for (const RigidSample& x : O.used) times.push_back(x.utime);
+    AddWindowCases(times, p0.utime, p1.utime, contact, &cases);
+    // The thin plate (two triangles) thrown at 3 m a sample: 270 m/s at 90 Hz.
+    const bool thrown = O.mesh->object(0).bvh.num_triangles() == 2 && O.used.size() > 1 &&
+                        (O.used[1].p - O.used[0].p).norm() > 2.9;
+    cases.Add("a thin plate thrown through", thrown, contact);
+    cases.Add(
+        "a 180-degree turn (A or object)",
+        AnyHalfTurn(w.avatars[0].used) ||
+            [&] {
+              for (size_t k = 0; k + 1 < O.used.size(); ++k) {
+                if (TurnedByHalf(O.used[k].q, O.used[k + 1].q)) return true;
+              }
+              return false;
+            }(),
+        contact);
+    cases.Add("a zero-length link", AnyZeroLength(w.avatars[0].skeleton), contact);
+    cases.Add("initially interpenetrating", tally.initially > initially_before, contact);
+    cases.Add("per link", opt.per_link, contact);
   }
   std::printf("%d contact (%d initially), %d free (%d by box)\n", tally.contact, tally.initially,
               tally.free, tally.culled);
@@ -405,6 +544,16 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
   EXPECT_GT(tally.initially, 10);
   EXPECT_GT(tally.free, 40);
   EXPECT_EQ(tally.undecided, 0);
+  cases.Expect("starts mid-pair", 40, 10);
+  cases.Expect("stops mid-pair", 40, 10);
+  cases.Expect("one sample in the pair", 10, 2);
+  cases.Expect("ends as the pair starts", 10, 2);
+  cases.Expect("starts as the pair ends", 10, 2);
+  cases.Expect("a thin plate thrown through", 60, 10);
+  cases.Expect("a 180-degree turn (A or object)", 100, 20);
+  cases.Expect("a zero-length link", 100, 20);
+  cases.Expect("initially interpenetrating", 10, 10);
+  cases.Expect("per link", 100, 20);
 }
 
 // ------------------------------------------------- link-level broad phase
@@ -482,8 +631,7 @@ TEST(EntityCcdLinkBoxes, ApartMeansSeparatedAtDenseSamples) {
     for (int e = 0; e < 2; ++e) {
       const int n = 1 + rng.I(5);
       sk[e] = RandomSkeleton(rng, n, true);
-      const MotionModel model =
-          rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+      const MotionModel model = rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
       const Pose p0 = RandomPose(rng, n, 1'000'000, Vector3d(rng.Box(0.6)), 0.3);
       const Pose p1 = NextPose(rng, p0, 1'011'111, rng.U(0.0, 0.3));
       held.emplace_back(sk[e], p0, p1, model);
@@ -707,9 +855,28 @@ TEST(EntityCcdCases, InterpenetratingZeroLengthAndWindows) {
   Tally t2;
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t2);
   EXPECT_EQ(t2.initially, 1);
-  // Not overlapping the pair: no window (CheckPair returns at once).
-  std::vector<int64_t> times = {30'000, 40'000};
-  EXPECT_GT(times.front(), p1.utime);
+  // Samples only after the pair, or only before it: no window, so no entry
+  // (SPEC 8), though the capsules would overlap if B were there.
+  for (const std::vector<int64_t>& times :
+       {std::vector<int64_t>{30'000, 40'000}, std::vector<int64_t>{-20'000, -1}}) {
+    LoadedWorld lw;
+    lw.world = w;
+    lw.world.avatars[1].used.clear();
+    for (int64_t t : times) lw.world.avatars[1].used.push_back(At(t, {0.2, 0.05, 0}));
+    PairOutcome rec;
+    rec.valid = true;
+    rec.pose0 = p0;
+    rec.pose1 = p1;
+    lw.world.avatars[0].records = {rec};
+    for (int e = 0; e < 2; ++e) lw.env_filters.emplace_back(1, 0);
+    const WorldAnswerer answerer(lw, QueryOptions());
+    OtherAnswer ans;
+    int64_t t_from = -7, t_to = -7;
+    EXPECT_FALSE(answerer.AnswerEntity(0, 0, 1, -1, &ans, &t_from, &t_to)) << times.front();
+    EXPECT_TRUE(SplitWindow(p0.utime, std::max(p0.utime, times.front()),
+                            std::min(p1.utime, times.back()), times)
+                    .empty());
+  }
 }
 
 TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
@@ -855,9 +1022,8 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           EXPECT_TRUE(pair_box.lo == own_box.lo && pair_box.hi == own_box.hi) << seed << " " << a;
           const std::vector<Piece> pieces = SplitWindow(rec.pose0.utime, t_from, t_to, times);
           // Fresh: the target's own motions, a memo for this answer alone.
-          const auto target =
-              b >= 0 ? MakeAvatarTarget(w, a, b, WindowScale(w.avatars[b], pieces))
-                     : MakeObjectTarget(w, a, o, WindowScale(w.objects[o], pieces));
+          const auto target = b >= 0 ? MakeAvatarTarget(w, a, b, WindowScale(w.avatars[b], pieces))
+                                     : MakeObjectTarget(w, a, o, WindowScale(w.objects[o], pieces));
           const OtherAnswer direct = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
                                                  rec.pose1.utime, pieces, *target, eo);
           ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
@@ -867,9 +1033,9 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
             // (nothing carries over from the calls before it); also in
             // per-link mode with a small work limit, on both threads.
             OtherAnswer fresh, fresh_pl;
-            const OtherAnswer direct_pl = AnswerOther(w.avatars[a].skeleton, motion,
-                                                      rec.pose0.utime, rec.pose1.utime, pieces,
-                                                      *target, eo_pl);
+            const OtherAnswer direct_pl =
+                AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime, pieces,
+                            *target, eo_pl);
             std::thread([&] {
               fresh = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime, rec.pose1.utime,
                                   pieces, *target, eo);
@@ -917,9 +1083,10 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
       }
     }
   }
-  std::printf("%d culled by the world's boxes, %d contacts; per-link, limit 40: %d brackets, "
-              "%d answers out of work\n",
-              culled, contacts, per_link_brackets, undecided);
+  std::printf(
+      "%d culled by the world's boxes, %d contacts; per-link, limit 40: %d brackets, "
+      "%d answers out of work\n",
+      culled, contacts, per_link_brackets, undecided);
   EXPECT_GT(culled, 50);
   EXPECT_GT(contacts, 10);
   EXPECT_GT(per_link_brackets, 10);
@@ -949,7 +1116,8 @@ TEST(EntityCcdWorld, MotionBoxesHoldDenseSamples) {
           for (int axis = 0; axis < 3; ++axis) {
             for (double sign : {-1.0, 1.0}) {
               const Vector3d y = x + sign * sk.link(l).radius * Vector3d::Unit(axis);
-              ASSERT_TRUE((y.array() >= box.lo.array()).all() && (y.array() <= box.hi.array()).all())
+              ASSERT_TRUE((y.array() >= box.lo.array()).all() &&
+                          (y.array() <= box.hi.array()).all())
                   << "trial " << trial << " link " << l << " s " << i / 400.0;
               ++points;
             }
@@ -1075,6 +1243,9 @@ TEST(EntityCcdMocap, TwoWalkersCrossing) {
               t.free, t.culled);
   EXPECT_GT(t.contact, 0);
   EXPECT_GT(t.free, 0);
+  // As they come together, a first touch inside a pair (not only pairs that
+  // start touching): the descent, not only the check at the start.
+  EXPECT_GE(t.contact - t.initially, 1);
   EXPECT_EQ(t.undecided, 0);
 }
 
@@ -1110,6 +1281,10 @@ TEST(EntityCcdMocap, BoxersFacingEachOther) {
               t.free, t.culled);
   EXPECT_EQ(t.contact + t.free, 120);
   EXPECT_GT(t.contact, 0);
+  // Punches that first touch inside a pair, and pairs the boxes leave to the
+  // link descent that it finds free.
+  EXPECT_GE(t.contact - t.initially, 1);
+  EXPECT_GE(t.free - t.culled, 1);
   EXPECT_EQ(t.undecided, 0);
 }
 
