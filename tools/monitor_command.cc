@@ -67,7 +67,7 @@ class Monitor {
       Guard(o_.status_channel, [&] { Verified(verified), Status(s); });
     });
     connection->OnSharedContact([this](const shared_contact_t& s, bool verified) {
-      Guard(kSharedContactChannel, [&] { Verified(verified), Shared(s); });
+      Guard(o_.shared_channel, [&] { Verified(verified), Shared(s); });
     });
     connection->OnRejection([this](const rejection_t& r, bool verified) {
       Guard(o_.reject_channel, [&] { Verified(verified), Reject(r); });
@@ -85,11 +85,12 @@ class Monitor {
                 {"contact_channel", o_.contact_channel},
                 {"status_channel", o_.status_channel},
                 {"reject_channel", o_.reject_channel},
+                {"shared_channel", o_.shared_channel},
                 {"verifying", key_.has_value()}});
     } else {
-      Line(fmt::format("monitor: listening on {} (contact {}, status {}, reject {})",
+      Line(fmt::format("monitor: listening on {} (contact {}, status {}, reject {}, shared {})",
                        url.empty() ? "LCM's default URL" : url, o_.contact_channel,
-                       o_.status_channel, o_.reject_channel));
+                       o_.status_channel, o_.reject_channel, o_.shared_channel));
     }
     if (!key_) {
       spdlog::warn("monitor: no --key: nothing is verified; every message is shown UNVERIFIED");
@@ -470,6 +471,8 @@ void AddMonitorOptions(CLI::App* app, MonitorCommandOptions* o) {
                   "Channel of status_t (default SWEPTCCD_STATUS)");
   app->add_option("--reject-channel", o->reject_channel,
                   "Channel of rejection_t (default SWEPTCCD_REJECT)");
+  app->add_option("--shared-channel", o->shared_channel,
+                  "Channel of shared_contact_t (default SWEPTCCD_SHARED_CONTACT)");
   app->add_option("--skeleton", o->skeleton_path, "Skeleton JSON: link names instead of indices");
   app->add_option("--count", o->count, "Exit after this many contact events (default: no limit)");
   app->add_option("--timeout", o->timeout_s,
@@ -500,6 +503,7 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
   co.channels.contact = o.contact_channel;
   co.channels.status = o.status_channel;
   co.channels.reject = o.reject_channel;
+  co.channels.shared_contact = o.shared_channel;
   co.service_key = key;
   co.deliver_unverified = true;  // Shown, marked UNVERIFIED.
   std::unique_ptr<DaemonConnection> connection;

@@ -35,6 +35,7 @@ struct MonitorCommandOptions {
   std::string contact_channel = kContactChannel;
   std::string status_channel = kStatusChannel;
   std::string reject_channel = kRejectChannel;
+  std::string shared_channel = kSharedContactChannel;
   std::string key_path;  // Service key file; empty: nothing is verified.
   std::string skeleton_path;  // Optional: link names instead of indices.
   int64_t count = 0;          // Exit after this many contact events; 0: no limit.

@@ -295,6 +295,8 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
                   "Skeleton JSON: the link count every pose must have");
   app->add_option("--lcm-url", o->lcm_url, "LCM provider URL (default: LCM's default)");
   app->add_option("--channel", o->channel, "Channel of tracker_pose_t (default SWEPTCCD_POSE)");
+  app->add_option("--object-channel", o->object_channel,
+                  "Channel of --object's object_pose_t (default SWEPTCCD_OBJECT_POSE)");
   app->add_option("--up", o->bvh.up_axis, "BVH: up axis of the output, y (as BVH) or z")
       ->check(CLI::IsMember({'y', 'z'}))
       ->needs(bvh);
@@ -345,7 +347,7 @@ void AddSimulateTrackerOptions(CLI::App* app, SimulateTrackerCommandOptions* o) 
                   "with the join (SPEC 8; links by name, index or *); repeat");
   app->add_option("--object", o->objects,
                   "ID=POSES.jsonl: a tracked object's pose lines (SPEC 8), sent as object_pose_t "
-                  "on SWEPTCCD_OBJECT_POSE by utime among the avatars' samples; repeatable");
+                  "on --object-channel by utime among the avatars' samples; repeatable");
   app->add_option("--client-rate", o->client_rates,
                   "ID=HZ: client ID plays at HZ, taking at each of its ticks the first sample at "
                   "or after it (a subset of the stream, as is); repeatable");
@@ -552,7 +554,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       object_pose_t m = objects[next_object];
       m.utime += rebase;
       const std::vector<uint8_t> bytes = EncodeSigned(m, key);
-      if (object_connection->Publish(kObjectPoseChannel, bytes)) ++objects_sent;
+      if (object_connection->Publish(o.object_channel, bytes)) ++objects_sent;
     }
   };
   for (auto& [id, client] : live) {

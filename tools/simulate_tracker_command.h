@@ -49,6 +49,7 @@ namespace sweptccd {
 struct SimulateTrackerCommandOptions {
   std::string lcm_url;  // Empty: LCM's default (LCM_DEFAULT_URL or udpm).
   std::string channel = kPoseChannel;
+  std::string object_channel = kObjectPoseChannel;  // --object's object_pose_t.
   std::string key_path;  // Signs every pose; empty: unsigned.
   int64_t session = -1;  // tracker_pose_t.session; -1: the wall clock (us) at start.
   std::string poses_path;               // A SPEC pose stream (JSON Lines), or

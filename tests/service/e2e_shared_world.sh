@@ -108,4 +108,37 @@ wait_for "$work/daemon_links.log" ready
 grep -q "per-link brackets" "$work/play_links.out"
 kill -TERM $daemon
 wait $daemon
+# Renamed channels (config `channels`): simulate-tracker --object-channel
+# and monitor --shared-channel follow them. The monitor prints plain text
+# here (`shared contact|free CLIENT pair ... with object ID window ...`).
+sed 's/^shared_world: true$/shared_world: true\nchannels: {object_pose: ROOM2_OBJECTS, shared_contact: ROOM2_SHARED}/' \
+  "$work/sweptccd.yaml" > "$work/sweptccd_renamed.yaml"
+grep -q "ROOM2_OBJECTS" "$work/sweptccd_renamed.yaml"
+"$service" --config "$work/sweptccd_renamed.yaml" 2> "$work/daemon_renamed.log" &
+daemon=$!
+wait_for "$work/daemon_renamed.log" ready
+"$sweptccd" monitor --lcm-url "$url" --key "$work/room.key" --all --timeout 60 \
+  --shared-channel ROOM2_SHARED > "$work/monitor_renamed.out" 2> "$work/monitor_renamed.err" &
+monitor=$!
+wait_for "$work/monitor_renamed.out" listening
+grep -q "^monitor: listening on .*, shared ROOM2_SHARED)" "$work/monitor_renamed.out"
+"$sweptccd" simulate-tracker --lcm-url "$url" --key "$work/room.key" --poses "$work/alice.jsonl" \
+  --client alice --object "cup=$work/cup.jsonl" --object-channel ROOM2_OBJECTS --speed 2 \
+  > "$work/simulate_renamed.out"
+grep -q "^simulate-tracker: $(grep -c . "$work/cup.jsonl") object poses sent, 0 object line" \
+  "$work/simulate_renamed.out"
+for _ in $(seq 50); do
+  grep -q "^shared contact alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
+    "$work/monitor_renamed.out" && break
+  sleep 0.1
+done
+kill -INT $monitor
+wait $monitor
+grep -q "^shared contact alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
+  "$work/monitor_renamed.out"
+grep -q "^shared free alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
+  "$work/monitor_renamed.out"
+! grep -q "^reject\|UNVERIFIED" "$work/monitor_renamed.out"
+kill -TERM $daemon
+wait $daemon
 echo "e2e_shared_world: passed"
