@@ -207,9 +207,14 @@ ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
   options.shared_world = config.shared_world;
   for (const ObjectSpec& spec : config.objects) {
     auto mesh = std::make_shared<Environment>();
-    mesh->AddMesh(LoadMeshFile(spec.mesh_path,
-                               MeshLoadOptions{config.max_mesh_bytes, kDefaultMaxMeshLineBytes}),
-                  spec.mesh_path);
+    try {
+      mesh->AddMesh(LoadMeshFile(spec.mesh_path,
+                                 MeshLoadOptions{config.max_mesh_bytes, kDefaultMaxMeshLineBytes}),
+                    spec.mesh_path);
+    } catch (const InputError& e) {
+      // Which object's mesh: the file alone may serve several.
+      throw InputError("objects: '" + spec.id + "' mesh: " + e.what());
+    }
     options.objects.push_back({spec.id, std::move(mesh)});
   }
   return options;

@@ -274,6 +274,10 @@ shared_world: true
             std::string::npos);
   EXPECT_NE(RefusalOf(base + "objects: [{id: \"bad id\", mesh: m.obj}]\n").find("id rule"),
             std::string::npos);
+  // Two objects with one id (not only an object named like a client).
+  EXPECT_NE(RefusalOf(base + "objects: [{id: cup, mesh: m.obj}, {id: cup, mesh: n.obj}]\n")
+                .find("names two entities"),
+            std::string::npos);
   const std::string off = R"(
 environment: [room.ply]
 clients: [{id: alice, skeleton: a.json}]

@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <lcm/lcm-cpp.hpp>
+#include <string>
 
 #include "core/errors.h"
 #include "msgs/signing.h"
@@ -156,6 +158,31 @@ TEST(DaemonTest, RefusesWhatItCannotBuild) {
   ServiceConfig missing_mesh = config;
   missing_mesh.environment = {config.environment[0] + ".missing.obj"};
   EXPECT_THROW(Daemon{missing_mesh}, InputError);
+  // A tracked object whose mesh is missing, or is no mesh: one line naming
+  // the file, and no daemon.
+  for (const char* bad : {".missing.obj", ".txt"}) {
+    ServiceConfig object_mesh = config;
+    object_mesh.shared_world = true;
+    ObjectSpec cup;
+    cup.id = "cup";
+    cup.mesh_path = config.environment[0] + bad;
+    if (std::string(bad) == ".txt") {
+      std::FILE* f = std::fopen(cup.mesh_path.c_str(), "w");
+      ASSERT_NE(f, nullptr);
+      std::fputs("not a mesh\n", f);
+      std::fclose(f);
+    }
+    object_mesh.objects = {cup};
+    try {
+      Daemon daemon(object_mesh);
+      ADD_FAILURE() << "an object with mesh " << cup.mesh_path << " was accepted";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(cup.mesh_path), std::string::npos) << what;
+      EXPECT_EQ(what.rfind("objects: 'cup' mesh: ", 0), 0u) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << "one line: " << what;
+    }
+  }
   ServiceConfig bad_url = config;
   bad_url.lcm_url = "nosuchprovider://";
   try {
