@@ -19,17 +19,17 @@
 #include <set>
 #include <vector>
 
-#include "core/errors.h"
 #include "core/avatar/skeleton.h"
+#include "core/errors.h"
 #include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
 #include "service/daemon/stop_signal.h"
 #include "service/percentile.h"
-#include "sweptccd_client/live_client.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
+#include "sweptccd_client/live_client.h"
 
 namespace sweptccd {
 namespace {
@@ -48,7 +48,6 @@ struct ClientTally {
 };
 
 constexpr size_t kMaxLatencies = 100000;
-
 
 class Monitor {
  public:
@@ -107,7 +106,8 @@ class Monitor {
       free += t.free;
       invalid += t.invalid;
       rejected += t.rejected;
-      const double median = Percentile(std::vector<double>(t.latency_us.begin(), t.latency_us.end()), 0.5);
+      const double median =
+          Percentile(std::vector<double>(t.latency_us.begin(), t.latency_us.end()), 0.5);
       if (o_.json) {
         Emit(json{{"type", "summary"},
                   {"client", id},
@@ -139,11 +139,11 @@ class Monitor {
                 {"unverified", unverified_},
                 {"elapsed_s", elapsed_s}});
     } else {
-      Line(fmt::format(
-          "monitor: {} events ({} contact, {} free, {} invalid), {} rejections, "
-          "{} status messages, {} undecodable, {} unverified, {:.3f} s",
-          events, contact, free, invalid, rejected, status_messages_, undecodable_, unverified_,
-          elapsed_s));
+      Line(
+          fmt::format("monitor: {} events ({} contact, {} free, {} invalid), {} rejections, "
+                      "{} status messages, {} undecodable, {} unverified, {:.3f} s",
+                      events, contact, free, invalid, rejected, status_messages_, undecodable_,
+                      unverified_, elapsed_s));
     }
   }
 
@@ -289,7 +289,9 @@ class Monitor {
     if (!contact && !invalid && !o_.all) return;
     const char* kind = s.entity_kind == shared_entry_t::KIND_OBJECT ? "object" : "client";
     if (o_.json) {
-      json j{{"type", contact ? "shared_contact" : invalid ? "shared_invalid" : "shared_free"},
+      json j{{"type", contact   ? "shared_contact"
+                      : invalid ? "shared_invalid"
+                                : "shared_free"},
              {"client", m.client_id},
              {"pair", m.pair},
              {"seq0", m.seq0},
@@ -336,7 +338,9 @@ class Monitor {
       return;
     }
     std::string head = fmt::format("shared {} {} pair {} seq {}-{} with {} {} window {}..{} us",
-                                   contact ? "contact" : invalid ? "invalid" : "free",
+                                   contact   ? "contact"
+                                   : invalid ? "invalid"
+                                             : "free",
                                    Name(m.client_id), m.pair, m.seq0, m.seq1, kind,
                                    EscapeForDisplay(s.entity), s.t_from, s.t_to);
     if (contact) {
@@ -362,19 +366,19 @@ class Monitor {
     ++tally_[r.client_id].rejected;
     if (o_.json) {
       EmitMsg(json{{"type", "reject"},
-                {"client", r.client_id},
-                {"seq", r.seq},
-                {"reason", r.reason},
-                {"message", r.message},
-                {"suppressed", r.suppressed},
-                {"utime", r.utime}});
+                   {"client", r.client_id},
+                   {"seq", r.seq},
+                   {"reason", r.reason},
+                   {"message", r.message},
+                   {"suppressed", r.suppressed},
+                   {"utime", r.utime}});
     } else {
       // The count held back since the previous published one, at the end so
       // that the fields before keep their places.
-      Show(fmt::format("reject {} seq {} {}: {}{}", Name(r.client_id), r.seq,
-                       EscapeForDisplay(r.reason), EscapeForDisplay(r.message, 1024),
-                       r.suppressed > 0 ? fmt::format(" [{} suppressed before]", r.suppressed)
-                                        : std::string()));
+      Show(fmt::format(
+          "reject {} seq {} {}: {}{}", Name(r.client_id), r.seq, EscapeForDisplay(r.reason),
+          EscapeForDisplay(r.message, 1024),
+          r.suppressed > 0 ? fmt::format(" [{} suppressed before]", r.suppressed) : std::string()));
     }
   }
 
@@ -384,16 +388,16 @@ class Monitor {
     for (size_t i = 0; i < n; ++i) {
       if (o_.json) {
         EmitMsg(json{{"type", "status"},
-                  {"client", s.client_id[i]},
-                  {"poses_received", s.poses_received[i]},
-                  {"pairs_answered", s.pairs_answered[i]},
-                  {"pairs_skipped", s.pairs_skipped[i]},
-                  {"rejected", s.rejected[i]},
-                  {"seq_gaps", s.seq_gaps[i]},
-                  {"rate_limited", s.rate_limited[i]},
-                  {"latency_median_us", s.latency_median_us[i]},
-                  {"latency_p99_us", s.latency_p99_us[i]},
-                  {"utime", s.utime}});
+                     {"client", s.client_id[i]},
+                     {"poses_received", s.poses_received[i]},
+                     {"pairs_answered", s.pairs_answered[i]},
+                     {"pairs_skipped", s.pairs_skipped[i]},
+                     {"rejected", s.rejected[i]},
+                     {"seq_gaps", s.seq_gaps[i]},
+                     {"rate_limited", s.rate_limited[i]},
+                     {"latency_median_us", s.latency_median_us[i]},
+                     {"latency_p99_us", s.latency_p99_us[i]},
+                     {"utime", s.utime}});
       } else {
         Show(fmt::format(
             "status {} poses {} answered {} skipped {} rejected {} seq_missing {} rate_limited {} "
@@ -405,37 +409,37 @@ class Monitor {
     }
     if (o_.json) {
       EmitMsg(json{{"type", "service"},
-                {"backend", s.backend},
-                {"renderer", s.renderer},
-                {"security", s.security},
-                {"queue_depth", s.queue_depth},
-                {"dropped_total", s.dropped_total},
-                {"rejected_unattributed", s.rejected_unattributed},
-                {"rejections_suppressed", s.rejections_suppressed},
-                {"shared_messages", s.shared_messages},
-                {"shared_entries", s.shared_entries},
-                {"shared_by_timeout", s.shared_by_timeout},
-                {"shared_dropped", s.shared_dropped},
-                {"shared_overflowed", s.shared_overflowed},
-                {"shared_cleared", s.shared_cleared},
-                {"shared_pending", s.shared_pending},
-                {"shared_ready", s.shared_ready},
-                {"object_poses_received", s.object_poses_received},
-                {"object_poses_rejected", s.object_poses_rejected},
-                {"object_poses_rate_limited", s.object_poses_rate_limited},
-                {"utime", s.utime}});
+                   {"backend", s.backend},
+                   {"renderer", s.renderer},
+                   {"security", s.security},
+                   {"queue_depth", s.queue_depth},
+                   {"dropped_total", s.dropped_total},
+                   {"rejected_unattributed", s.rejected_unattributed},
+                   {"rejections_suppressed", s.rejections_suppressed},
+                   {"shared_messages", s.shared_messages},
+                   {"shared_entries", s.shared_entries},
+                   {"shared_by_timeout", s.shared_by_timeout},
+                   {"shared_dropped", s.shared_dropped},
+                   {"shared_overflowed", s.shared_overflowed},
+                   {"shared_cleared", s.shared_cleared},
+                   {"shared_pending", s.shared_pending},
+                   {"shared_ready", s.shared_ready},
+                   {"object_poses_received", s.object_poses_received},
+                   {"object_poses_rejected", s.object_poses_rejected},
+                   {"object_poses_rate_limited", s.object_poses_rate_limited},
+                   {"utime", s.utime}});
     } else {
-      Show(fmt::format(
-          "status service backend {} security {} queue {} dropped {} unattributed {} "
-          "rejections_suppressed {}",
-          EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
-          s.dropped_total, s.rejected_unattributed, s.rejections_suppressed));
+      Show(
+          fmt::format("status service backend {} security {} queue {} dropped {} unattributed {} "
+                      "rejections_suppressed {}",
+                      EscapeForDisplay(s.backend), EscapeForDisplay(s.security), s.queue_depth,
+                      s.dropped_total, s.rejected_unattributed, s.rejections_suppressed));
       Show(fmt::format(
           "status shared messages {} entries {} by_timeout {} dropped {} overflowed {} "
           "cleared {} pending {} ready {} object_poses {} rejected {} rate_limited {}",
           s.shared_messages, s.shared_entries, s.shared_by_timeout, s.shared_dropped,
-          s.shared_overflowed, s.shared_cleared, s.shared_pending, s.shared_ready, s.object_poses_received,
-          s.object_poses_rejected, s.object_poses_rate_limited));
+          s.shared_overflowed, s.shared_cleared, s.shared_pending, s.shared_ready,
+          s.object_poses_received, s.object_poses_rejected, s.object_poses_rate_limited));
     }
   }
 
@@ -450,8 +454,8 @@ class Monitor {
 
   const MonitorCommandOptions& o_;
   std::optional<Skeleton> skeleton_;
-  std::optional<MacKey> key_;  // --key; none: nothing is verified.
-  bool verified_ = false;      // Of the message being shown.
+  std::optional<MacKey> key_;                            // --key; none: nothing is verified.
+  bool verified_ = false;                                // Of the message being shown.
   int64_t shared_total_ = 0, shared_contact_total_ = 0;  // Shared-world entries seen.
   int64_t shared_messages_ = 0;                          // In this many messages.
   int64_t unverified_ = 0;

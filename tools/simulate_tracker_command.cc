@@ -4,30 +4,30 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cstdint>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <memory>
-#include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <set>
 
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/world/world_file.h"
-#include "sweptccd/object_pose_t.hpp"
-#include "core/avatar/pose.h"
-#include "core/avatar/skeleton.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
-#include "sweptccd/tracker_pose_t.hpp"
 #include "service/daemon/stop_signal.h"
+#include "sweptccd/object_pose_t.hpp"
+#include "sweptccd/tracker_pose_t.hpp"
 #include "sweptccd_client/live_client.h"
 
 namespace sweptccd {
@@ -372,9 +372,8 @@ std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o,
   }
   if (o.bvh.bvh_path.empty()) {
     // --start / --frames select poses (import-bvh's frames).
-    auto source = std::make_unique<PoseFileSource>(o.poses_path, num_links,
-                                                   std::max(0, o.bvh.start_frame),
-                                                   o.bvh.frame_count);
+    auto source = std::make_unique<PoseFileSource>(
+        o.poses_path, num_links, std::max(0, o.bvh.start_frame), o.bvh.frame_count);
     if (o.bvh.frame_count == 0) {
       throw InputError("simulate-tracker: --frames 0 leaves no pose to send");
     }
@@ -383,8 +382,7 @@ std::unique_ptr<SampleSource> MakeSource(const SimulateTrackerCommandOptions& o,
   MocapClip clip = ImportBvhClip(o.bvh);
   if (num_links >= 0 && num_links != clip.skeleton.num_links()) {
     throw InputError(o.skeleton_path + ": " + std::to_string(num_links) + " links, but " +
-                     o.bvh.bvh_path + " imports as " +
-                     std::to_string(clip.skeleton.num_links()));
+                     o.bvh.bvh_path + " imports as " + std::to_string(clip.skeleton.num_links()));
   }
   if (!*skeleton) *skeleton = clip.skeleton;
   return std::make_unique<ClipSource>(std::move(clip.poses));
@@ -510,8 +508,9 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
     for (const std::string& spec : o.objects) {
       const size_t eq = spec.find('=');
       if (eq == std::string::npos || eq == 0 || !IsValidClientId(spec.substr(0, eq))) {
-        throw InputError("--object '" + EscapeForDisplay(spec) +
-                         "': use ID=POSES.jsonl with an id of 1-64 characters from A-Z a-z 0-9 _ . -");
+        throw InputError(
+            "--object '" + EscapeForDisplay(spec) +
+            "': use ID=POSES.jsonl with an id of 1-64 characters from A-Z a-z 0-9 _ . -");
       }
       const std::string path = spec.substr(eq + 1);
       std::ifstream in = OpenInputFile(path, "object pose file (--object)");
@@ -536,8 +535,9 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
         objects.push_back(m);
       }
     }
-    std::stable_sort(objects.begin(), objects.end(),
-                     [](const object_pose_t& a, const object_pose_t& b) { return a.utime < b.utime; });
+    std::stable_sort(
+        objects.begin(), objects.end(),
+        [](const object_pose_t& a, const object_pose_t& b) { return a.utime < b.utime; });
     if (!objects.empty() && !object_connection) {
       DaemonConnection::Options co;
       co.lcm_url = o.lcm_url;
@@ -604,9 +604,9 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
         shape.n = k + 1;
       }
       const int64_t utime = sample->utime + loop * shape.loop_span_us;
-      const double due_s =
-          fixed_rate ? static_cast<double>(loop * shape.n + k) / o.bvh.rate_hz / o.speed
-                     : static_cast<double>(utime - shape.first_utime) * 1e-6 / o.speed;
+      const double due_s = fixed_rate
+                               ? static_cast<double>(loop * shape.n + k) / o.bvh.rate_hz / o.speed
+                               : static_cast<double>(utime - shape.first_utime) * 1e-6 / o.speed;
       const double jitter_s =
           o.jitter_us > 0 ? counters.unit(counters.rng) * o.jitter_us * 1e-6 : 0.0;
       const Clock::time_point due = t0 + std::chrono::duration_cast<Clock::duration>(
@@ -643,8 +643,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
   if (!stopped && !objects.empty()) publish_objects_until(INT64_MAX - 1, rebase_us);
   if (!objects.empty()) {
     std::printf("simulate-tracker: %lld object poses sent, %lld object line(s) skipped\n",
-                static_cast<long long>(objects_sent),
-                static_cast<long long>(object_lines_skipped));
+                static_cast<long long>(objects_sent), static_cast<long long>(object_lines_skipped));
   }
   for (auto& [id, client] : live) client->Leave();
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -679,8 +678,9 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
       throw InputError("simulate-tracker: --join needs --skeleton (or --bvh) to join with");
     }
     if (!o.join && (!o.entity_rules.empty() || !o.ignore_rules.empty())) {
-      throw InputError("simulate-tracker: --join-ignore and --join-ignore-entity are sent with "
-                       "a join: give --join");
+      throw InputError(
+          "simulate-tracker: --join-ignore and --join-ignore-entity are sent with "
+          "a join: give --join");
     }
     for (const std::string& rule : o.entity_rules) ParseEntityRule(rule);
     clients = MakeClients(o);
@@ -691,8 +691,9 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     return 2;
   }
   if (!key) {
-    std::fprintf(stderr, "simulate-tracker: no --key: poses are sent UNSIGNED (a daemon in signed "
-                         "mode refuses them)\n");
+    std::fprintf(stderr,
+                 "simulate-tracker: no --key: poses are sent UNSIGNED (a daemon in signed "
+                 "mode refuses them)\n");
   }
   try {
     return Play(o, source.get(), key ? &*key : nullptr, service_key ? &*service_key : nullptr,
@@ -702,6 +703,5 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     return 2;
   }
 }
-
 
 }  // namespace sweptccd

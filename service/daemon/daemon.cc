@@ -10,9 +10,9 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
-#include <deque>
 #include <cstdint>
 #include <cstring>
+#include <deque>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
@@ -28,9 +28,9 @@
 #include "core/gpu/backend.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
+#include "msgs/text.h"
 #include "service/collision_service.h"
 #include "service/lcm_transport.h"
-#include "msgs/text.h"
 
 namespace sweptccd {
 
@@ -84,7 +84,8 @@ int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std:
     return *index;
   }
   throw InputError(where + ": no link '" + EscapeForDisplay(key) + "' in skeleton '" +
-                   EscapeForDisplay(skeleton.name()) + "' (" + std::to_string(skeleton.num_links()) +
+                   EscapeForDisplay(skeleton.name()) + "' (" +
+                   std::to_string(skeleton.num_links()) +
                    " links; give a link name, an index or \"*\")");
 }
 
@@ -270,7 +271,9 @@ class LiveRegistry : public LiveSessionHandler {
     }
     Reply(request, {join_reply_t::REASON_BUSY,
                     std::to_string(kMaxQueuedJoins) + " joins are waiting already; join again "
-                    "in a moment", 0, {}});
+                                                      "in a moment",
+                    0,
+                    {}});
   }
 
   void OnLeave(const leave_t& leave) override {
@@ -319,8 +322,8 @@ class LiveRegistry : public LiveSessionHandler {
     const int64_t skew = r.utime - WallUtime();
     if (skew > max_utime_jump_us_ || -skew > max_utime_jump_us_) {
       return Refuse(join_reply_t::REASON_STALE_REQUEST,
-                    "join utime " + std::to_string(r.utime) + " is " +
-                        std::to_string(skew / 1000) + " ms off the daemon's clock (limit " +
+                    "join utime " + std::to_string(r.utime) + " is " + std::to_string(skew / 1000) +
+                        " ms off the daemon's clock (limit " +
                         std::to_string(max_utime_jump_us_ / 1000) +
                         " ms, security.max_utime_jump_s); sync the clocks and join again");
     }
@@ -356,8 +359,8 @@ class LiveRegistry : public LiveSessionHandler {
       if (r.parent[i] < -1 || r.parent[i] >= r.num_links) {
         return Refuse(join_reply_t::REASON_BAD_SKELETON,
                       "link " + std::to_string(i) + " ('" + EscapeForDisplay(l.name) +
-                          "') has parent index " + std::to_string(r.parent[i]) +
-                          ", outside [-1, " + std::to_string(r.num_links) + ")");
+                          "') has parent index " + std::to_string(r.parent[i]) + ", outside [-1, " +
+                          std::to_string(r.num_links) + ")");
       }
       l.parent = r.parent[i];
       l.a_L = Eigen::Vector3d(r.a[i][0], r.a[i][1], r.a[i][2]);
@@ -387,8 +390,8 @@ class LiveRegistry : public LiveSessionHandler {
       const EntityRuleSpec spec{r.ignore_entity_link[k], r.ignore_entity[k],
                                 r.ignore_entity_other_link[k]};
       try {
-        cc.entity_rules.push_back(ResolveEntityRule(
-            spec, *cc.skeleton, rule_targets_, "ignore_entity rule " + std::to_string(k)));
+        cc.entity_rules.push_back(ResolveEntityRule(spec, *cc.skeleton, rule_targets_,
+                                                    "ignore_entity rule " + std::to_string(k)));
       } catch (const InputError& e) {
         return Refuse(join_reply_t::REASON_BAD_FILTER, EscapeForDisplay(e.what(), 400));
       }
@@ -525,8 +528,9 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   lcm = std::make_unique<lcm::LCM>(config.lcm_url);
   if (!lcm->good()) throw InputError("--lcm-url '" + config.lcm_url + "': LCM cannot open it");
   if (!security.signed_mode) {
-    spdlog::warn("UNSIGNED MODE: poses are not authenticated and what this service publishes is "
-                 "not signed; anyone on the network can forge or replay them. Lab bench only.");
+    spdlog::warn(
+        "UNSIGNED MODE: poses are not authenticated and what this service publishes is "
+        "not signed; anyone on the network can forge or replay them. Lab bench only.");
   }
   transport = std::make_unique<LcmTransport>(lcm.get(), config.channels, std::move(security));
   service = std::make_unique<CollisionService>(env, std::move(clients),
@@ -643,9 +647,11 @@ void Daemon::Start() {
   impl_->running = true;
   impl_->loop = std::thread([impl = impl_.get()] { impl->Loop(); });
   const ServiceConfig& c = impl_->config;
-  spdlog::info("ready: {} clients, {} workers, listening on '{}' channel {}; up to {} live "
-               "clients on {} (silence_timeout_ms {})", c.clients.size(), c.workers, c.lcm_url,
-               c.channels.pose, c.max_live_clients, c.channels.join, c.silence_timeout_ms);
+  spdlog::info(
+      "ready: {} clients, {} workers, listening on '{}' channel {}; up to {} live "
+      "clients on {} (silence_timeout_ms {})",
+      c.clients.size(), c.workers, c.lcm_url, c.channels.pose, c.max_live_clients, c.channels.join,
+      c.silence_timeout_ms);
 }
 
 void Daemon::WaitUntilIdle() {

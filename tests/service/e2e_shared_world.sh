@@ -2,9 +2,10 @@
 # The shared world end to end (SPEC 8 "Live"; docs/SERVICE.md "Shared
 # world"), over udpm:// inside a private network namespace this script
 # creates (never the host network): the daemon with two configured avatars
-# (90 Hz and 60 Hz, different phases) and a tracked object (30 Hz); every
-# shared entry equal to `sweptccd world` on the same samples, except entries
-# ended by the timeout and pairs merged by latest-wins; an object pose for an
+# (90 Hz and 60 Hz, different phases) and a tracked object (30 Hz), over a
+# floor they touch now and then; every environment event and every shared
+# entry equal to `sweptccd world` on the same samples, except entries ended
+# by the timeout and pairs merged by latest-wins; an object pose for an
 # unknown object is one clear rejection and disturbs nothing; then
 # `simulate-tracker` plays one stream for both avatars at their own rates and
 # phases (--client-rate, --client-phase-us), checked the same way.

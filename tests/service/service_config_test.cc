@@ -88,8 +88,7 @@ TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
       {base + "status_period_s: 0\n", "status_period_s must be > 0"},
       {base + "max_pose_rate_hz: 0\n", "max_pose_rate_hz must be in (0, 1e6] Hz"},
       {base + "max_object_pose_rate_hz: 0\n", "max_object_pose_rate_hz must be in (0, 1e6] Hz"},
-      {base + "max_object_pose_rate_hz: 2e6\n",
-       "max_object_pose_rate_hz must be in (0, 1e6] Hz"},
+      {base + "max_object_pose_rate_hz: 2e6\n", "max_object_pose_rate_hz must be in (0, 1e6] Hz"},
       {base + "max_object_pose_rate_hz: fast\n", "max_object_pose_rate_hz"},
       {base + "query: {eps: 0}\n", "eps must be"},
       {base + "query: {delta: -1}\n", "delta must be"},
@@ -127,7 +126,8 @@ TEST(ServiceConfigTest, RefusalsNameTheKeyAndTheProblem) {
   for (const Case& c : cases) {
     const std::string message = RefusalOf(c.yaml);
     EXPECT_NE(message.find(c.must_contain), std::string::npos)
-        << "yaml:\n" << c.yaml << "\nmessage: " << message;
+        << "yaml:\n"
+        << c.yaml << "\nmessage: " << message;
   }
 }
 
@@ -143,7 +143,8 @@ TEST(ServiceConfigTest, NonScalarKeyIsRefusedAsInputError) {
   for (const std::string& yaml : cases) {
     const std::string message = RefusalOf(yaml);
     EXPECT_NE(message.find("a key must be a plain name"), std::string::npos)
-        << "yaml:\n" << yaml << "\nmessage: " << message;
+        << "yaml:\n"
+        << yaml << "\nmessage: " << message;
   }
 }
 
@@ -216,8 +217,9 @@ security: {room_key: room.key}
 shared_world: true
 )";
   const ServiceConfig c = ParseServiceConfig(
-      head + "clients: [{id: alice, skeleton: a.json, ignore_entities: [{link: rhand, entity: "
-             "cup}, {link: \"*\", entity: bob, other_link: 3}]}]\n",
+      head +
+          "clients: [{id: alice, skeleton: a.json, ignore_entities: [{link: rhand, entity: "
+          "cup}, {link: \"*\", entity: bob, other_link: 3}]}]\n",
       "cfg.yaml", "/base");
   ASSERT_EQ(c.clients.size(), 1u);
   ASSERT_EQ(c.clients[0].ignore_entities.size(), 2u);
@@ -258,8 +260,9 @@ security: {room_key: room.key}
 shared_world: true
 )";
   const ServiceConfig c = ParseServiceConfig(
-      base + "channels: {object_pose: OP, shared_contact: SC}\n"
-             "objects: [{id: cup, mesh: cup.obj, key: cup.key}, {id: ball, mesh: /abs/ball.stl}]\n",
+      base +
+          "channels: {object_pose: OP, shared_contact: SC}\n"
+          "objects: [{id: cup, mesh: cup.obj, key: cup.key}, {id: ball, mesh: /abs/ball.stl}]\n",
       "cfg.yaml", "/base");
   EXPECT_TRUE(c.shared_world);
   EXPECT_EQ(c.channels.object_pose, "OP");

@@ -4,7 +4,7 @@
 //     Writes a world (SPEC 8): DIR/arm.json (a two-link arm), DIR/alice.jsonl
 //     (90 Hz), DIR/bob.jsonl (60 Hz, 5 ms later), DIR/cube.obj and
 //     DIR/cup.jsonl (a tracked cube at 30 Hz, 12 ms later), DIR/floor.obj
-//     (far below) and DIR/world.json naming them; and for `listen`
+//     (just below the arms) and DIR/world.json naming them; and for `listen`
 //     DIR/stream.jsonl (360 Hz, 20 s later), DIR/sim_alice.jsonl,
 //     DIR/sim_bob.jsonl and DIR/sim_world.json.
 //   shared_world_tool --key FILE listen URL DIR OFFLINE.jsonl
@@ -19,10 +19,11 @@
 //     with FILE), then one object pose of an unknown object ("ghost"); reads
 //     contact_event_t, shared_contact_t and rejection_t (DecodeChecked, mac
 //     verified) until every pair's shared entries are in (bounded: 30 s).
-//     Checks: every shared entry of a pair not merged by latest-wins, not
-//     ended by the timeout, equals `sweptccd world`'s entry (OFFLINE.jsonl)
-//     bit for bit; every such pair has exactly its offline entries; the only
-//     rejection is one unknown_object for "ghost". Exit 0 when all hold.
+//     Checks: every environment event of a pair not merged by latest-wins
+//     equals `sweptccd world`'s record (OFFLINE.jsonl: result, bracket,
+//     first witness); every shared entry of such a pair not ended by the
+//     timeout equals `sweptccd world`'s entry bit for bit; every such pair has exactly its offline
+//     entries; the only rejection is one unknown_object for "ghost". Exit 0 when all hold.
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -94,12 +95,15 @@ int Write(const std::string& dir) {
   std::string cube = "";
   const double h = 0.08;
   for (int c = 0; c < 8; ++c) {
-    cube += "v " + std::to_string((c & 1) ? h : -h) + " " + std::to_string((c & 2) ? h : -h) +
-            " " + std::to_string((c & 4) ? h : -h) + "\n";
+    cube += "v " + std::to_string((c & 1) ? h : -h) + " " + std::to_string((c & 2) ? h : -h) + " " +
+            std::to_string((c & 4) ? h : -h) + "\n";
   }
   cube += "f 1 2 4 3\nf 5 7 8 6\nf 1 5 6 2\nf 3 4 8 7\nf 1 3 7 5\nf 2 6 8 4\n";
   WriteText(dir + "/cube.obj", cube);
-  WriteText(dir + "/floor.obj", "v -10 -10 -10\nv 10 -10 -10\nv 10 10 -10\nv -10 10 -10\nf 1 2 3 4\n");
+  // The floor 9 cm under the arms' mean height: their links (radius 4-5 cm)
+  // wander onto it now and then, so the environment parts have contacts too.
+  WriteText(dir + "/floor.obj",
+            "v -10 -10 -0.09\nv 10 -10 -0.09\nv 10 10 -0.09\nv -10 10 -0.09\nf 1 2 3 4\n");
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n(0, 1);
   const int64_t start = 1'000'000, end = 2'500'000;
@@ -140,9 +144,10 @@ int Write(const std::string& dir) {
     p += 0.03 * Eigen::Vector3d(n(rng), n(rng), n(rng)) + 0.2 * (Eigen::Vector3d(0.1, 0.25, 0) - p);
     const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3 * n(rng), Eigen::Vector3d::UnitX()));
     char line[512];
-    std::snprintf(line, sizeof line,
-                  "{\"utime\": %lld, \"pose\": [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]}\n",
-                  static_cast<long long>(t), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
+    std::snprintf(
+        line, sizeof line,
+        "{\"utime\": %lld, \"pose\": [%.17g, %.17g, %.17g, %.17g, %.17g, %.17g, %.17g]}\n",
+        static_cast<long long>(t), p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z());
     cup += line;
   }
   WriteText(dir + "/cup.jsonl", cup);
@@ -299,7 +304,8 @@ std::string Diff(const LiveEntry& s, const json& o) {
   return d;
 }
 
-// Offline entries by (avatar, utime0, utime1) -> entity -> entry.
+// Offline entries by (avatar, utime0, utime1) -> entity -> entry; the
+// record itself (its environment part) under the entity "" (no id is empty).
 using Offline = std::map<std::tuple<std::string, int64_t, int64_t>, std::map<std::string, json>>;
 
 Offline LoadOffline(const std::string& offline_path) {
@@ -307,12 +313,37 @@ Offline LoadOffline(const std::string& offline_path) {
   std::ifstream in(offline_path);
   std::string line;
   while (std::getline(in, line)) {
-    const json r = json::parse(line);
+    json r = json::parse(line);
     auto& e = offline[{r["avatar"].get<std::string>(), r["utime0"].get<int64_t>(),
                        r["utime1"].get<int64_t>()}];
     for (const json& o : r["others"]) e[o["entity"].get<std::string>()] = o;
+    r.erase("others");
+    e[""] = std::move(r);
   }
   return offline;
+}
+
+// Where the daemon's environment event differs from `sweptccd world`'s
+// record of the same pair: the result, and for a contact the bracket (s and
+// printed t, bit for bit), initially_colliding, and the first witness's
+// link, object, triangle and s.
+std::string EnvDiff(const contact_event_t& c, const json& r) {
+  std::string d;
+  const std::string result = r["result"].get<std::string>();
+  const int want = result == "contact" ? 1 : result == "free" ? 0 : 2;
+  if (c.result != want) return " result " + std::to_string(c.result) + " vs " + result;
+  if (want != 1) return d;
+  if (c.s_lo != r["s_lo"].get<double>() || c.s_hi != r["s_hi"].get<double>()) d += " s";
+  if (c.t_lo != r["t_lo"].get<double>() || c.t_hi != r["t_hi"].get<double>()) d += " t";
+  if (c.initially_colliding != r["initially_colliding"].get<bool>()) d += " initially_colliding";
+  const json& w = r["contacts"];
+  if (c.num_contacts < 1 || w.empty()) return d + " witnesses";
+  const contact_record_t& k = c.contacts[0];
+  if (k.link != w[0]["link"].get<int>() || k.object != w[0]["object"].get<int>() ||
+      k.triangle != w[0]["triangle"].get<int64_t>() || k.s != w[0]["s"].get<double>()) {
+    d += " witness";
+  }
+  return d;
 }
 
 void Subscribe(lcm::LCM& lcm, Receiver* rx) {
@@ -353,8 +384,8 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
     int64_t seq = 0;
     while (std::getline(in, line)) {
       const json j = json::parse(line);
-      order.push_back({j["utime"].get<int64_t>(), kind, id, seq++,
-                       kind == 0 ? j["links"] : j["pose"]});
+      order.push_back(
+          {j["utime"].get<int64_t>(), kind, id, seq++, kind == 0 ? j["links"] : j["pose"]});
     }
   }
   std::stable_sort(order.begin(), order.end(),
@@ -435,7 +466,9 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
       if (c.seq1 - c.seq0 != 1) continue;  // Merged by latest-wins.
       const auto it = offline.find({c.client_id, c.utime0, c.utime1});
       if (it == offline.end()) continue;
-      for (const auto& [entity, o] : it->second) keys.insert({c.client_id, c.pair, entity});
+      for (const auto& [entity, o] : it->second) {
+        if (!entity.empty()) keys.insert({c.client_id, c.pair, entity});
+      }
     }
     return keys;
   };
@@ -464,6 +497,34 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
   }
   std::set<std::tuple<std::string, int64_t, std::string>> seen;
   int compared = 0, cut = 0, merged = 0, waited = 0, contacts = 0;
+  // Every environment event of a pair not merged by latest-wins equals the
+  // offline record's environment part.
+  int env_compared = 0, env_contacts = 0;
+  for (const contact_event_t& c : rx.contacts) {
+    if (c.seq1 - c.seq0 != 1) continue;
+    const auto it = offline.find({c.client_id, c.utime0, c.utime1});
+    if (it == offline.end() || !it->second.count("")) {
+      std::printf("FAIL: %s [%lld, %lld]: no such offline record\n",
+                  EscapeForDisplay(c.client_id).c_str(), static_cast<long long>(c.utime0),
+                  static_cast<long long>(c.utime1));
+      ++failures;
+      continue;
+    }
+    const std::string d = EnvDiff(c, it->second.at(""));
+    if (!d.empty()) {
+      std::printf("FAIL: %s [%lld, %lld] environment differs:%s\n",
+                  EscapeForDisplay(c.client_id).c_str(), static_cast<long long>(c.utime0),
+                  static_cast<long long>(c.utime1), d.c_str());
+      ++failures;
+    }
+    ++env_compared;
+    env_contacts += c.result == 1;
+  }
+  if (env_compared < expect.min_compared / 2 || env_contacts < expect.min_contacts) {
+    std::printf("FAIL: only %d environment events compared (%d contacts)\n", env_compared,
+                env_contacts);
+    ++failures;
+  }
   for (const LiveEntry& s : rx.shared) {
     if (!seen.insert({s.client_id, s.pair, s.entity}).second) {
       std::printf("FAIL: %s pair %lld against %s published twice\n",
@@ -531,18 +592,22 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
   }
   bool offline_per_link = false;
   for (const auto& [key, entries] : offline) {
-    for (const auto& [entity, o] : entries) offline_per_link = offline_per_link || o.contains("links");
+    for (const auto& [entity, o] : entries) {
+      if (!entity.empty()) offline_per_link = offline_per_link || o.contains("links");
+    }
   }
   if (offline_per_link && g_link_brackets < expect.min_contacts) {
     std::printf("FAIL: per-link mode, only %d per-link brackets compared\n", g_link_brackets);
     ++failures;
   }
   std::printf(
-      "shared_world_tool: %zu pairs, %zu shared entries in %lld messages: %d equal to sweptccd "
+      "shared_world_tool: %zu pairs (%d environment events equal to sweptccd world, %d "
+      "contacts), %zu shared entries in %lld messages: %d equal to sweptccd "
       "world (%d contacts, %d per-link brackets), %d ended by timeout, %d of merged pairs, %d "
       "waited; %d failures\n",
-      rx.contacts.size(), rx.shared.size(), static_cast<long long>(rx.shared_messages), compared,
-      contacts, g_link_brackets, cut, merged, waited, failures);
+      rx.contacts.size(), env_compared, env_contacts, rx.shared.size(),
+      static_cast<long long>(rx.shared_messages), compared, contacts, g_link_brackets, cut, merged,
+      waited, failures);
   return failures == 0 ? 0 : 1;
 }
 

@@ -52,7 +52,8 @@ ServiceConfig MemqConfig(const std::string& test_name) {
   config.backend = gpu::BackendKind::kCpu;
   config.status_period_s = 3600;  // No timer status unless a test asks for it.
   config.log_level = "warn";
-  config.security.mode = "unsigned";  // memq:// in one process; signing is tested in lcm_transport_test.
+  config.security.mode =
+      "unsigned";  // memq:// in one process; signing is tested in lcm_transport_test.
   ValidateServiceConfig(config);
   return config;
 }
