@@ -552,8 +552,11 @@ MotionMemo& IntervalMotions::MemoOf(int k) {
     if (k - held_.begin()->first >= far->first - k) far = held_.begin();
     held = std::move(far->second);
     held_.erase(far);
+    // The new motion in the old one's arrays (the same bits, no allocation).
+    PairMotion::Storage storage;
+    held->motion.Release(&storage);
     held->motion = PairMotion(entity_.skeleton, entity_.used[static_cast<size_t>(k)],
-                              entity_.used[static_cast<size_t>(k1)], entity_.motion);
+                              entity_.used[static_cast<size_t>(k1)], entity_.motion, &storage);
     held->memo.Rebind(held->motion);
     held->link_boxes.clear();
   } else {
