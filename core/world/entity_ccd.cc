@@ -40,9 +40,9 @@ class AvatarTarget : public OtherTarget {
         a_(a),
         b_(b),
         e_(world.avatars[b]),
-        own_(shared != nullptr ? nullptr
-                               : std::make_unique<IntervalMotions>(
-                                     e_, std::numeric_limits<size_t>::max())),
+        own_(shared != nullptr
+                 ? nullptr
+                 : std::make_unique<IntervalMotions>(e_, std::numeric_limits<size_t>::max())),
         motions_(shared != nullptr ? shared : own_.get()) {
     tol_ = std::ldexp((scale >= 0 ? scale : EntityScale(e_)) + 10.0, -22) + 1e-9;
     // A rule can only ignore a link pair of A and B when it names the other
@@ -655,7 +655,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   if (roots.size() < static_cast<size_t>(num_links)) roots.resize(num_links);
   for (int l = 0; l < num_links; ++l) target.RootCandidatesInto(l, &roots[l]);
   std::vector<std::vector<int>>& cands = scratch.cands;
-  bool use_cands = false;  // False: the target has no link boxes.
+  bool use_cands = false;                        // False: the target has no link boxes.
   std::vector<Aabb>& boxes_e = scratch.boxes_e;  // Piece p's link j at p * num_e + j.
   boxes_e.clear();
   size_t num_e = 0;
@@ -720,6 +720,22 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
   auto close = [&](const OtherBracket& b) {
     done[b.link] = true;
     brackets.push_back(b);
+  };
+  // An undecided bracket's witness (SPEC 8: at least one for a contact): the
+  // nearest of E's unfiltered candidates to the link at the bracket's start,
+  // at any distance, as the environment's undecided brackets have theirs.
+  auto close_undecided = [&](OtherBracket b) {
+    size_t p = 0;
+    while (p + 1 < num_pieces && pieces[p].tau1 < b.tau_lo) ++p;
+    Eigen::Vector3d sa, sb;
+    memo_a.SegmentAt(b.link, s_of(b.tau_lo), &sa, &sb);
+    OtherContact c;
+    if (target.Nearest(pieces[p], b.tau_lo, b.link, sa, sb, skeleton_a.link(b.link).radius,
+                       roots[b.link], 1e12, &c)) {
+      b.has_witness = true;
+      b.witness = c;
+    }
+    close(b);
   };
   auto searching = [&] { return options.per_link || brackets.empty(); };
 
@@ -818,7 +834,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
         br.tau_lo = earliest[l];
         br.tau_hi = tau_to;
         br.undecided = true;
-        close(br);
+        close_undecided(br);
       }
       break;
     }
@@ -866,7 +882,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
       br.tau_lo = item.tau0;
       br.tau_hi = tau_to;
       br.undecided = true;
-      close(br);
+      close_undecided(br);
       continue;
     }
     if (arena.size() > std::max<size_t>(2 * compacted, 1 << 16)) {
