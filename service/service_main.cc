@@ -10,6 +10,7 @@
 #include <cstdio>
 
 #include "core/errors.h"
+#include "msgs/text.h"
 #include "service/daemon/daemon.h"
 #include "service/daemon/stop_signal.h"
 #include "service/service_flags.h"
@@ -27,7 +28,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "error: sweptccd-service: %s\n", e.what());
+    std::fprintf(stderr, "error: sweptccd-service: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 
@@ -39,7 +40,7 @@ int main(int argc, char** argv) {
     daemon.Stop();
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 }

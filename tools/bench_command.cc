@@ -19,6 +19,7 @@
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
 #include "mocap/mocap_import.h"
+#include "msgs/text.h"
 #include "tools/bench_common.h"
 #include "tools/bullet_peer.h"
 
@@ -102,8 +103,8 @@ struct SceneSpec {
   std::string name;
   std::vector<MeshPlacement> meshes;
   char up = 'y';
-  double floor = 0;                  // Height of the floor along the up axis.
-  Eigen::Vector2d centre{0, 0};      // Horizontal centre of the walk.
+  double floor = 0;              // Height of the floor along the up axis.
+  Eigen::Vector2d centre{0, 0};  // Horizontal centre of the walk.
 };
 
 TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
@@ -217,7 +218,7 @@ struct Row {
   Stats fcl_us;
   Stats gpu_us;
   int gpu_mismatches = -1;  // Pairs whose GPU answer differs from the CPU's; -1: no GPU.
-  int fcl_misses = 0;  // Pairs where we found contact and FCL's end-pose test saw none.
+  int fcl_misses = 0;       // Pairs where we found contact and FCL's end-pose test saw none.
   double fcl_build_s = 0;
   Stats bullet_us;
   int bullet_misses = 0;  // Pairs where we found contact and Bullet's sweep saw none.
@@ -297,9 +298,9 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
                   "%-22s %9s %-18s %5s %7s %5s %9s %9s %9s %8s %9s %9s %9s %7s %6s %8s %9s %9s "
                   "%9s %7s %6s %9s %9s %8s %8s %8s %6s %8s\n",
                   "scene", "tris", "clip", "pairs", "contact", "undec", "median_us", "p99_us",
-                  "max_us", "build_s", "B/tri", "fcl_med", "fcl_p99", "ratio", "missed",
-                  "fcl_bld", "gpu_med", "gpu_p99", "gpu_max", "cpu/gpu", "differ", "bul_med",
-                  "bul_p99", "bul/ours", "b/o_p99", "p99/med", "bmiss", "bul_bld");
+                  "max_us", "build_s", "B/tri", "fcl_med", "fcl_p99", "ratio", "missed", "fcl_bld",
+                  "gpu_med", "gpu_p99", "gpu_max", "cpu/gpu", "differ", "bul_med", "bul_p99",
+                  "bul/ours", "b/o_p99", "p99/med", "bmiss", "bul_bld");
     out << buf;
   }
   for (const Row& r : rows) {
@@ -323,9 +324,9 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
                     "%-22s %9zu %-18s %5d %7d %5d %9.1f %9.1f %9.1f %8.3f %9.1f %9.1f %9.1f %7.2f "
                     "%6d %8.3f %9.1f %9.1f %9.1f %7.2f %6d %9.1f %9.1f %8.2f %8.2f %8.2f %6d "
                     "%8.3f\n",
-                    r.scene.c_str(), r.triangles, r.clip.substr(0, 18).c_str(), r.pairs,
-                    r.contacts, r.undecided, r.ours_us.median, r.ours_us.p99, r.ours_us.max,
-                    r.build_s, r.bytes_per_tri, r.fcl_us.median, r.fcl_us.p99,
+                    r.scene.c_str(), r.triangles, r.clip.substr(0, 18).c_str(), r.pairs, r.contacts,
+                    r.undecided, r.ours_us.median, r.ours_us.p99, r.ours_us.max, r.build_s,
+                    r.bytes_per_tri, r.fcl_us.median, r.fcl_us.p99,
                     r.ours_us.median > 0 ? r.fcl_us.median / r.ours_us.median : 0.0, r.fcl_misses,
                     r.fcl_build_s, r.gpu_us.median, r.gpu_us.p99, r.gpu_us.max,
                     r.gpu_us.median > 0 ? r.ours_us.median / r.gpu_us.median : 0.0,
@@ -372,13 +373,13 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     }
     std::vector<Row> rows;
     for (const SceneSpec& scene : scenes) {
-      if (!options.scenes.empty() &&
-          std::find(options.scenes.begin(), options.scenes.end(), scene.name) ==
-              options.scenes.end()) {
+      if (!options.scenes.empty() && std::find(options.scenes.begin(), options.scenes.end(),
+                                               scene.name) == options.scenes.end()) {
         continue;
       }
       std::vector<TriangleMesh> meshes;
-      for (const MeshPlacement& m : scene.meshes) meshes.push_back(PlacedMesh(dir, m, options.mesh));
+      for (const MeshPlacement& m : scene.meshes)
+        meshes.push_back(PlacedMesh(dir, m, options.mesh));
       const long rss0 = ResidentKiB();
       const auto t0 = Clock::now();
       Environment env;
@@ -399,8 +400,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         mo.up_axis = scene.up;
         MocapClip clip = ImportBvhFile(DataFile(dir + "/mocap/" + clip_name), mo);
         // Resample to the tracker rate by frame skipping.
-        const int step = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s *
-                                                                          options.rate_hz))));
+        const int step =
+            std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s * options.rate_hz))));
         std::vector<Pose> poses;
         for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
         clip.poses = poses;
@@ -481,7 +482,8 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         row.bullet_us = Summarise(bullet_times);
         row.bullet_build_s = bullet ? bullet->build_s() : 0;
         all_row.bullet_misses += row.bullet_misses;
-        if (with_gpu) all_row.gpu_mismatches = std::max(0, all_row.gpu_mismatches) + row.gpu_mismatches;
+        if (with_gpu)
+          all_row.gpu_mismatches = std::max(0, all_row.gpu_mismatches) + row.gpu_mismatches;
         row.gpu_us = Summarise(gpu_times);
         all_row.pairs += row.pairs;
         all_row.contacts += row.contacts;
@@ -508,22 +510,26 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       all_row.fcl_ccd_us = Summarise(all_fcl_ccd);
       rows.push_back(all_row);
     }
-    std::printf("SweptCCD bench: %g Hz, eps %g s, delta %g m, motion %s%s, %d warm-up pairs, "
-                "single thread, %s\n",
-                options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
-                options.per_link ? ", per-link" : "", options.warmup_pairs,
-                g_thread_clock ? "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID)"
-                               : "times: wall clock (steady_clock)");
-    std::printf("ours: CPU backend; gpu_*: GPU backend on the same pairs (%s), times include "
-                "upload and read-back; differ: pairs whose GPU answer or bracket differs (must be "
-                "0)\n",
-                gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
-    std::printf("ours: certified CCD per pair; FCL: discrete capsule-vs-OBBRSS collide at the "
-                "second pose only (no sweep)\n");
-    std::printf("Bullet: btCollisionWorld::convexSweepTest of one btCapsuleShape per link from "
-                "its pose at time 0 to time 1 against btBvhTriangleMeshShape (built once, untimed); "
-                "linear/rigid sweep, not certified; bmiss: pairs we certify as contact and Bullet "
-                "sees none\n\n");
+    std::printf(
+        "SweptCCD bench: %g Hz, eps %g s, delta %g m, motion %s%s, %d warm-up pairs, "
+        "single thread, %s\n",
+        options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
+        options.per_link ? ", per-link" : "", options.warmup_pairs,
+        g_thread_clock ? "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID)"
+                       : "times: wall clock (steady_clock)");
+    std::printf(
+        "ours: CPU backend; gpu_*: GPU backend on the same pairs (%s), times include "
+        "upload and read-back; differ: pairs whose GPU answer or bracket differs (must be "
+        "0)\n",
+        gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
+    std::printf(
+        "ours: certified CCD per pair; FCL: discrete capsule-vs-OBBRSS collide at the "
+        "second pose only (no sweep)\n");
+    std::printf(
+        "Bullet: btCollisionWorld::convexSweepTest of one btCapsuleShape per link from "
+        "its pose at time 0 to time 1 against btBvhTriangleMeshShape (built once, untimed); "
+        "linear/rigid sweep, not certified; bmiss: pairs we certify as contact and Bullet "
+        "sees none\n\n");
     std::fputs(FormatTable(rows, false).c_str(), stdout);
     std::fputs("\n", stdout);
     std::fputs(TargetLines(rows).c_str(), stdout);
@@ -536,7 +542,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 }

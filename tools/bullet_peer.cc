@@ -29,8 +29,8 @@ BulletPeer::BulletPeer(const std::vector<TriangleMesh>& meshes) : impl_(std::mak
   m.config = std::make_unique<btDefaultCollisionConfiguration>();
   m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
   m.broadphase = std::make_unique<btDbvtBroadphase>();
-  m.world = std::make_unique<btCollisionWorld>(m.dispatcher.get(), m.broadphase.get(),
-                                               m.config.get());
+  m.world =
+      std::make_unique<btCollisionWorld>(m.dispatcher.get(), m.broadphase.get(), m.config.get());
   for (const TriangleMesh& mesh : meshes) {
     if (mesh.num_triangles() == 0) continue;
     std::vector<btScalar>& v = m.vertices.emplace_back();
@@ -83,8 +83,7 @@ bool BulletPeer::Sweep(const Skeleton& skel, const Pose& pose0, const Pose& pose
     m.capsules.clear();
     for (int i = 0; i < skel.num_links(); ++i) {
       const Link& l = skel.link(i);
-      m.capsules.push_back(
-          std::make_unique<btCapsuleShape>(l.radius, (l.b_L - l.a_L).norm()));
+      m.capsules.push_back(std::make_unique<btCapsuleShape>(l.radius, (l.b_L - l.a_L).norm()));
     }
     m.capsules_for = &skel;
   }

@@ -11,9 +11,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/avatar/pose.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
-#include "core/avatar/pose.h"
+#include "msgs/text.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {
@@ -51,8 +52,8 @@ std::map<std::string, double> ReadRadiiFile(const std::string& path) {
   std::map<std::string, double> radii;
   for (const auto& [name, value] : j.items()) {
     if (!value.is_number() || !std::isfinite(value.get<double>()) || !(value.get<double>() > 0)) {
-      throw InputError(path + ": radius of '" + name + "' must be a finite number of metres > 0, got " +
-                       value.dump());
+      throw InputError(path + ": radius of '" + name +
+                       "' must be a finite number of metres > 0, got " + value.dump());
     }
     const std::vector<std::string>& links = MocapLinkNames();
     if (std::find(links.begin(), links.end(), name) == links.end()) {
@@ -79,7 +80,8 @@ MocapClip ImportBvhClip(const ImportBvhCommandOptions& o) {
   }
   MocapClip probe = ImportBvhFile(o.bvh_path, mo);
   if (o.rate_hz > 0) {
-    mo.frame_step = std::max(1, static_cast<int>(std::lround(1.0 / (probe.frame_time_s * o.rate_hz))));
+    mo.frame_step =
+        std::max(1, static_cast<int>(std::lround(1.0 / (probe.frame_time_s * o.rate_hz))));
     probe = ImportBvhFile(o.bvh_path, mo);
   }
   return probe;
@@ -95,10 +97,11 @@ void CheckPlacement(const ImportBvhCommandOptions& o, const MocapClip& clip) {
   }
   // utime_start plus the clip's utimes must stay an int64 (SPEC utime).
   if (!std::isfinite(o.utime_start) || std::fabs(o.utime_start) > 4e18 ||
-      (!clip.poses.empty() && std::fabs(static_cast<double>(clip.poses.back().utime)) +
-                                      std::fabs(o.utime_start) > 9e18)) {
-    throw InputError("import-bvh: --utime-start must be finite and keep every utime within int64 "
-                     "(|value| <= 4e18 microseconds)");
+      (!clip.poses.empty() &&
+       std::fabs(static_cast<double>(clip.poses.back().utime)) + std::fabs(o.utime_start) > 9e18)) {
+    throw InputError(
+        "import-bvh: --utime-start must be finite and keep every utime within int64 "
+        "(|value| <= 4e18 microseconds)");
   }
 }
 
@@ -151,7 +154,7 @@ int RunImportBvhCommand(const ImportBvhCommandOptions& o) {
                  probe.unit_scale_m);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 }

@@ -10,13 +10,13 @@
 #include <utility>
 #include <vector>
 
-#include "core/geometry/bvh.h"
-#include "core/query/ccd_query.h"
-#include "core/geometry/distance.h"
-#include "core/scene/environment.h"
-#include "core/geometry/mesh.h"
-#include "mocap/mocap_import.h"
 #include "core/avatar/motion.h"
+#include "core/geometry/bvh.h"
+#include "core/geometry/distance.h"
+#include "core/geometry/mesh.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/environment.h"
+#include "mocap/mocap_import.h"
 #include "tools/bench_common.h"
 
 namespace sweptccd {
@@ -118,7 +118,6 @@ void BM_QueryCulledBreakfast(benchmark::State& state) {
 }
 BENCHMARK(BM_QueryCulledBreakfast)->Unit(benchmark::kMicrosecond);
 
-
 // The quiet rows of `sweptccd bench` (issue 11): every pair of its six
 // clips at 30 Hz (at most 300 per clip), placed as the bench places them,
 // through the MORSE apartment (first arg 0) or the breakfast room (1), all
@@ -135,9 +134,12 @@ void BM_QueryQuietScene(benchmark::State& state) {
                           {"bitterli_breakfast_room.ply", 'y', -1.42, {-0.67, -1.9}}};
   const Scene& scene = scenes[state.range(0)];
   const Environment env = Environment::LoadFiles({bench::DataFile(kData + "/env/" + scene.file)});
-  const char* clip_names[] = {"cmu_02_01_walk.bvh", "cmu_02_03_run_jog.bvh", "cmu_13_41_jump.bvh",
+  const char* clip_names[] = {"cmu_02_01_walk.bvh",
+                              "cmu_02_03_run_jog.bvh",
+                              "cmu_13_41_jump.bvh",
                               "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
-                              "cmu_01_03_playground_climb_hang_swing.bvh", "boxing_toes.bvh"};
+                              "cmu_01_03_playground_climb_hang_swing.bvh",
+                              "boxing_toes.bvh"};
   std::vector<MocapClip> clips;
   for (int c = 0; c < 6; ++c) {
     if (state.range(1) >= 0 && state.range(1) != c) continue;

@@ -8,14 +8,15 @@
 #include <iostream>
 #include <memory>
 
-#include "core/scene/collision_filter.h"
-#include "core/scene/environment.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
-#include "core/avatar/pose.h"
 #include "core/query/result_json.h"
-#include "core/avatar/skeleton.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+#include "msgs/text.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {
@@ -35,10 +36,10 @@ int RunQueryCommand(const QueryCommandOptions& options) {
 
     const auto load_start = std::chrono::steady_clock::now();
     const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);
-    spdlog::info("environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s",
-                 env.num_objects(), env.num_triangles(), env.memory_bytes() / 1048576.0,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start)
-                     .count());
+    spdlog::info(
+        "environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s", env.num_objects(),
+        env.num_triangles(), env.memory_bytes() / 1048576.0,
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count());
 
     CollisionFilter filter(skeleton.num_links(), env.num_objects());
     if (!options.filter_path.empty()) {
@@ -73,8 +74,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     while (std::optional<PairOutcome> outcome = reader.Next()) {
       if (!outcome->valid) {
         ++invalid;
-        *out << InvalidResultToJson(outcome->pair, outcome->utime0, outcome->utime1,
-                                    outcome->error)
+        *out << InvalidResultToJson(outcome->pair, outcome->utime0, outcome->utime1, outcome->error)
              << '\n';
         continue;
       }
@@ -95,14 +95,14 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     out->flush();
     if (!*out) {
-      throw InputError((options.output_path.empty() ? std::string("standard output")
-                                                    : options.output_path) +
-                       ": error while writing the results");
+      throw InputError(
+          (options.output_path.empty() ? std::string("standard output") : options.output_path) +
+          ": error while writing the results");
     }
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "error: out of memory\n");

@@ -24,6 +24,7 @@
 #include "core/scene/environment.h"
 #include "core/world/world_file.h"
 #include "core/world/world_query.h"
+#include "msgs/text.h"
 #include "render/contact_picture.h"
 #include "render/entity_contact_picture.h"
 #include "render/raster_image.h"
@@ -408,7 +409,7 @@ int RunRenderCommand(const RenderCommandOptions& o) {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const gpu::GpuError& e) {
     std::fprintf(stderr, "error: sweptccd render: no OpenGL picture: %s\n", e.what());

@@ -66,8 +66,9 @@ int main(int argc, char** argv) {
                     "repeat");
   query->add_option("--max-intervals", q.query.max_intervals,
                     "Work limit per pair (interval tests) before answering undecided");
-  query->add_option("--max-mesh-bytes", q.mesh.max_bytes,
-                    "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
+  query
+      ->add_option("--max-mesh-bytes", q.mesh.max_bytes,
+                   "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
       ->check(CLI::PositiveNumber);
   query->add_option("--max-links", q.max_links, "Largest skeleton, links (default 256)")
       ->check(CLI::PositiveNumber);
@@ -82,8 +83,8 @@ int main(int argc, char** argv) {
   sweptccd::AddImportBvhOptions(import_bvh, &ib);
 
   sweptccd::RenderCommandOptions rn;
-  CLI::App* render = app.add_subcommand(
-      "render", "PNG pictures of a contact and a timeline of a pose stream");
+  CLI::App* render =
+      app.add_subcommand("render", "PNG pictures of a contact and a timeline of a pose stream");
   sweptccd::AddRenderOptions(render, &rn);
 
   sweptccd::SimulateTrackerCommandOptions st;
@@ -92,8 +93,8 @@ int main(int argc, char** argv) {
   sweptccd::AddSimulateTrackerOptions(simulate, &st);
 
   sweptccd::MonitorCommandOptions mon;
-  CLI::App* monitor =
-      app.add_subcommand("monitor", "Print the contact events, status and rejections of the daemon");
+  CLI::App* monitor = app.add_subcommand(
+      "monitor", "Print the contact events, status and rejections of the daemon");
   sweptccd::AddMonitorOptions(monitor, &mon);
 
   std::string keygen_out;
@@ -102,7 +103,8 @@ int main(int argc, char** argv) {
   keygen->add_option("--out", keygen_out, "Key file to create (never overwritten)")->required();
 
   sweptccd::WorldCommandOptions wo;
-  CLI::App* world = app.add_subcommand("world", "Answer every avatar pair of a shared world file (SPEC 8)");
+  CLI::App* world =
+      app.add_subcommand("world", "Answer every avatar pair of a shared world file (SPEC 8)");
   world->add_option("--world", wo.world_path, "World JSON file")->required();
   world->add_option("--eps", wo.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   world->add_option("--delta", wo.query.delta_m, "Distance tolerance, metres (default 1e-3)");

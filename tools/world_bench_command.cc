@@ -18,6 +18,7 @@
 #include "core/errors.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
+#include "msgs/text.h"
 #include "tools/bench_common.h"
 
 namespace sweptccd {
@@ -391,7 +392,7 @@ int RunWorldBenchCommand(const WorldBenchOptions& o) {
     if (!o.generate_only) Bench(o, g);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const std::filesystem::filesystem_error& e) {
     std::fprintf(stderr, "error: world-bench: %s\n", e.what());

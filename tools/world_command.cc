@@ -12,6 +12,7 @@
 
 #include "core/errors.h"
 #include "core/world/world_query.h"
+#include "msgs/text.h"
 
 namespace sweptccd {
 
@@ -90,7 +91,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     spdlog::info("{} records", records);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "error: out of memory\n");

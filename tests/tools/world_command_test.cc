@@ -9,7 +9,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-
 #include <nlohmann/json.hpp>
 #include <random>
 #include <regex>
@@ -388,6 +387,14 @@ TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
       {"malformed id",
        R"({"avatars": [{"id": "bad id!", "skeleton": "bar.json", "poses": "alice.jsonl"}]})",
        "malformed id 'bad id!'"},
+      // Found by a review: the raw newline split the refusal over two lines.
+      {"id with a newline and an escape",
+       R"({"objects": [{"id": "O\n\u001b[2J", "mesh": "cup.obj", "poses": "cup.jsonl"}]})",
+       "malformed id 'O\\n\\x1b[2J'"},
+      {"link name with a newline",
+       R"({"avatars": [{"id": "a", "skeleton": "bar.json", "poses": "alice.jsonl",
+                        "ignore": [{"link": "no\nsuch", "entity": "b"}]}]})",
+       "unknown link 'no\\nsuch'"},
       {"too long id",
        R"({"avatars": [{"id": ")" + std::string(65, 'a') +
            R"(", "skeleton": "bar.json", "poses": "alice.jsonl"}]})",
