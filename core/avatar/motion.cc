@@ -46,7 +46,7 @@ Eigen::Quaterniond SlerpPrepared(const Eigen::Quaterniond& q0, const Eigen::Quat
 }
 
 Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1) {
-  if (q0.coeffs().dot(q1.coeffs()) < 0) {
+  if (internal::DotSign(q0.coeffs().data(), q1.coeffs().data()) < 0) {
     Eigen::Quaterniond n;
     n.coeffs() = -q1.coeffs();
     return n;
@@ -60,13 +60,72 @@ Eigen::Quaterniond ShortestArcTarget(const Eigen::Quaterniond& q0, const Eigen::
 double NormHi(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
 // max(NormHi(u), NormHi(v)), bit for bit, with one square root.
 double MaxNormHi(const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
-  return NormUpperOfSum(std::max(SumOfSquaresUpper(u.x(), u.y(), u.z()),
-                                 SumOfSquaresUpper(v.x(), v.y(), v.z())));
+  return NormUpperOfSum(
+      std::max(SumOfSquaresUpper(u.x(), u.y(), u.z()), SumOfSquaresUpper(v.x(), v.y(), v.z())));
 }
 
 }  // namespace
 
 namespace internal {
+
+namespace {
+
+// a + b = s + e exactly (Knuth's two-sum; no branch, any order of magnitude).
+void TwoSum(double a, double b, double* s, double* e) {
+  *s = a + b;
+  const double bv = *s - a;
+  const double av = *s - bv;
+  *e = (a - av) + (b - bv);
+}
+
+// a * b = p + e exactly (Dekker's product with Veltkamp's split), for
+// products and halves clear of overflow and underflow.
+void TwoProduct(double a, double b, double* p, double* e) {
+  constexpr double kSplit = 134217729.0;  // 2^27 + 1.
+  auto split = [](double x, double* hi, double* lo) {
+    const double c = kSplit * x;
+    *hi = c - (c - x);
+    *lo = x - *hi;
+  };
+  double ah, al, bh, bl;
+  split(a, &ah, &al);
+  split(b, &bh, &bl);
+  *p = a * b;
+  *e = ((ah * bh - *p) + ah * bl + al * bh) + al * bl;
+}
+
+}  // namespace
+
+int DotSign(const double a[4], const double b[4]) {
+  const double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+  // The sum's rounding is below 5e-16 for unit vectors: past 1e-12 its sign
+  // is the exact one.
+  if (std::fabs(d) > 1e-12) return d > 0 ? 1 : -1;
+  // Near 0 (a turn of 180 degrees), exactly: the eight parts of the four
+  // products summed into a nonoverlapping expansion (Shewchuk's
+  // Grow-Expansion), whose largest nonzero part has the sum's sign.
+  double expansion[8];
+  int n = 0;
+  auto grow = [&](double x) {
+    double q = x;
+    for (int i = 0; i < n; ++i) {
+      double h;
+      TwoSum(q, expansion[i], &q, &h);
+      expansion[i] = h;
+    }
+    expansion[n++] = q;
+  };
+  for (int k = 0; k < 4; ++k) {
+    double p, e;
+    TwoProduct(a[k], b[k], &p, &e);
+    grow(e);
+    grow(p);
+  }
+  for (int i = n - 1; i >= 0; --i) {
+    if (expansion[i] != 0) return expansion[i] > 0 ? 1 : -1;
+  }
+  return 0;
+}
 
 // Each interval operation's upper end, for the operands met here: sums add
 // upper ends; in every product both operands' upper ends are >= 0 and >= the
@@ -89,8 +148,7 @@ double FirstOrderGrowth(double speed, double angular, double extent, double slac
   const double growth = Up(Up(speed_all * half_width) + slack);
   if (Finite(growth)) return growth;
   const Interval interval_speed = Interval(speed) + Interval(angular) * Interval(extent);
-  return (interval_speed * ((Interval(s1) - Interval(s0)) * Interval(0.5)) + Interval(slack))
-      .hi();
+  return (interval_speed * ((Interval(s1) - Interval(s0)) * Interval(0.5)) + Interval(slack)).hi();
 }
 
 double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
@@ -114,8 +172,8 @@ LinkBounds LinkBoundsByIntervals(double half_angle, double own_speed_hi, double 
   // Slerp turns at the constant rate 2 * half_angle; the nlerp fallback
   // below kNlerpAngle turns at most (1 + 1e-12) times that: 2 * half_angle,
   // widened for the rounding of atan2 and the nlerp fallback.
-  const Interval own_angular = Interval(2.0) * Interval::Outward(half_angle, half_angle, 8) *
-                               Interval(1.0, 1.0 + 1e-12);
+  const Interval own_angular =
+      Interval(2.0) * Interval::Outward(half_angle, half_angle, 8) * Interval(1.0, 1.0 + 1e-12);
   // Only the upper end of |p1 - p0| reaches a bound: sums' upper ends add
   // upper ends, and its one product, with 2 w_k (upper end >= |lower end|),
   // peaks at the two upper ends whatever its lower end. So the point at the
@@ -140,8 +198,8 @@ LinkBounds LinkBoundsByIntervals(double half_angle, double own_speed_hi, double 
   // w_i' = w_k' + w_k x (R_k u). For p_i = p_k + R_k c(s), c linear:
   // p_i'' = p_k'' + w_k' x R_k c + w_k x (w_k x R_k c) + 2 w_k x R_k c'.
   out.angular_accel = (Interval(parent->angular_accel) + wk * own_angular).hi();
-  out.accel = (Interval(parent->accel) + Interval(parent->angular_accel) * lever +
-               wk * wk * lever + Interval(2.0) * wk * own_speed)
+  out.accel = (Interval(parent->accel) + Interval(parent->angular_accel) * lever + wk * wk * lever +
+               Interval(2.0) * wk * own_speed)
                   .hi();
   return out;
 }
@@ -158,9 +216,9 @@ bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
     b.angular = Up(wk + own_angular);
     b.speed = Up(Up(parent->speed + Up(wk * lever)) + own_speed);
     b.angular_accel = Up(parent->angular_accel + Up(wk * own_angular));
-    b.accel = Up(Up(Up(parent->accel + Up(parent->angular_accel * lever)) +
-                    Up(Up(wk * wk) * lever)) +
-                 Up(Up(2.0 * wk) * own_speed));
+    b.accel =
+        Up(Up(Up(parent->accel + Up(parent->angular_accel * lever)) + Up(Up(wk * wk) * lever)) +
+           Up(Up(2.0 * wk) * own_speed));
   }
   if (!Finite(b.angular) || !Finite(b.speed) || !Finite(b.accel) || !Finite(b.angular_accel)) {
     return false;
@@ -391,8 +449,8 @@ void PairMotion::SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* 
 double PairMotion::SweepRadius(int link, double s0, double s1) const {
   const LinkMotion& m = links_[link];
   // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
-  return internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_,
-                                    s0, s1);
+  return internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_, s0,
+                                    s1);
 }
 
 void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
@@ -412,12 +470,11 @@ void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eige
   SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
 }
 
-void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1,
-                                          const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
-                                          const Eigen::Vector3d& a1, const Eigen::Vector3d& b1,
-                                          const Eigen::Vector3d& am, const Eigen::Vector3d& bm,
-                                          Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
-                                          double* growth) const {
+void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1, const Eigen::Vector3d& a0,
+                                          const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
+                                          const Eigen::Vector3d& b1, const Eigen::Vector3d& am,
+                                          const Eigen::Vector3d& bm, Eigen::Vector3d* p_WA,
+                                          Eigen::Vector3d* p_WB, double* growth) const {
   const LinkMotion& m = links_[link];
   *p_WA = am;
   *p_WB = bm;

@@ -29,6 +29,14 @@ double SlerpAngle(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1);
 
 namespace internal {
 
+/// The sign (-1, 0 or 1) of the exact dot product of two 4-vectors (SPEC 3's
+/// shortest-arc rule, dot(q0, q1) < 0, decided exactly even for a turn of
+/// exactly 180 degrees, whose rounded dot is noise around 0). Exact while no
+/// component exceeds 2^500 and every product a_k b_k is 0 or at least 2^-900
+/// in magnitude (its parts clear of underflow); Slerp and PairMotion use it
+/// for unit quaternions.
+int DotSign(const double a[4], const double b[4]);
+
 /// The upper ends of PairMotion's two growth bounds over [s0, s1], bit for
 /// bit the interval expressions they replace (the twins in
 /// tests/core/avatar/motion_test.cc), without the lower ends. Inputs are the
@@ -134,8 +142,8 @@ class PairMotion {
   /// SegmentAt computes them (time slicing reuses them from the parent).
   void SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
                             const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
-                            const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
-                            Eigen::Vector3d* p_WB, double* growth) const;
+                            const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                            double* growth) const;
 
   /// As SweptCapsuleFromEnds, given also the segment at the midpoint
   /// (s0 + s1) / 2 (am, bm) as SegmentAt computes it: the same bits.
@@ -170,8 +178,8 @@ class PairMotion {
     double sin_half = 0, inv_sin_half = 0, sin_quarter = 0;
     Eigen::Vector3d a_L, b_L;
     internal::LinkBounds bounds;  // Over the whole pair.
-    double extent = 0;  // max(|a|, |b|): farthest segment point from the origin.
-    int depth = 1;      // Links from the root to this one, both counted.
+    double extent = 0;            // max(|a|, |b|): farthest segment point from the origin.
+    int depth = 1;                // Links from the root to this one, both counted.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
   // One composition step of PosesAt and PoseAt: the pose of the link moving

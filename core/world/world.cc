@@ -54,7 +54,9 @@ std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* ou
   if (!(norm >= kMinQuaternionNorm)) return "quaternion norm below 1e-6";
   out->utime = utime;
   out->p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
-  out->q = Eigen::Quaterniond(q.coeffs() / norm);
+  // Normalised as an avatar's link (ValidateAndNormalizePose), so that the
+  // same numbers make the same rotation, bit for bit, on either path.
+  out->q = Eigen::Quaterniond(q.coeffs() / q.coeffs().stableNorm());
   return {};
 }
 

@@ -51,18 +51,25 @@ inline Mat3L RotL(const QL& q) {
 }
 
 // SPEC 3's sign rule: q1 is replaced by -q1 when dot(q0, q1) < 0. Where
-// the dot is within rounding of 0 (a turn of exactly 180 degrees: both arcs
-// are as short), the sign is taken from the dot of the quaternions rounded
-// to double, as a double, which is the rule applied to the numbers a pose
-// stream holds; elsewhere long double and double agree.
+// the long double dot is within rounding of 0 (a turn of 180 degrees: both
+// arcs are as short), the dot of the quaternions as doubles (the numbers a
+// pose stream holds) is taken in binary128, where their products are exact:
+// a sum within its own rounding of 0 is 0 (no flip).
 inline bool ShortestArcFlips(const QL& q0, const QL& q1) {
   const LD dot = Dot(q0, q1);
   if (std::fabs(dot) > 1e-12L) return dot < 0;
-  const Eigen::Quaterniond a(static_cast<double>(q0.w), static_cast<double>(q0.x),
-                             static_cast<double>(q0.y), static_cast<double>(q0.z));
-  const Eigen::Quaterniond b(static_cast<double>(q1.w), static_cast<double>(q1.x),
-                             static_cast<double>(q1.y), static_cast<double>(q1.z));
-  return a.coeffs().dot(b.coeffs()) < 0;
+  const double a[4] = {static_cast<double>(q0.w), static_cast<double>(q0.x),
+                       static_cast<double>(q0.y), static_cast<double>(q0.z)};
+  const double b[4] = {static_cast<double>(q1.w), static_cast<double>(q1.x),
+                       static_cast<double>(q1.y), static_cast<double>(q1.z)};
+  __float128 sum = 0, size = 0;
+  for (int k = 0; k < 4; ++k) {
+    const __float128 p = static_cast<__float128>(a[k]) * static_cast<__float128>(b[k]);
+    sum += p;
+    size += p < 0 ? -p : p;
+  }
+  const __float128 magnitude = sum < 0 ? -sum : sum;
+  return magnitude > size * static_cast<__float128>(1e-30) && sum < 0;
 }
 
 // Shortest-arc slerp as q0 * exp(s * log(conj(q0) * q1')).

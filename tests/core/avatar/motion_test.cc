@@ -235,6 +235,61 @@ std::string RigSummary(const Rig& rig, MotionModel model) {
 // ---------------------------------------------------------------------------
 // Slerp and SlerpAngle.
 
+// internal::DotSign against answers known exactly and against a binary128
+// twin: a quaternion and itself turned by exactly 180 degrees (q times a unit
+// axis quaternion: components permuted and negated, no rounding) have a dot
+// of exactly 0; moving one component of the turned one by one ulp makes the
+// exact dot that component's step times the other's matching component.
+TEST(MotionTest, DotSignIsExactNearZero) {
+  std::mt19937_64 g(0x40710D07);
+  int zero = 0, by_ulp = 0, rounded_wrong = 0, by_twin = 0;
+  for (int c = 0; c < 20000; ++c) {
+    const Eigen::Quaterniond q = RandomUnitQuat(g);
+    const Eigen::Quaterniond axes[3] = {{0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+    const Eigen::Quaterniond t = q * axes[c % 3];
+    double a[4], b[4];
+    for (int k = 0; k < 4; ++k) {
+      a[k] = q.coeffs()[k];
+      b[k] = t.coeffs()[k];
+    }
+    ASSERT_EQ(internal::DotSign(a, b), 0) << "case " << c;
+    ++zero;
+    const int k = std::uniform_int_distribution<int>(0, 3)(g);
+    if (a[k] == 0 || b[k] == 0) continue;
+    const double step_to = (g() & 1) ? 2.0 : -2.0;
+    b[k] = std::nextafter(b[k], step_to);
+    const int want = (a[k] > 0) == (step_to > 0) ? 1 : -1;
+    ASSERT_EQ(internal::DotSign(a, b), want) << "case " << c;
+    ++by_ulp;
+    // The plain rounded sum gets many of these wrong: the reason for DotSign.
+    const double rounded = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+    rounded_wrong += (rounded > 0 ? 1 : rounded < 0 ? -1 : 0) != want;
+  }
+  // Random pairs, near-orthogonal ones among them, against __float128 (the
+  // products exact, the sum rounded at 2^-113): where the twin's sum is far
+  // above its own rounding, the signs agree.
+  for (int c = 0; c < 20000; ++c) {
+    const Eigen::Vector4d u = RandomUnitQuat(g).coeffs();
+    Eigen::Vector4d v = RandomUnitQuat(g).coeffs();
+    if (c % 2 == 0) v = (v - v.dot(u) * u).normalized();  // Dot near 0.
+    __float128 sum = 0, size = 0;
+    for (int k = 0; k < 4; ++k) {
+      const __float128 p = static_cast<__float128>(u[k]) * static_cast<__float128>(v[k]);
+      sum += p;
+      size += p < 0 ? -p : p;
+    }
+    const __float128 magnitude = sum < 0 ? -sum : sum;
+    if (magnitude <= size * static_cast<__float128>(1e-30)) continue;
+    ASSERT_EQ(internal::DotSign(u.data(), v.data()), sum > 0 ? 1 : -1) << "case " << c;
+    ++by_twin;
+  }
+  std::printf("DotSign: %d exact zeros, %d one-ulp steps (rounded sum wrong on %d), %d by twin\n",
+              zero, by_ulp, rounded_wrong, by_twin);
+  EXPECT_GT(by_ulp, 10000);
+  EXPECT_GT(rounded_wrong, 100);
+  EXPECT_GT(by_twin, 19000);
+}
+
 TEST(MotionTest, SlerpMatchesAxisAngleTwin) {
   std::mt19937_64 g(0x40710001);
   std::uniform_real_distribution<double> u01(0, 1);

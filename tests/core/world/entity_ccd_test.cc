@@ -201,7 +201,16 @@ void CheckPair(const World& w, int a, int b, int o, const Pose& pose0, const Pos
       ASSERT_GT(ref.Sep(t, only_link), -kSlack)
           << "G1 broken: touching at t=" << t << " before t_lo=" << u0 + br.tau_lo;
     }
-    if (br.undecided) return;
+    if (br.undecided) {
+      // SPEC 8: a witness for every contact, undecided ones too: the nearest
+      // of E at the bracket's start, at whatever separation.
+      EXPECT_EQ(br.tau_hi, double(t_to - pose0.utime));
+      ASSERT_TRUE(br.has_witness) << "undecided without a witness";
+      EXPECT_EQ(br.witness.tau, br.tau_lo);
+      EXPECT_EQ(br.witness.link, br.link);
+      EXPECT_NEAR(br.witness.separation, ref.Sep(u0 + br.witness.tau, br.link), 1e-6);
+      return;
+    }
     EXPECT_LE(br.tau_hi - br.tau_lo, eps_us * (1 + 1e-12));  // G2.
     if (br.initially_colliding) {
       EXPECT_EQ(br.tau_lo, double(t_from - pose0.utime));
@@ -556,6 +565,36 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
   cases.Expect("per link", 100, 20);
 }
 
+// Under a small work limit (1 to 8 intervals): undecided brackets keep G1,
+// end at t_to and carry a witness (SPEC 8: at least one for a contact), the
+// nearest of E at the bracket's start by the reference.
+TEST(EntityCcdRandom, UndecidedBracketsKeepG1AndCarryAWitness) {
+  Tally avatars, objects;
+  for (int seed = 0; seed < 300; ++seed) {
+    for (int kind = 0; kind < 2; ++kind) {
+      Rng rng((kind == 0 ? 1000 : 5000) + seed);
+      World w;
+      Pose p0, p1;
+      if (kind == 0) {
+        RandomAvatarWorld(rng, &w, &p0, &p1);
+      } else {
+        RandomObjectWorld(rng, &w, &p0, &p1);
+      }
+      EntityQueryOptions opt;
+      opt.per_link = rng.P(0.3);
+      opt.max_intervals = 1 + rng.I(8);
+      CheckPair(w, 0, kind == 0 ? 1 : -1, kind == 0 ? -1 : 0, p0, p1, opt,
+                kind == 0 ? &avatars : &objects, 300,
+                "seed " + std::to_string(seed) + " kind " + std::to_string(kind));
+      if (HasFatalFailure()) return;
+    }
+  }
+  std::printf("undecided: %d of %d avatar contacts, %d of %d object contacts\n", avatars.undecided,
+              avatars.contact, objects.undecided, objects.contact);
+  EXPECT_GT(avatars.undecided, 20);
+  EXPECT_GT(objects.undecided, 20);
+}
+
 // ------------------------------------------------- link-level broad phase
 
 // LinkSweepBoxes against the boxes the descent builds: for random motions
@@ -877,6 +916,65 @@ TEST(EntityCcdCases, InterpenetratingZeroLengthAndWindows) {
                             std::min(p1.utime, times.back()), times)
                     .empty());
   }
+}
+
+// A link of an avatar and a tracked object given the same two orientations
+// turn alike, bit for bit, through turns of exactly 180 degrees and one ulp
+// off them, where the rounded dot is noise around 0 (found by a review: the
+// avatar kept the long arc where the object took the short one). Both
+// normalise the same way and decide SPEC 3's sign exactly.
+TEST(EntityCcdCases, AvatarAndObjectTurnAlikeThroughHalfTurns) {
+  Rng rng(4242);
+  Link link;
+  link.name = "l";
+  link.b_L = Vector3d(0.3, 0, 0);
+  link.radius = 0.05;
+  const Skeleton skeleton = Skeleton::FromLinks("one", {link}, "test");
+  const Quaterniond axes[3] = {{0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+  int flipped = 0;
+  for (int c = 0; c < 3000; ++c) {
+    const Quaterniond q0 = rng.Quat();
+    Quaterniond q1 = q0 * axes[c % 3];
+    if (c % 2 == 1) {
+      const int k = rng.I(4);
+      q1.coeffs()[k] = std::nextafter(q1.coeffs()[k], rng.P(0.5) ? 2.0 : -2.0);
+    }
+    // As written in a stream: scaled (not unit), the same numbers for both.
+    const double scale0 = rng.U(0.5, 2.0), scale1 = rng.U(0.5, 2.0);
+    Pose p0, p1;
+    p0.utime = 0;
+    p1.utime = 10'000;
+    p0.links = {LinkPose{Vector3d(0, 0, 0), Quaterniond(q0.coeffs() * scale0)}};
+    p1.links = {LinkPose{Vector3d(0.1, 0, 0), Quaterniond(q1.coeffs() * scale1)}};
+    const double v0[7] = {
+        0, 0, 0, p0.links[0].q.w(), p0.links[0].q.x(), p0.links[0].q.y(), p0.links[0].q.z()};
+    const double v1[7] = {
+        0.1, 0, 0, p1.links[0].q.w(), p1.links[0].q.x(), p1.links[0].q.y(), p1.links[0].q.z()};
+    ASSERT_EQ(ValidateAndNormalizePose(&p0, 1), "");
+    ASSERT_EQ(ValidateAndNormalizePose(&p1, 1), "");
+    RigidSample x0, x1;
+    ASSERT_EQ(MakeRigidSample(0, v0, &x0), "");
+    ASSERT_EQ(MakeRigidSample(10'000, v1, &x1), "");
+    ASSERT_EQ(x0.q.coeffs(), p0.links[0].q.coeffs()) << "the same normalisation, case " << c;
+    ASSERT_EQ(x1.q.coeffs(), p1.links[0].q.coeffs()) << "case " << c;
+    const PairMotion avatar(skeleton, p0, p1, MotionModel::kIndependent);
+    const RigidMotion object(x0, x1);
+    for (double s : {0.125, 0.5, 0.75}) {
+      ASSERT_EQ(avatar.PoseAt(0, s).q.coeffs(), object.RotationAt(s).coeffs())
+          << "case " << c << " s " << s;
+    }
+    // And the arc is SPEC 3's (the twin's, which decides the sign near 0 in
+    // binary128): the same rotation up to rounding, not the other arc.
+    const twin::QL want = twin::TwinSlerp(twin::ToQL(x0.q), twin::ToQL(x1.q), 0.5L);
+    const Quaterniond got = object.RotationAt(0.5);
+    const double diff =
+        std::max({std::fabs(double(want.w) - got.w()), std::fabs(double(want.x) - got.x()),
+                  std::fabs(double(want.y) - got.y()), std::fabs(double(want.z) - got.z())});
+    ASSERT_LT(diff, 1e-9) << "the other arc, case " << c;
+    flipped += internal::DotSign(x0.q.coeffs().data(), x1.q.coeffs().data()) < 0;
+  }
+  EXPECT_GT(flipped, 300);  // Both arcs occur.
+  EXPECT_LT(flipped, 2700);
 }
 
 TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
