@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The shared world end to end (SPEC 8 "Live"; docs/SERVICE.md "Shared
 # world"), over udpm:// inside a private network namespace this script
-# creates (never the host network): the daemon with two configured avatars
-# (90 Hz and 60 Hz, different phases) and a tracked object (30 Hz), over a
+# creates (never the host network): the daemon with three configured avatars
+# (90, 60 and 72 Hz, different phases) and a tracked object (30 Hz), over a
 # floor they touch now and then; every environment event and every shared
 # entry equal to `sweptccd world` on the same samples, except entries ended
 # by the timeout and pairs merged by latest-wins; an object pose for an
@@ -30,6 +30,7 @@ shared_world: true
 clients:
   - {id: alice, skeleton: arm.json, ignore_entities: [{link: upper, entity: cup}]}
   - {id: bob, skeleton: arm.json, ignore_entities: [{link: fore, entity: alice, other_link: fore}]}
+  - {id: carol, skeleton: arm.json}
 objects:
   - {id: cup, mesh: cube.obj}
 security: {room_key: room.key}

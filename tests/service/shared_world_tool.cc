@@ -2,7 +2,8 @@
 //
 //   shared_world_tool write DIR
 //     Writes a world (SPEC 8): DIR/arm.json (a two-link arm), DIR/alice.jsonl
-//     (90 Hz), DIR/bob.jsonl (60 Hz, 5 ms later), DIR/cube.obj and
+//     (90 Hz), DIR/bob.jsonl (60 Hz, 5 ms later), DIR/carol.jsonl (72 Hz,
+//     3 ms later), DIR/cube.obj and
 //     DIR/cup.jsonl (a tracked cube at 30 Hz, 12 ms later), DIR/floor.obj
 //     (just below the arms) and DIR/world.json naming them; and for `listen`
 //     DIR/stream.jsonl (360 Hz, 20 s later), DIR/sim_alice.jsonl,
@@ -138,6 +139,7 @@ int Write(const std::string& dir) {
   };
   arm("alice.jsonl", {0, 0, 0}, 0, 11'111);
   arm("bob.jsonl", {0.25, 0.05, 0}, 5'000, 16'667);
+  arm("carol.jsonl", {-0.2, 0.1, 0}, 3'000, 13'889);
   std::string cup;
   Eigen::Vector3d p(0.1, 0.25, 0);
   for (int64_t t = start + 12'000; t <= end; t += 33'333) {
@@ -174,7 +176,8 @@ int Write(const std::string& dir) {
   "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "alice.jsonl",
                "ignore": [{"link": "upper", "entity": "cup"}]},
               {"id": "bob", "skeleton": "arm.json", "poses": "bob.jsonl",
-               "ignore": [{"link": "fore", "entity": "alice", "other_link": "fore"}]}],
+               "ignore": [{"link": "fore", "entity": "alice", "other_link": "fore"}]},
+              {"id": "carol", "skeleton": "arm.json", "poses": "carol.jsonl"}],
   "objects": [{"id": "cup", "mesh": "cube.obj", "poses": "cup.jsonl"}],
   "env": ["floor.obj"]})");
   return 0;
@@ -378,7 +381,8 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
     json values;
   };
   std::vector<Sample> order;
-  for (const auto& [id, kind] : {std::pair<std::string, int>{"alice", 0}, {"bob", 0}, {"cup", 1}}) {
+  for (const auto& [id, kind] :
+       {std::pair<std::string, int>{"alice", 0}, {"bob", 0}, {"carol", 0}, {"cup", 1}}) {
     std::ifstream in(dir + "/" + id + ".jsonl");
     std::string line;
     int64_t seq = 0;
