@@ -412,7 +412,8 @@ int RunRenderCommand(const RenderCommandOptions& o) {
     std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const gpu::GpuError& e) {
-    std::fprintf(stderr, "error: sweptccd render: no OpenGL picture: %s\n", e.what());
+    std::fprintf(stderr, "error: sweptccd render: no OpenGL picture: %s\n",
+                 EscapeForDisplay(e.what(), 4096).c_str());
     return 3;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "error: out of memory\n");

@@ -560,8 +560,9 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
   for (auto& [id, client] : live) {
     const JoinResult joined = client->Join();
     if (!joined.ok()) {
+      // The reason comes from the network: escaped.
       std::fprintf(stderr, "error: simulate-tracker: join of '%s' refused (%d): %s\n", id.c_str(),
-                   joined.reason, joined.message.c_str());
+                   joined.reason, EscapeForDisplay(joined.message, 1024).c_str());
       return 1;
     }
     if (o.join) {

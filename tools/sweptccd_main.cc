@@ -10,6 +10,7 @@
 #include "core/errors.h"
 #include "core/gpu/backend.h"
 #include "msgs/signing.h"
+#include "msgs/text.h"
 #include "tools/bench_command.h"
 #include "tools/import_bvh_command.h"
 #include "tools/monitor_command.h"
@@ -138,7 +139,8 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // One line, exit status 2, like every other refusal.
-    std::fprintf(stderr, "error: sweptccd: %s\n", e.what());
+    std::fprintf(stderr, "error: sweptccd: %s\n",
+                 sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
@@ -158,7 +160,8 @@ int main(int argc, char** argv) {
       sweptccd::WriteNewKeyFile(keygen_out);
       return 0;
     } catch (const sweptccd::InputError& e) {
-      std::fprintf(stderr, "error: keygen: %s\n", e.what());
+      std::fprintf(stderr, "error: keygen: %s\n",
+                   sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
       return 2;
     }
   }

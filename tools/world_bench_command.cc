@@ -395,7 +395,7 @@ int RunWorldBenchCommand(const WorldBenchOptions& o) {
     std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   } catch (const std::filesystem::filesystem_error& e) {
-    std::fprintf(stderr, "error: world-bench: %s\n", e.what());
+    std::fprintf(stderr, "error: world-bench: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 }

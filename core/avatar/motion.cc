@@ -291,6 +291,9 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       m.p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
       m.q0 = (k0.q.conjugate() * x0.q).normalized();
       m.q1 = (k1.q.conjugate() * x1.q).normalized();
+      // The numbers SPEC 3's sign is decided on, and the slerp then uses.
+      FlushTinyComponents(&m.q0);
+      FlushTinyComponents(&m.q1);
     } else {
       m.p0 = x0.p;
       m.p1 = x1.p;

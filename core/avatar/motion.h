@@ -33,8 +33,10 @@ namespace internal {
 /// shortest-arc rule, dot(q0, q1) < 0, decided exactly even for a turn of
 /// exactly 180 degrees, whose rounded dot is noise around 0). Exact while no
 /// component exceeds 2^500 and every product a_k b_k is 0 or at least 2^-900
-/// in magnitude (its parts clear of underflow); Slerp and PairMotion use it
-/// for unit quaternions.
+/// in magnitude (its parts clear of underflow): Slerp and PairMotion use it
+/// for unit quaternions whose components below 2^-450 were set to 0
+/// (FlushTinyComponents, pose.h; validated poses, object samples and
+/// relative rotations all are).
 int DotSign(const double a[4], const double b[4]);
 
 /// The upper ends of PairMotion's two growth bounds over [s0, s1], bit for

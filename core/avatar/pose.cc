@@ -83,8 +83,18 @@ std::string ValidateAndNormalizePose(Pose* pose, int num_links) {
   if (const std::optional<PoseProblem> problem = FindPoseProblem(*pose, num_links)) {
     return problem->Describe(num_links);
   }
-  for (LinkPose& lp : pose->links) lp.q.coeffs() /= lp.q.coeffs().stableNorm();
+  for (LinkPose& lp : pose->links) {
+    lp.q.coeffs() /= lp.q.coeffs().stableNorm();
+    FlushTinyComponents(&lp.q);
+  }
   return {};
+}
+
+void FlushTinyComponents(Eigen::Quaterniond* q) {
+  for (int k = 0; k < 4; ++k) {
+    double& x = q->coeffs()[k];
+    if (std::fabs(x) < kTinyQuaternionComponent) x = std::copysign(0.0, x);  // 0 and -0 kept.
+  }
 }
 
 namespace {
@@ -92,7 +102,8 @@ namespace {
 bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
   if (j.is_number_integer()) {
     *utime = j.get<int64_t>();
-    if (j.is_number_unsigned() && j.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) return false;
+    if (j.is_number_unsigned() && j.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX))
+      return false;
     return true;
   }
   if (j.is_number_float()) {

@@ -59,8 +59,16 @@ struct PoseProblem {
 /// kMaxCoordinate, a quaternion norm below kMinQuaternionNorm. Pure.
 std::optional<PoseProblem> FindPoseProblem(const Pose& pose, int num_links);
 
+/// Components of a normalised quaternion below this magnitude are set to 0
+/// (a rotation moves by less than 1e-135): every product of two components
+/// is then 0 or at least 2^-900, the domain where SPEC 3's shortest-arc
+/// sign is decided exactly (internal::DotSign in core/avatar/motion.h).
+inline constexpr double kTinyQuaternionComponent = 0x1p-450;
+/// Sets q's components below kTinyQuaternionComponent in magnitude to 0.
+void FlushTinyComponents(Eigen::Quaterniond* q);
+
 /// Checks `pose` (FindPoseProblem) and, when valid, normalises its
-/// quaternions. Returns an empty string when valid, else the problem as
+/// quaternions (then FlushTinyComponents). Returns an empty string when valid, else the problem as
 /// PoseProblem::Describe words it (the pose is then left as it was).
 std::string ValidateAndNormalizePose(Pose* pose, int num_links);
 
@@ -126,9 +134,9 @@ bool SamePose(const Pose& x, const Pose& y);
 
 /// What one pose line yields under the pairing rule of SPEC section 2.
 struct PairOutcome {
-  int64_t pair = 0;          // k - 1 for the k-th counted line.
-  bool valid = false;        // True: (pose0, pose1) is a pair to query.
-  std::string error;         // Why the record is invalid.
+  int64_t pair = 0;               // k - 1 for the k-th counted line.
+  bool valid = false;             // True: (pose0, pose1) is a pair to query.
+  std::string error;              // Why the record is invalid.
   std::optional<int64_t> utime0;  // Known utimes, for the record.
   std::optional<int64_t> utime1;
   Pose pose0, pose1;

@@ -1,6 +1,7 @@
 #include "core/query/witnesses.h"
 
 #include <algorithm>
+#include <limits>
 
 namespace sweptccd::internal {
 
@@ -15,8 +16,7 @@ void Witnesses::CloseLeaf(LinkIndex link, double s0, double s1, const ContactRec
   // The candidates hold every triangle that can touch; one outside them can
   // still be the nearest when nothing touches. Make the witness exact.
   ContactRecord exact;
-  if (!exact_witness &&
-      target_.Separation(motion_, link, witness.s, witness.separation, &exact) &&
+  if (!exact_witness && target_.Separation(motion_, link, witness.s, witness.separation, &exact) &&
       exact.separation < witness.separation) {
     bracket.witness = exact;
   }
@@ -35,7 +35,7 @@ void Witnesses::CloseUndecided(LinkIndex link, double s_lo) {
   bracket.undecided = true;
   ContactRecord r;
   // Best effort: the nearest triangle at s_lo (any distance).
-  if (target_.Separation(motion_, link, s_lo, 1e12, &r)) {
+  if (target_.Separation(motion_, link, s_lo, std::numeric_limits<double>::infinity(), &r)) {
     bracket.has_witness = true;
     bracket.witness = r;
   }

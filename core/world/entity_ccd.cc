@@ -731,7 +731,7 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo, int64_t ut
     memo_a.SegmentAt(b.link, s_of(b.tau_lo), &sa, &sb);
     OtherContact c;
     if (target.Nearest(pieces[p], b.tau_lo, b.link, sa, sb, skeleton_a.link(b.link).radius,
-                       roots[b.link], 1e12, &c)) {
+                       roots[b.link], std::numeric_limits<double>::infinity(), &c)) {
       b.has_witness = true;
       b.witness = c;
     }

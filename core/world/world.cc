@@ -57,6 +57,7 @@ std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* ou
   // Normalised as an avatar's link (ValidateAndNormalizePose), so that the
   // same numbers make the same rotation, bit for bit, on either path.
   out->q = Eigen::Quaterniond(q.coeffs() / q.coeffs().stableNorm());
+  FlushTinyComponents(&out->q);
   return {};
 }
 

@@ -281,6 +281,43 @@ TEST_F(WorldCommandTest, EnvironmentPartUsesEachAvatarsMotionModel) {
 
 // --bench: the same work, a table of counts instead of the records (the
 // timings are printed, never asserted).
+// Past the work limit, every contact still has a witness (SPEC 8: at least
+// one), also against an object whose only triangle is 2e12 m away (found by
+// a review: the witness search stopped at 1e12 m).
+TEST_F(WorldCommandTest, UndecidedEntriesCarryAWitness) {
+  Write("far.obj", "v 2e12 0 0\nv 2e12 1 0\nv 2e12 0 1\nf 1 2 3\n");
+  // Samples inside each pair: two pieces, so two items, past a limit of 1.
+  Write("far.jsonl",
+        "{\"utime\": 1000000, \"pose\": [0, 0, 0, 1, 0, 0, 0]}\n"
+        "{\"utime\": 1005000, \"pose\": [0, 0, 0, 1, 0, 0, 0]}\n"
+        "{\"utime\": 1015000, \"pose\": [0, 0, 0, 1, 0, 0, 0]}\n"
+        "{\"utime\": 1020000, \"pose\": [0, 0, 0, 1, 0, 0, 0]}\n");
+  const std::string world = Write("far_world.json", R"({"avatars": [
+      {"id": "alice", "skeleton": "bar.json", "poses": "alice.jsonl"},
+      {"id": "bob", "skeleton": "bar.json", "poses": "bob.jsonl"}],
+    "objects": [{"id": "far", "mesh": "far.obj", "poses": "far.jsonl"}]})");
+  for (const char* per_link : {"", "--per-link"}) {
+    std::vector<std::string> args = {"world", "--world",         world, "--backend",
+                                     "cpu",   "--max-intervals", "1"};
+    if (*per_link) args.push_back(per_link);
+    const RunResult r = Run(args);
+    ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+    int undecided = 0;
+    for (const json& rec : Records(r.out)) {
+      for (const json& e : rec["others"]) {
+        if (e["result"] != "contact") continue;
+        EXPECT_GE(e["contacts"].size(), 1u) << e.dump();
+        undecided += e["undecided"].get<bool>();
+        for (const json& l : e.value("links", json::array())) {
+          EXPECT_TRUE(l.contains("contact")) << l.dump();
+        }
+      }
+    }
+    // bob's pair against alice, and all three pairs against the far object.
+    EXPECT_GE(undecided, 4) << per_link << "\n" << r.out;
+  }
+}
+
 TEST_F(WorldCommandTest, BenchPrintsATable) {
   const RunResult r = Run({"world", "--world", World(), "--bench"});
   ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();

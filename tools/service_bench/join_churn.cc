@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "msgs/text.h"
 #include "sweptccd_client/live_client.h"
 
 namespace {
@@ -79,11 +80,12 @@ int main(int argc, char** argv) {
     std::deque<Live> live;
     std::vector<double> join_ms;
     int64_t joins = 0, refused = 0, no_reply = 0, poses = 0;
-    const Clock::time_point t0 = Clock::now(), end = t0 + std::chrono::duration_cast<Clock::duration>(
-                                                          std::chrono::duration<double>(seconds));
+    const Clock::time_point t0 = Clock::now(),
+                            end = t0 + std::chrono::duration_cast<Clock::duration>(
+                                           std::chrono::duration<double>(seconds));
     const auto tick = std::chrono::microseconds(11'111);  // 90 Hz.
-    const auto join_period = std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double>(1.0 / joins_hz));
+    const auto join_period =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / joins_hz));
     Clock::time_point next_join = t0, next_tick = t0;
     int64_t k = 0;
     while (Clock::now() < end) {
@@ -140,14 +142,15 @@ int main(int argc, char** argv) {
     for (Live& l : live) {
       if (l.client) l.client->Leave();
     }
-    std::printf("join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
-                "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
-                static_cast<long long>(joins), static_cast<long long>(refused),
-                static_cast<long long>(no_reply), seconds, static_cast<long long>(poses),
-                Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
+    std::printf(
+        "join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
+        "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
+        static_cast<long long>(joins), static_cast<long long>(refused),
+        static_cast<long long>(no_reply), seconds, static_cast<long long>(poses),
+        Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
     return refused + no_reply == 0 ? 0 : 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
 }

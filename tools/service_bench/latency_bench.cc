@@ -71,6 +71,7 @@
 #include "core/errors.h"
 #include "msgs/channels.h"
 #include "msgs/signing.h"
+#include "msgs/text.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
@@ -400,7 +401,7 @@ int main(int argc, char** argv) {
   try {
     key.emplace(sweptccd::LoadKeyFile(argv[6]));
   } catch (const sweptccd::InputError& e) {
-    std::fprintf(stderr, "latency_bench: %s\n", e.what());
+    std::fprintf(stderr, "latency_bench: %s\n", sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
     return 2;
   }
   lcm::LCM lcm(argv[1]);  // The publisher's; the receive thread has its own.
@@ -506,13 +507,15 @@ int main(int argc, char** argv) {
       "mean %.1f, p99 %.1f, max %.1f\n",
       compute.median, compute.n ? compute_sum_us / compute.n : 0.0, compute.p99, compute.max);
   const Stats queue = Summarise(collector.shared_queue_us);
-  std::printf("shared entries' queue_us (due -> query start, in the daemon): median %.1f, p99 %.1f, "
-              "max %.1f\n",
-              queue.median, queue.p99, queue.max);
+  std::printf(
+      "shared entries' queue_us (due -> query start, in the daemon): median %.1f, p99 %.1f, "
+      "max %.1f\n",
+      queue.median, queue.p99, queue.max);
   const Stats from_pose = Summarise(collector.shared_from_pose_us);
-  std::printf("shared entries from A's pose publication (covered entries): median %.1f, p99 %.1f, "
-              "max %.1f us\n",
-              from_pose.median, from_pose.p99, from_pose.max);
+  std::printf(
+      "shared entries from A's pose publication (covered entries): median %.1f, p99 %.1f, "
+      "max %.1f us\n",
+      from_pose.median, from_pose.p99, from_pose.max);
   std::printf("shared messages: %lld received carrying %lld entries (%.2f entries a message)\n",
               static_cast<long long>(collector.shared_messages),
               static_cast<long long>(collector.shared_received),

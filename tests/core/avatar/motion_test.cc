@@ -283,8 +283,58 @@ TEST(MotionTest, DotSignIsExactNearZero) {
     ASSERT_EQ(internal::DotSign(u.data(), v.data()), sum > 0 ? 1 : -1) << "case " << c;
     ++by_twin;
   }
-  std::printf("DotSign: %d exact zeros, %d one-ulp steps (rounded sum wrong on %d), %d by twin\n",
-              zero, by_ulp, rounded_wrong, by_twin);
+  // Components spanning every magnitude down to subnormals (found by a
+  // review: products that underflow broke the expansion), as validation
+  // leaves them: normalised, then tiny components flushed to 0. Against
+  // the binary128 twin, which holds these products exactly.
+  int tiny_cases = 0;
+  for (int c = 0; c < 20000; ++c) {
+    Pose p;
+    p.links.resize(2);
+    for (LinkPose& l : p.links) {
+      for (int k = 0; k < 4; ++k) {
+        const double e = std::uniform_real_distribution<double>(-1100, 1)(g);
+        const double sign = (g() & 1) ? 1.0 : -1.0;
+        l.q.coeffs()[k] = (g() % 3 == 0) ? sign * std::ldexp(1.0, static_cast<int>(e))
+                                         : sign * std::uniform_real_distribution<double>(0, 1)(g);
+      }
+      if (l.q.coeffs().cwiseAbs().maxCoeff() < 1e-5) l.q.coeffs()[c % 4] = 1;
+    }
+    // The second as the first turned by 180 degrees and nudged, half the time.
+    if (c % 2 == 0) {
+      p.links[1].q = p.links[0].q * Eigen::Quaterniond(0, 0, 0, 1);
+      const int k = static_cast<int>(g() % 4);
+      p.links[1].q.coeffs()[k] = std::nextafter(p.links[1].q.coeffs()[k], (g() & 1) ? 2.0 : -2.0);
+    }
+    ASSERT_EQ(ValidateAndNormalizePose(&p, 2), "") << "case " << c;
+    const double* u = p.links[0].q.coeffs().data();
+    const double* v = p.links[1].q.coeffs().data();
+    for (int k = 0; k < 4; ++k) {
+      ASSERT_TRUE(u[k] == 0 || std::fabs(u[k]) >= kTinyQuaternionComponent);
+      ASSERT_TRUE(v[k] == 0 || std::fabs(v[k]) >= kTinyQuaternionComponent);
+    }
+    __float128 sum = 0, size = 0;
+    for (int k = 0; k < 4; ++k) {
+      const __float128 prod = static_cast<__float128>(u[k]) * static_cast<__float128>(v[k]);
+      sum += prod;
+      size += prod < 0 ? -prod : prod;
+    }
+    const __float128 magnitude = sum < 0 ? -sum : sum;
+    const int want = magnitude <= size * static_cast<__float128>(1e-30) ? 0 : sum > 0 ? 1 : -1;
+    // Within the twin's own rounding (an exact 0 among them: its sum can
+    // round a nonzero dot to 0 too), the twin does not know.
+    if (want == 0) continue;
+    ASSERT_EQ(internal::DotSign(u, v), want)
+        << "case " << c << ": " << std::hexfloat << u[0] << " " << u[1] << " " << u[2] << " "
+        << u[3] << " / " << v[0] << " " << v[1] << " " << v[2] << " " << v[3] << " sum "
+        << static_cast<double>(sum);
+    ++tiny_cases;
+  }
+  std::printf(
+      "DotSign: %d exact zeros, %d one-ulp steps (rounded sum wrong on %d), %d by twin, %d with "
+      "tiny components\n",
+      zero, by_ulp, rounded_wrong, by_twin, tiny_cases);
+  EXPECT_GT(tiny_cases, 15000);
   EXPECT_GT(by_ulp, 10000);
   EXPECT_GT(rounded_wrong, 100);
   EXPECT_GT(by_twin, 19000);
