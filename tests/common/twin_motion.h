@@ -50,18 +50,11 @@ inline Mat3L RotL(const QL& q) {
   return r;
 }
 
-// SPEC 3's sign rule: q1 is replaced by -q1 when dot(q0, q1) < 0. Where
-// the long double dot is within rounding of 0 (a turn of 180 degrees: both
-// arcs are as short), the dot of the quaternions as doubles (the numbers a
-// pose stream holds) is taken in binary128, where their products are exact:
-// a sum within its own rounding of 0 is 0 (no flip).
-inline bool ShortestArcFlips(const QL& q0, const QL& q1) {
-  const LD dot = Dot(q0, q1);
-  if (std::fabs(dot) > 1e-12L) return dot < 0;
-  const double a[4] = {static_cast<double>(q0.w), static_cast<double>(q0.x),
-                       static_cast<double>(q0.y), static_cast<double>(q0.z)};
-  const double b[4] = {static_cast<double>(q1.w), static_cast<double>(q1.x),
-                       static_cast<double>(q1.y), static_cast<double>(q1.z)};
+// The sign of the dot product of two 4-vectors of doubles, summed in
+// binary128, where each product of two doubles is exact: -1 or 1, or 0 when
+// the sum is within its own rounding (1e-30 of the products' magnitudes) of
+// 0, where this twin does not know the sign.
+inline int Binary128DotSign(const double a[4], const double b[4]) {
   __float128 sum = 0, size = 0;
   for (int k = 0; k < 4; ++k) {
     const __float128 p = static_cast<__float128>(a[k]) * static_cast<__float128>(b[k]);
@@ -69,7 +62,22 @@ inline bool ShortestArcFlips(const QL& q0, const QL& q1) {
     size += p < 0 ? -p : p;
   }
   const __float128 magnitude = sum < 0 ? -sum : sum;
-  return magnitude > size * static_cast<__float128>(1e-30) && sum < 0;
+  if (magnitude <= size * static_cast<__float128>(1e-30)) return 0;
+  return sum > 0 ? 1 : -1;
+}
+
+// SPEC 3's sign rule: q1 is replaced by -q1 when dot(q0, q1) < 0. Where
+// the long double dot is within rounding of 0 (a turn of 180 degrees: both
+// arcs are as short), the dot of the quaternions as doubles (the numbers a
+// pose stream holds) is taken in binary128 (Binary128DotSign; 0: no flip).
+inline bool ShortestArcFlips(const QL& q0, const QL& q1) {
+  const LD dot = Dot(q0, q1);
+  if (std::fabs(dot) > 1e-12L) return dot < 0;
+  const double a[4] = {static_cast<double>(q0.w), static_cast<double>(q0.x),
+                       static_cast<double>(q0.y), static_cast<double>(q0.z)};
+  const double b[4] = {static_cast<double>(q1.w), static_cast<double>(q1.x),
+                       static_cast<double>(q1.y), static_cast<double>(q1.z)};
+  return Binary128DotSign(a, b) < 0;
 }
 
 // Shortest-arc slerp as q0 * exp(s * log(conj(q0) * q1')).

@@ -55,12 +55,7 @@ wait_for "$work/monitor.out" listening
   > "$work/simulate.out"
 grep -q "^simulate-tracker: $(grep -c . "$work/cup.jsonl") object poses sent, 0 object line" \
   "$work/simulate.out"
-for _ in $(seq 50); do
-  grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' \
-    "$work/monitor.out" && break
-  sleep 0.1
-done
-grep -q '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11' "$work/monitor.out"
+wait_for "$work/monitor.out" '"type":"shared_[a-z]*","client":"alice".*"entity":"cup".*"window":\[11'
 kill -INT $monitor
 wait $monitor
 grep -q '"type":"shared_contact".*"entity":"cup".*"entity_kind":"object"' "$work/monitor.out"
@@ -129,15 +124,10 @@ grep -q "^monitor: listening on .*, shared ROOM2_SHARED)" "$work/monitor_renamed
   > "$work/simulate_renamed.out"
 grep -q "^simulate-tracker: $(grep -c . "$work/cup.jsonl") object poses sent, 0 object line" \
   "$work/simulate_renamed.out"
-for _ in $(seq 50); do
-  grep -q "^shared contact alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
-    "$work/monitor_renamed.out" && break
-  sleep 0.1
-done
+wait_for "$work/monitor_renamed.out" \
+  "^shared contact alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window"
 kill -INT $monitor
 wait $monitor
-grep -q "^shared contact alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
-  "$work/monitor_renamed.out"
 grep -q "^shared free alice pair [0-9]* seq [0-9]*-[0-9]* with object cup window" \
   "$work/monitor_renamed.out"
 ! grep -q "^reject\|UNVERIFIED" "$work/monitor_renamed.out"

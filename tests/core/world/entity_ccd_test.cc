@@ -413,6 +413,12 @@ bool AnyHalfTurn(const std::vector<Pose>& poses) {
   }
   return false;
 }
+bool AnyHalfTurn(const std::vector<RigidSample>& samples) {
+  for (size_t k = 0; k + 1 < samples.size(); ++k) {
+    if (TurnedByHalf(samples[k].q, samples[k + 1].q)) return true;
+  }
+  return false;
+}
 bool AnyZeroLength(const Skeleton& skeleton) {
   for (int l = 0; l < skeleton.num_links(); ++l) {
     if (skeleton.link(l).a_L == skeleton.link(l).b_L) return true;
@@ -450,6 +456,14 @@ void AddWindowCases(const std::vector<int64_t>& times, int64_t u0, int64_t u1, b
   cases->Add("ends as the pair starts", last == u0, contact);
   cases->Add("starts as the pair ends", first == u1, contact);
   cases->Add("no overlap (no window)", last < u0 || first > u1, contact);
+}
+// AddWindowCases's cases that must occur, with contacts among them.
+void ExpectWindowCases(const CaseTally& cases) {
+  cases.Expect("starts mid-pair", 40, 10);
+  cases.Expect("stops mid-pair", 40, 10);
+  cases.Expect("one sample in the pair", 10, 2);
+  cases.Expect("ends as the pair starts", 10, 2);
+  cases.Expect("starts as the pair ends", 10, 2);
 }
 
 TEST(EntityCcdRandom, LinkLinkAgainstDenseSampling) {
@@ -495,11 +509,7 @@ TEST(EntityCcdRandom, LinkLinkAgainstDenseSampling) {
   EXPECT_GT(tally.initially, 10);
   EXPECT_GT(tally.free, 40);
   EXPECT_EQ(tally.undecided, 0);
-  cases.Expect("starts mid-pair", 40, 10);
-  cases.Expect("stops mid-pair", 40, 10);
-  cases.Expect("one sample in the pair", 10, 2);
-  cases.Expect("ends as the pair starts", 10, 2);
-  cases.Expect("starts as the pair ends", 10, 2);
+  ExpectWindowCases(cases);
   cases.Expect("no overlap (no window)", 5, 0);
   cases.Expect("90 Hz against 72 Hz", 200, 40);
   cases.Expect("a 180-degree turn (A or B)", 100, 20);
@@ -533,16 +543,8 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
     const bool thrown = O.mesh->object(0).bvh.num_triangles() == 2 && O.used.size() > 1 &&
                         (O.used[1].p - O.used[0].p).norm() > 2.9;
     cases.Add("a thin plate thrown through", thrown, contact);
-    cases.Add(
-        "a 180-degree turn (A or object)",
-        AnyHalfTurn(w.avatars[0].used) ||
-            [&] {
-              for (size_t k = 0; k + 1 < O.used.size(); ++k) {
-                if (TurnedByHalf(O.used[k].q, O.used[k + 1].q)) return true;
-              }
-              return false;
-            }(),
-        contact);
+    cases.Add("a 180-degree turn (A or object)",
+              AnyHalfTurn(w.avatars[0].used) || AnyHalfTurn(O.used), contact);
     cases.Add("a zero-length link", AnyZeroLength(w.avatars[0].skeleton), contact);
     cases.Add("initially interpenetrating", tally.initially > initially_before, contact);
     cases.Add("per link", opt.per_link, contact);
@@ -553,11 +555,7 @@ TEST(EntityCcdRandom, LinkObjectAgainstDenseSampling) {
   EXPECT_GT(tally.initially, 10);
   EXPECT_GT(tally.free, 40);
   EXPECT_EQ(tally.undecided, 0);
-  cases.Expect("starts mid-pair", 40, 10);
-  cases.Expect("stops mid-pair", 40, 10);
-  cases.Expect("one sample in the pair", 10, 2);
-  cases.Expect("ends as the pair starts", 10, 2);
-  cases.Expect("starts as the pair ends", 10, 2);
+  ExpectWindowCases(cases);
   cases.Expect("a thin plate thrown through", 60, 10);
   cases.Expect("a 180-degree turn (A or object)", 100, 20);
   cases.Expect("a zero-length link", 100, 20);
