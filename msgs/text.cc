@@ -39,4 +39,6 @@ std::string EscapeForDisplay(std::string_view text, size_t max_length) {
   return out;
 }
 
+std::string DisplayError(std::string_view message) { return EscapeForDisplay(message, 4096); }
+
 }  // namespace sweptccd

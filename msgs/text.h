@@ -21,4 +21,8 @@ bool IsValidClientId(std::string_view id);
 /// ends with "...(N bytes)". Thread-safe.
 std::string EscapeForDisplay(std::string_view text, size_t max_length = 256);
 
+/// A refusal's message for the one line a command prints on standard error:
+/// EscapeForDisplay with room for long paths (4096 bytes). Thread-safe.
+std::string DisplayError(std::string_view message);
+
 }  // namespace sweptccd

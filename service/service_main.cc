@@ -28,7 +28,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "error: sweptccd-service: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: sweptccd-service: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 
@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
     daemon.Stop();
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

@@ -542,7 +542,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

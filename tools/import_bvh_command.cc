@@ -154,7 +154,7 @@ int RunImportBvhCommand(const ImportBvhCommandOptions& o) {
                  probe.unit_scale_m);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

@@ -499,7 +499,7 @@ int RunMonitorCommand(const MonitorCommandOptions& o) {
     }
     if (!o.skeleton_path.empty()) skeleton = LoadSkeletonFile(o.skeleton_path);
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
   DaemonConnection::Options co;

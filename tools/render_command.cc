@@ -409,11 +409,11 @@ int RunRenderCommand(const RenderCommandOptions& o) {
     }
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   } catch (const gpu::GpuError& e) {
     std::fprintf(stderr, "error: sweptccd render: no OpenGL picture: %s\n",
-                 EscapeForDisplay(e.what(), 4096).c_str());
+                 DisplayError(e.what()).c_str());
     return 3;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "error: out of memory\n");

@@ -496,7 +496,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       live[c.id] = std::make_unique<LiveClient>(std::move(lo));
     }
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: simulate-tracker: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: simulate-tracker: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
   // Tracked objects: every usable line, by utime (unusable ones skipped and
@@ -544,7 +544,7 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
       object_connection = std::make_shared<DaemonConnection>(std::move(co));
     }
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: simulate-tracker: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: simulate-tracker: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
   size_t next_object = 0;
@@ -688,7 +688,7 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     SetClientRates(o, &clients);
     source->Rewind();  // A pose file that cannot be opened is refused before LCM starts.
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
   if (!key) {
@@ -700,7 +700,7 @@ int RunSimulateTrackerCommand(const SimulateTrackerCommandOptions& o) {
     return Play(o, source.get(), key ? &*key : nullptr, service_key ? &*service_key : nullptr,
                 skeleton, &clients);
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

@@ -139,8 +139,7 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // One line, exit status 2, like every other refusal.
-    std::fprintf(stderr, "error: sweptccd: %s\n",
-                 sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: sweptccd: %s\n", sweptccd::DisplayError(e.what()).c_str());
     return 2;
   }
   spdlog::set_level(spdlog::level::from_str(log_level));
@@ -160,8 +159,7 @@ int main(int argc, char** argv) {
       sweptccd::WriteNewKeyFile(keygen_out);
       return 0;
     } catch (const sweptccd::InputError& e) {
-      std::fprintf(stderr, "error: keygen: %s\n",
-                   sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
+      std::fprintf(stderr, "error: keygen: %s\n", sweptccd::DisplayError(e.what()).c_str());
       return 2;
     }
   }

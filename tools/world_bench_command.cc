@@ -392,10 +392,10 @@ int RunWorldBenchCommand(const WorldBenchOptions& o) {
     if (!o.generate_only) Bench(o, g);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   } catch (const std::filesystem::filesystem_error& e) {
-    std::fprintf(stderr, "error: world-bench: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: world-bench: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

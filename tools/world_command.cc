@@ -91,7 +91,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     spdlog::info("{} records", records);
     return 0;
   } catch (const InputError& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "error: out of memory\n");

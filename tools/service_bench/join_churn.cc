@@ -150,7 +150,7 @@ int main(int argc, char** argv) {
         Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
     return refused + no_reply == 0 ? 0 : 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
     return 2;
   }
 }

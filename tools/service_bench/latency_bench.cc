@@ -401,7 +401,7 @@ int main(int argc, char** argv) {
   try {
     key.emplace(sweptccd::LoadKeyFile(argv[6]));
   } catch (const sweptccd::InputError& e) {
-    std::fprintf(stderr, "latency_bench: %s\n", sweptccd::EscapeForDisplay(e.what(), 4096).c_str());
+    std::fprintf(stderr, "latency_bench: %s\n", sweptccd::DisplayError(e.what()).c_str());
     return 2;
   }
   lcm::LCM lcm(argv[1]);  // The publisher's; the receive thread has its own.
