@@ -27,8 +27,11 @@ struct QueryOptions {
   /// `contact` with `undecided` (G1 still holds).
   int64_t max_intervals = 2'000'000;
   /// Candidate triangles a time interval keeps as a list for its halves; past
-  /// it the halves query the BVH again.
-  int max_candidates = 256;
+  /// it the halves query the BVH again. Small on purpose: a half's capsule is
+  /// usually far thinner than its parent's, and the BVH's node boxes refuse
+  /// most of a long list in groups, where refining the list tests every
+  /// triangle (docs/BENCHMARKS.md, "Short candidate lists").
+  int max_candidates = 8;
 };
 
 /// Empty when the options are usable, else the problem (names the option).
