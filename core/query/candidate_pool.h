@@ -58,8 +58,8 @@ class CandidatePool {
                ContactRecord* best);
 
   size_t size() const { return entries_.size(); }
-  /// Direct access for the root seeding (RootCandidates), which regroups runs.
-  std::vector<Candidate>& entries() { return entries_; }
+  /// Every entry in order, the lists' ranges index into it.
+  const std::vector<Candidate>& entries() const { return entries_; }
   int max_candidates() const { return max_candidates_; }
 
  private:

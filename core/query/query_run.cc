@@ -43,7 +43,6 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.motion.poses, 3 * kKeptLinks);
   FreeIfAbove(&b.motion.segments, 6 * kKeptLinks);
   FreeIfAbove(&b.roots.links, kKeptLinks);
-  FreeIfAbove(&b.roots.scratch, 4 * kKeptLinks + 16);
   FreeIfAbove(&b.roots.link_order, kKeptLinks);
   FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
   FreeIfAbove(&b.pool, kKeptCandidates);
@@ -54,13 +53,13 @@ QueryResult QueryRun::Run() {
   // The whole-pair bounds first: a link they clear cannot touch at s = 0
   // either (its capsule at 0 lies inside them), so the check at the start
   // only looks at the links they leave open. Finding those stops at a link's
-  // first primitive; the full lists are collected only when the search goes
-  // on, and only for links still open.
+  // first primitive. Nothing is listed for the whole pair: its capsules are
+  // the fattest of the descent, and the halves' own BVH queries refuse far
+  // triangles in groups where refining a long list tests each one.
   CullWholePair();
-  CollectRoots();
+  FindOpenRoots();
   CloseTouchingAtStart();
   if (Searching()) {
-    roots_->Collect(witnesses_.done());
     SeedRoots();
     Descend();
   }
@@ -109,18 +108,18 @@ void QueryRun::CullWholePair() {
 
 // Which links the whole-pair capsules leave open (of those the culler did
 // not clear).
-void QueryRun::CollectRoots() {
+void QueryRun::FindOpenRoots() {
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
   roots_->FindOpen(cleared_by_culler_);
 }
 
-// Seeding: the links the whole-pair bounds leave open start the descent with
-// their whole-pair candidates.
+// Seeding: the links the whole-pair bounds leave open start the descent, with
+// no list (their halves query the BVHs).
 void QueryRun::SeedRoots() {
   const RootCandidates& roots = *roots_;
   for (LinkIndex l(0); l < num_links_; ++l) {
     if (!TestsLink(l)) continue;
-    if (cleared_by_culler_[l] || roots.Empty(l)) {
+    if (cleared_by_culler_[l] || !roots.Open(l)) {
       ++stats_.links_culled;
       continue;
     }

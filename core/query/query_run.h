@@ -47,7 +47,7 @@ class QueryRun {
  private:
   // The phases, in order.
   void CullWholePair();
-  void CollectRoots();
+  void FindOpenRoots();
   void CloseTouchingAtStart();
   void SeedRoots();
   void Descend();
@@ -84,7 +84,7 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
-  std::optional<RootCandidates> roots_;  // The whole-pair candidates (CollectRoots).
+  std::optional<RootCandidates> roots_;  // Which links are open (FindOpenRoots).
   bool out_of_work_ = false;
 };
 
