@@ -1,6 +1,5 @@
 #include "core/query/root_candidates.h"
 
-
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
@@ -45,8 +44,7 @@ void RootCandidates::FindOpen(const std::vector<bool>& skip) {
   }
 }
 
-void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last,
-                                   uint32_t parent) {
+void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last, uint32_t parent) {
   LinkNode node;
   node.first = first;
   node.count = last - first;

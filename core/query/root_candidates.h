@@ -71,9 +71,9 @@ class RootCandidates {
 
   const EnvironmentTarget& target_;
   CandidatePool& pool_;
-  std::vector<LinkRoot> links_;  // By link index.
+  std::vector<LinkRoot> links_;          // By link index.
   const std::vector<int>& depth_first_;  // The skeleton's.
-  std::vector<LinkIndex> link_order_;  // FindOpen: the links of the tree, leaf order.
+  std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
 };
 
