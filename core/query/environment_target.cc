@@ -65,6 +65,10 @@ bool EnvironmentTarget::Separation(const PairMotion& motion, LinkIndex link, dou
     double search = found ? record->separation + radius : reach;
     bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
       bvh.Triangle(slot, &ta, &tb, &tc);
+      // Most triangles the search visits are farther than the best so far;
+      // the cheap refusals of SegmentTriangleWithin skip them before the
+      // closest points are measured.
+      if (!SegmentTriangleWithin(a, b, ta, tb, tc, search)) return true;
       const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);
       if (r.distance > reach) return true;
       search = std::min(search, r.distance);
