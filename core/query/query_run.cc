@@ -57,8 +57,12 @@ QueryResult QueryRun::Run() {
   // the fattest of the descent, and the halves' own BVH queries refuse far
   // triangles in groups where refining a long list tests each one.
   CullWholePair();
-  FindOpenRoots();
-  CloseTouchingAtStart();
+  roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
+  const LinkIndex rest = CloseLeadingLink();
+  if (Searching()) {
+    roots_->FindOpen(cleared_by_culler_, rest);
+    CloseTouchingAtStart(rest, LinkIndex(num_links_));
+  }
   if (Searching()) {
     SeedRoots();
     Descend();
@@ -76,9 +80,9 @@ QueryResult QueryRun::Run() {
 // Only links the whole-pair bounds leave open can touch at 0: the swept
 // capsule over [0, 1] contains the link at 0 (its tolerance covers the
 // rounding of both distances), and a link it clears meets no triangle in it.
-void QueryRun::CloseTouchingAtStart() {
+void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
   const double w = slicer_.FirstNarrowWidth();
-  for (LinkIndex l(0); l < num_links_; ++l) {
+  for (LinkIndex l = begin; l < end; ++l) {
     if (target_.IgnoresAll(l) || !roots_->Open(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) {
       continue;
     }
@@ -106,11 +110,21 @@ void QueryRun::CullWholePair() {
   }
 }
 
-// Which links the whole-pair capsules leave open (of those the culler did
-// not clear).
-void QueryRun::FindOpenRoots() {
-  roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
-  roots_->FindOpen(cleared_by_culler_);
+// Without --per-link the answer at s = 0 is the lowest link (by index) that
+// touches there, so link 0 is decided first, alone: when it touches, no other
+// link's whole-pair capsule is searched. Link 0 is the skeleton's root in the
+// usual files and imports (the pelvis), the link a seated user rests on a
+// chair with, pair after pair; the search of the other links' capsules near a
+// chair's dense mesh cost a seated avatar's pairs four times the rest (docs/
+// BENCHMARKS.md, "Short candidate lists"). Returns the first link left to the
+// traversal over all links.
+LinkIndex QueryRun::CloseLeadingLink() {
+  if (options_.per_link || num_links_ == 0) return LinkIndex(0);
+  const LinkIndex first(0);
+  if (!target_.IgnoresAll(first) && !cleared_by_culler_[first] && roots_->FindOpenOne(first)) {
+    CloseTouchingAtStart(first, LinkIndex(1));
+  }
+  return LinkIndex(1);
 }
 
 // Seeding: the links the whole-pair bounds leave open start the descent, with
@@ -194,9 +208,9 @@ bool QueryRun::TryClose(const Interval& interval, const CandidateList& list) {
   for (double s : {interval.s0, mid, interval.s1}) {
     // With no list (a dense region), ask the target for the nearest
     // primitive within delta of the capsule instead.
-    const bool got =
-        list.requery ? target_.Separation(motion_, interval.link, s, options_.delta_m, &sample)
-                     : pool_.Nearest(motion_, interval.link, s, list, &sample);
+    const bool got = list.requery
+                         ? target_.Separation(motion_, interval.link, s, options_.delta_m, &sample)
+                         : pool_.Nearest(motion_, interval.link, s, list, &sample);
     if (got && (!have || sample.separation < best.separation)) {
       best = sample;
       have = true;

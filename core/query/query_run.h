@@ -2,6 +2,9 @@
 // Internal to the query engine (see docs/DESIGN.md, "core/query"): one query,
 // as a sequence of named phases over the engine's parts.
 
+#include <optional>
+#include <vector>
+
 #include "core/query/candidate_pool.h"
 #include "core/query/ccd_query.h"
 #include "core/query/cull_batcher.h"
@@ -10,10 +13,6 @@
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
 #include "core/query/witnesses.h"
-
-#include <optional>
-#include <vector>
-
 #include "core/thread_spare.h"
 
 namespace sweptccd::internal {
@@ -47,8 +46,8 @@ class QueryRun {
  private:
   // The phases, in order.
   void CullWholePair();
-  void FindOpenRoots();
-  void CloseTouchingAtStart();
+  LinkIndex CloseLeadingLink();
+  void CloseTouchingAtStart(LinkIndex begin, LinkIndex end);
   void SeedRoots();
   void Descend();
   void CloseOutOfWork();
@@ -84,7 +83,7 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
-  std::optional<RootCandidates> roots_;  // Which links are open (FindOpenRoots).
+  std::optional<RootCandidates> roots_;  // Which links are open.
   bool out_of_work_ = false;
 };
 

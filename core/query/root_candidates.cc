@@ -30,18 +30,28 @@ void RootCandidates::Release(Buffers* buffers) {
   buffers->link_nodes = std::move(link_nodes_);
 }
 
-void RootCandidates::FindOpen(const std::vector<bool>& skip) {
+void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first) {
   for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
     link_order_.clear();
     for (int i : depth_first_) {
       const LinkIndex l(i);
-      if (!target_.Ignores(l, o) && !skip[l] && !links_[l].open) link_order_.push_back(l);
+      if (l >= first && !target_.Ignores(l, o) && !skip[l] && !links_[l].open) {
+        link_order_.push_back(l);
+      }
     }
     if (link_order_.empty()) continue;
     link_nodes_.assign(1, LinkNode());
     BuildLinkTree(0, 0, static_cast<uint32_t>(link_order_.size()), 0);
     FindDual(0, o, 0);
   }
+}
+
+bool RootCandidates::FindOpenOne(LinkIndex link) {
+  LinkRoot& root = links_[link];
+  for (ObjectIndex o(0); o < target_.num_objects() && !root.open; ++o) {
+    root.open = pool_.AnyWithin(root.capsule, o, 0);
+  }
+  return root.open;
 }
 
 void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last, uint32_t parent) {

@@ -36,8 +36,11 @@ class RootCandidates {
   /// searched (AnyWithin) from the node where it is alone.
   /// Which links are open does not depend on the tree's shape (only the
   /// work and the triangle-test count do).
-  void FindOpen(const std::vector<bool>& skip);
+  /// Only links from `first` on are searched.
+  void FindOpen(const std::vector<bool>& skip, LinkIndex first = LinkIndex(0));
   bool Open(LinkIndex link) const { return links_[link].open; }
+  /// As FindOpen for `link` alone, with its own BVH queries; returns Open.
+  bool FindOpenOne(LinkIndex link);
   /// The link's root list: "requery" (not listed: the halves ask the BVHs)
   /// when the link is open.
   CandidateList ListOf(LinkIndex link) const {
