@@ -27,7 +27,8 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       pool_(target_, options.max_candidates, &stats_.triangle_tests),
       cull_(engine.culler(), bounds_, &stats_),
       witnesses_(target_, motion_, num_links_),
-      cleared_by_culler_(num_links_, false) {
+      cleared_by_culler_(num_links_, false),
+      touches_at_start_(num_links_, -1) {
   pool_.Adopt(std::move(buffers_->pool));
   queue_.Adopt(std::move(buffers_->queue));
 }
@@ -59,9 +60,22 @@ QueryResult QueryRun::Run() {
   CullWholePair();
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
   const LinkIndex rest = CloseLeadingLink();
-  if (Searching()) {
+  if (Searching() && options_.per_link) {
     roots_->FindOpen(cleared_by_culler_, rest);
     CloseTouchingAtStart(rest, LinkIndex(num_links_));
+  } else if (Searching()) {
+    // Without --per-link each link found open is checked at s = 0 at once,
+    // and the links above the first that touches are not searched: the
+    // answer is the lowest touching link. If its witness cannot be measured
+    // (rounding), the links above it are searched after all.
+    roots_->FindOpen(cleared_by_culler_, rest, &QueryRun::CheckTouchesAtStart, this);
+    const LinkIndex cutoff = roots_->cutoff();
+    const LinkIndex end(cutoff.is_valid() ? cutoff + 1 : num_links_);
+    CloseTouchingAtStart(rest, end);
+    if (Searching() && end < num_links_) {
+      roots_->FindOpen(cleared_by_culler_, end);
+      CloseTouchingAtStart(end, LinkIndex(num_links_));
+    }
   }
   if (Searching()) {
     SeedRoots();
@@ -80,12 +94,20 @@ QueryResult QueryRun::Run() {
 // Only links the whole-pair bounds leave open can touch at 0: the swept
 // capsule over [0, 1] contains the link at 0 (its tolerance covers the
 // rounding of both distances), and a link it clears meets no triangle in it.
+bool QueryRun::CheckTouchesAtStart(void* self, LinkIndex link) {
+  QueryRun& run = *static_cast<QueryRun*>(self);
+  const bool touches = run.target_.TouchesAt(run.motion_, link, 0.0, 0.0);
+  run.touches_at_start_[link] = touches ? 1 : 0;
+  return touches;
+}
+
 void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
   const double w = slicer_.FirstNarrowWidth();
   for (LinkIndex l = begin; l < end; ++l) {
-    if (target_.IgnoresAll(l) || !roots_->Open(l) || !target_.TouchesAt(motion_, l, 0.0, 0.0)) {
-      continue;
-    }
+    if (target_.IgnoresAll(l) || !roots_->Open(l)) continue;
+    const bool touches = touches_at_start_[l] >= 0 ? touches_at_start_[l] == 1
+                                                   : target_.TouchesAt(motion_, l, 0.0, 0.0);
+    if (!touches) continue;
     ContactRecord at_zero;
     if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
     ++stats_.links_tested;

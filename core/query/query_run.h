@@ -47,6 +47,8 @@ class QueryRun {
   // The phases, in order.
   void CullWholePair();
   LinkIndex CloseLeadingLink();
+  // RootCandidates::TouchCheck: TouchesAt(link, 0), kept in touches_at_start_.
+  static bool CheckTouchesAtStart(void* self, LinkIndex link);
   void CloseTouchingAtStart(LinkIndex begin, LinkIndex end);
   void SeedRoots();
   void Descend();
@@ -83,6 +85,9 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
+  // Whether the link touches at s = 0, once asked during the traversal: -1
+  // not asked, 0 no, 1 yes.
+  std::vector<signed char> touches_at_start_;
   std::optional<RootCandidates> roots_;  // Which links are open.
   bool out_of_work_ = false;
 };

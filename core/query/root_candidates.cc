@@ -30,11 +30,16 @@ void RootCandidates::Release(Buffers* buffers) {
   buffers->link_nodes = std::move(link_nodes_);
 }
 
-void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first) {
+void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, TouchCheck touches,
+                              void* context) {
+  touches_ = touches;
+  touches_context_ = context;
+  cutoff_ = LinkIndex();
   for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
     link_order_.clear();
     for (int i : depth_first_) {
       const LinkIndex l(i);
+      if (cutoff_.is_valid() && l > cutoff_) continue;
       if (l >= first && !target_.Ignores(l, o) && !skip[l] && !links_[l].open) {
         link_order_.push_back(l);
       }
@@ -76,18 +81,24 @@ void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last
 
 void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t env_node) {
   const LinkNode& node = link_nodes_[link_node];
-  if (node.waiting == 0) return;  // Every link below was found open already.
+  if (node.waiting == 0) return;  // Every link below was found open (or dropped) already.
   const TriangleBvh& bvh = target_.bvh(object);
   const Aabb env_box = bvh.NodeBox(env_node);
   if (!node.box.Overlaps(env_box)) return;
   if (node.count == 1) {
     const LinkIndex l = link_order_[node.first];
-    if (pool_.AnyWithin(links_[l].capsule, object, env_node)) {
+    const bool dropped = cutoff_.is_valid() && l > cutoff_;
+    if (!dropped && !pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
+    if (!dropped) {
       links_[l].open = true;
-      for (uint32_t k = link_node;; k = link_nodes_[k].parent) {
-        --link_nodes_[k].waiting;
-        if (k == 0) break;
+      if (touches_ != nullptr && (!cutoff_.is_valid() || l < cutoff_) &&
+          touches_(touches_context_, l)) {
+        cutoff_ = l;
       }
+    }
+    for (uint32_t k = link_node;; k = link_nodes_[k].parent) {  // Decided.
+      --link_nodes_[k].waiting;
+      if (k == 0) break;
     }
     return;
   }

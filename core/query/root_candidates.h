@@ -37,7 +37,18 @@ class RootCandidates {
   /// Which links are open does not depend on the tree's shape (only the
   /// work and the triangle-test count do).
   /// Only links from `first` on are searched.
-  void FindOpen(const std::vector<bool>& skip, LinkIndex first = LinkIndex(0));
+  ///
+  /// With `touches`: it is asked, as each link is found open, whether that
+  /// link touches at s = 0 (`context` is passed back). When one does, the
+  /// links above it are dropped, undecided (neither searched nor open): a
+  /// query without --per-link answers with the lowest touching link, so
+  /// only the links below it still matter. cutoff() is then that link.
+  using TouchCheck = bool (*)(void* context, LinkIndex link);
+  void FindOpen(const std::vector<bool>& skip, LinkIndex first = LinkIndex(0),
+                TouchCheck touches = nullptr, void* context = nullptr);
+  /// The lowest link the last FindOpen's check found touching (links above
+  /// it undecided), or an invalid index.
+  LinkIndex cutoff() const { return cutoff_; }
   bool Open(LinkIndex link) const { return links_[link].open; }
   /// As FindOpen for `link` alone, with its own BVH queries; returns Open.
   bool FindOpenOne(LinkIndex link);
@@ -78,6 +89,9 @@ class RootCandidates {
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
+  TouchCheck touches_ = nullptr;
+  void* touches_context_ = nullptr;
+  LinkIndex cutoff_;
 };
 
 struct RootCandidates::Buffers {
