@@ -50,6 +50,28 @@ bool CandidatePool::AnyWithin(const LinkCapsule& cap, ObjectIndex object, uint32
   return found;
 }
 
+CandidatePool::Search CandidatePool::AnyWithinBudget(const LinkCapsule& cap, ObjectIndex object,
+                                                     uint32_t start_node, int budget) {
+  if (target_.Ignores(cap.link, object)) return Search::kNone;
+  Search result = Search::kNone;
+  double radius = cap.radius;
+  target_.bvh(object).QueryCapsuleShrinking(
+      cap.a, cap.b, &radius,
+      [&](uint32_t slot) {
+        if (budget-- == 0) {
+          result = Search::kUndecided;
+          return false;
+        }
+        if (WithinFromQuery(cap, Candidate{static_cast<uint32_t>(object.value()), slot})) {
+          result = Search::kFound;
+          return false;
+        }
+        return true;
+      },
+      start_node);
+  return result;
+}
+
 CandidateList CandidatePool::Refine(const CandidateList& parent, const LinkCapsule& cap) {
   ReserveOnFirstUse();
   CandidateList list;

@@ -47,6 +47,11 @@ class CandidatePool {
   /// `start_node` is within the capsule (the test CollectFromBvh applies),
   /// stopping at the first.
   bool AnyWithin(const LinkCapsule& capsule, ObjectIndex object, uint32_t start_node);
+  /// As AnyWithin, giving up after `budget` primitive tests: kFound, kNone,
+  /// or kUndecided (the budget ran out first).
+  enum class Search { kFound, kNone, kUndecided };
+  Search AnyWithinBudget(const LinkCapsule& capsule, ObjectIndex object, uint32_t start_node,
+                         int budget);
 
   /// The candidates of a child interval whose capsule is `capsule`, from its
   /// parent's list: the parent's entries within the capsule, or the target's

@@ -1,5 +1,7 @@
 #include "core/query/root_candidates.h"
 
+#include <algorithm>
+
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
@@ -9,8 +11,10 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
     links_ = std::move(buffers->links);
     link_order_ = std::move(buffers->link_order);
     link_nodes_ = std::move(buffers->link_nodes);
+    deferred_ = std::move(buffers->deferred);
     link_order_.clear();
     link_nodes_.clear();
+    deferred_.clear();
   }
   const int n = target.skeleton().num_links();
   links_.resize(n);
@@ -28,6 +32,7 @@ void RootCandidates::Release(Buffers* buffers) {
   buffers->links = std::move(links_);
   buffers->link_order = std::move(link_order_);
   buffers->link_nodes = std::move(link_nodes_);
+  buffers->deferred = std::move(deferred_);
 }
 
 void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, TouchCheck touches,
@@ -47,8 +52,24 @@ void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, To
     if (link_order_.empty()) continue;
     link_nodes_.assign(1, LinkNode());
     BuildLinkTree(0, 0, static_cast<uint32_t>(link_order_.size()), 0);
+    deferred_.clear();
     FindDual(0, o, 0);
+    RunDeferred(o);
   }
+}
+
+void RootCandidates::RunDeferred(ObjectIndex object) {
+  // Link order (then the traversal's), so the cutoff falls as early as it can.
+  std::stable_sort(deferred_.begin(), deferred_.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [l, env_node] : deferred_) {
+    if ((cutoff_.is_valid() && l > cutoff_) || links_[l].open) continue;
+    if (pool_.AnyWithin(links_[l].capsule, object, env_node)) {
+      links_[l].open = true;
+      if ((!cutoff_.is_valid() || l < cutoff_) && touches_(touches_context_, l)) cutoff_ = l;
+    }
+  }
+  deferred_.clear();
 }
 
 bool RootCandidates::FindOpenOne(LinkIndex link) {
@@ -88,8 +109,20 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
   if (node.count == 1) {
     const LinkIndex l = link_order_[node.first];
     const bool dropped = cutoff_.is_valid() && l > cutoff_;
-    if (!dropped && !pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
     if (!dropped) {
+      if (touches_ == nullptr) {
+        if (!pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
+      } else {
+        switch (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLeafBudget)) {
+          case CandidatePool::Search::kNone:
+            return;
+          case CandidatePool::Search::kUndecided:
+            deferred_.emplace_back(l, env_node);
+            return;
+          case CandidatePool::Search::kFound:
+            break;
+        }
+      }
       links_[l].open = true;
       if (touches_ != nullptr && (!cutoff_.is_valid() || l < cutoff_) &&
           touches_(touches_context_, l)) {

@@ -6,6 +6,7 @@
 // descent with no list: the whole pair's capsule is the fattest of the
 // descent, and its halves query the BVHs with their own.
 
+#include <utility>
 #include <vector>
 
 #include "core/geometry/bvh.h"
@@ -89,6 +90,14 @@ class RootCandidates {
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.
   std::vector<LinkNode> link_nodes_;
+  // With a touch check, a link's search at a leaf first runs up to
+  // kLeafBudget tests; past it the search waits in deferred_ (link, node)
+  // until the traversal of the object ends, and then runs in full, in link
+  // order, only for links below the cutoff. A closed link near a dense mesh
+  // (hundreds of tests) is then never searched once a lower link touches.
+  static constexpr int kLeafBudget = 16;
+  void RunDeferred(ObjectIndex object);
+  std::vector<std::pair<LinkIndex, uint32_t>> deferred_;
   TouchCheck touches_ = nullptr;
   void* touches_context_ = nullptr;
   LinkIndex cutoff_;
@@ -98,6 +107,7 @@ struct RootCandidates::Buffers {
   std::vector<LinkRoot> links;
   std::vector<LinkIndex> link_order;
   std::vector<LinkNode> link_nodes;
+  std::vector<std::pair<LinkIndex, uint32_t>> deferred;
 };
 
 }  // namespace sweptccd::internal

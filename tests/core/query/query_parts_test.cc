@@ -11,13 +11,13 @@
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
-#include "core/scene/collision_filter.h"
-#include "core/scene/environment.h"
 #include "core/geometry/distance.h"
 #include "core/query/candidate_pool.h"
 #include "core/query/cull_batcher.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "tests/common/random.h"
 
 namespace sweptccd::internal {
@@ -78,7 +78,7 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
       const double size = rng.P(0.2) ? rng.U(0.5, 3) : rng.U(0.005, 0.3);
       Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
       if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
-      if (rng.P(0.05)) d = b = a;                                                 // A point.
+      if (rng.P(0.05)) d = b = a;                                               // A point.
       for (const Eigen::Vector3d& v : {a, b, d}) {
         mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
         mesh.vertices.push_back(v.cast<float>());
@@ -93,7 +93,7 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
   const CollisionFilter filter(1, env.num_objects());
   const EnvironmentTarget target(skeleton, env, filter);
   int64_t tests = 0;
-  int listed_total = 0, disagreements = 0;
+  int listed_total = 0, disagreements = 0, budget_undecided = 0;
   auto check = [&](const LinkCapsule& cap) {
     std::vector<Candidate> want;
     for (int o = 0; o < env.num_objects(); ++o) {
@@ -101,7 +101,8 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
       for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
         Eigen::Vector3d ta, tb, tc;
         bvh.Triangle(slot, &ta, &tb, &tc);
-        const bool within = SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
+        const bool within =
+            SegmentTriangleDistance(cap.a, cap.b, ta, tb, tc).distance <= cap.radius;
         const Candidate c{static_cast<uint32_t>(o), slot};
         disagreements += target.WithinCapsule(cap, c) != within;
         if (within) want.push_back(c);
@@ -122,6 +123,17 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
       const bool any = std::any_of(want.begin(), want.end(),
                                    [&](const Candidate& c) { return c.object == uint32_t(o); });
       EXPECT_EQ(pool.AnyWithin(cap, ObjectIndex(o), 0), any);
+      // The budgeted search: never the wrong answer, only undecided, and
+      // decided when the budget covers every primitive.
+      using Search = CandidatePool::Search;
+      for (int budget : {0, 1, 4, 16}) {
+        const Search got = pool.AnyWithinBudget(cap, ObjectIndex(o), 0, budget);
+        if (got == Search::kFound) EXPECT_TRUE(any);
+        if (got == Search::kNone) EXPECT_FALSE(any);
+        budget_undecided += got == Search::kUndecided;
+      }
+      EXPECT_EQ(pool.AnyWithinBudget(cap, ObjectIndex(o), 0, 1 << 30),
+                any ? Search::kFound : Search::kNone);
     }
     listed_total += static_cast<int>(want.size());
     return want;
@@ -146,7 +158,8 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
     }
   }
   EXPECT_EQ(disagreements, 0);
-  EXPECT_GT(listed_total, 1000);  // Capsules that meet triangles, not only misses.
+  EXPECT_GT(listed_total, 1000);    // Capsules that meet triangles, not only misses.
+  EXPECT_GT(budget_undecided, 50);  // Budgets that run out before the answer.
 }
 
 TEST(QueryPartsTest, SweptCapsuleIsOneRadiusComputedOneWay) {
