@@ -19,7 +19,7 @@ namespace sweptccd::internal {
 /// query.
 class RootCandidates {
  public:
-  /// The whole-pair capsules; nothing is open (Find marks them).
+  /// The whole-pair capsules; nothing is open (FindOpen marks them).
   /// `buffers`: the arrays of an earlier RootCandidates (Release) to reuse,
   /// or null (the query's thread keeps them; see QueryBuffers).
   struct Buffers;
@@ -35,8 +35,9 @@ class RootCandidates {
   /// tested against the whole avatar's box once, not against every link's;
   /// a link is still tested against every node its own box meets, and
   /// searched (AnyWithin) from the node where it is alone.
-  /// Which links are open does not depend on the tree's shape (only the
-  /// work and the triangle-test count do).
+  /// Without `touches`, which links are open does not depend on the tree's
+  /// shape (only the work and the triangle-test count do); with it, that
+  /// holds for the links up to the cutoff.
   /// Only links from `first` on are searched.
   ///
   /// With `touches`: it is asked, as each link is found open, whether that
@@ -62,7 +63,8 @@ class RootCandidates {
  private:
   // FindOpen's tree over the links' boxes: a node holds link_order_[first,
   // first + count) and the union of their boxes; an inner node's children
-  // are `left` and left + 1. `waiting` counts its links not found open yet.
+  // are `left` and left + 1. `waiting` counts its links not decided yet
+  // (found open, or dropped above the cutoff).
   struct LinkNode {
     Aabb box;
     uint32_t first = 0, count = 0;

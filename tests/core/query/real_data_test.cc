@@ -592,6 +592,59 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
   EXPECT_EQ(disagreements, 0) << "first: " << first;
 }
 
+// Without --per-link, an initially colliding answer names the lowest link
+// touching at s = 0; the search stops the traversal at the first touching
+// link it finds and drops the links above it. Its twin is per-link mode,
+// which decides every link: the same initially_colliding, and the lowest of
+// its touching links with the same witness. Feet sunk into the floor make
+// the touching links the legs' (above link 0), with the other links near
+// the floor's and furniture's triangles.
+TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
+  const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
+  const int up = 1;
+  MocapClip walk = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
+  Place(&walk, up, Vector3d(2.0, 0, -1.5), -0.03);
+  MocapClip dance = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
+  Place(&dance, up, Vector3d(2.4, 0, -1.3), -0.05);
+  const CollisionFilter filter(kMocapNumLinks, env.num_objects());
+  int checked = 0, above_zero = 0, free_or_later = 0;
+  for (const MocapClip* clip : {&walk, &dance}) {
+    const CcdEngine engine(clip->skeleton, env, filter);
+    QueryOptions first, per_link;
+    per_link.per_link = true;
+    for (size_t k = 0; k + 1 < clip->poses.size() && k < 240; k += 3) {
+      const Pose& p0 = clip->poses[k];
+      const Pose& p1 = clip->poses[k + 1];
+      const QueryResult r = engine.Query(p0, p1, first);
+      const QueryResult pl = engine.Query(p0, p1, per_link);
+      ASSERT_EQ(r.initially_colliding, pl.initially_colliding) << "pair " << k;
+      if (!pl.initially_colliding) {
+        ++free_or_later;
+        continue;
+      }
+      const LinkBracket* lowest = nullptr;
+      for (const LinkBracket& b : pl.links) {
+        if (b.initially_colliding && (lowest == nullptr || b.link < lowest->link)) lowest = &b;
+      }
+      ASSERT_NE(lowest, nullptr);
+      ASSERT_TRUE(lowest->has_witness);
+      ASSERT_EQ(r.contacts.size(), 1u) << "pair " << k;
+      const ContactRecord& w = r.contacts[0];
+      EXPECT_EQ(w.link, lowest->link) << "pair " << k;
+      EXPECT_EQ(w.object, lowest->witness.object) << "pair " << k;
+      EXPECT_EQ(w.triangle, lowest->witness.triangle) << "pair " << k;
+      EXPECT_EQ(w.separation, lowest->witness.separation) << "pair " << k;
+      EXPECT_EQ(r.s_lo, 0.0);
+      EXPECT_EQ(r.s_hi, lowest->s_hi) << "pair " << k;
+      ++checked;
+      above_zero += lowest->link > 0;
+    }
+  }
+  EXPECT_GT(checked, 40);
+  EXPECT_GT(above_zero, 40);  // The cutoff falls above link 0.
+  EXPECT_GT(free_or_later, 5);
+}
+
 TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
   const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
   const int up = 1;
