@@ -94,13 +94,6 @@ QueryResult QueryRun::Run() {
 // Only links the whole-pair bounds leave open can touch at 0: the swept
 // capsule over [0, 1] contains the link at 0 (its tolerance covers the
 // rounding of both distances), and a link it clears meets no triangle in it.
-bool QueryRun::CheckTouchesAtStart(void* self, LinkIndex link) {
-  QueryRun& run = *static_cast<QueryRun*>(self);
-  const bool touches = run.target_.TouchesAt(run.motion_, link, 0.0, 0.0);
-  run.touches_at_start_[link] = touches ? 1 : 0;
-  return touches;
-}
-
 void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
   const double w = slicer_.FirstNarrowWidth();
   for (LinkIndex l = begin; l < end; ++l) {
@@ -114,6 +107,14 @@ void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
     witnesses_.CloseLeaf(l, 0, w, at_zero, /*exact_witness=*/true);
     if (!options_.per_link) break;
   }
+}
+
+// FindOpen's touch check: TouchesAt at s = 0, kept for CloseTouchingAtStart.
+bool QueryRun::CheckTouchesAtStart(void* self, LinkIndex link) {
+  QueryRun& run = *static_cast<QueryRun*>(self);
+  const bool touches = run.target_.TouchesAt(run.motion_, link, 0.0, 0.0);
+  run.touches_at_start_[link] = touches ? 1 : 0;
+  return touches;
 }
 
 // The published method's culling step, on the culler: every link's swept

@@ -128,8 +128,8 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
       using Search = CandidatePool::Search;
       for (int budget : {0, 1, 4, 16}) {
         const Search got = pool.AnyWithinBudget(cap, ObjectIndex(o), 0, budget);
-        if (got == Search::kFound) EXPECT_TRUE(any);
-        if (got == Search::kNone) EXPECT_FALSE(any);
+        EXPECT_TRUE(got != Search::kFound || any) << "budget " << budget;
+        EXPECT_TRUE(got != Search::kNone || !any) << "budget " << budget;
         budget_undecided += got == Search::kUndecided;
       }
       EXPECT_EQ(pool.AnyWithinBudget(cap, ObjectIndex(o), 0, 1 << 30),
