@@ -37,17 +37,7 @@ bool CandidatePool::CollectFromBvh(const LinkCapsule& cap, ObjectIndex object,
 }
 
 bool CandidatePool::AnyWithin(const LinkCapsule& cap, ObjectIndex object, uint32_t start_node) {
-  if (target_.Ignores(cap.link, object)) return false;
-  bool found = false;
-  double radius = cap.radius;
-  target_.bvh(object).QueryCapsuleShrinking(
-      cap.a, cap.b, &radius,
-      [&](uint32_t slot) {
-        found = WithinFromQuery(cap, Candidate{static_cast<uint32_t>(object.value()), slot});
-        return !found;
-      },
-      start_node);
-  return found;
+  return AnyWithinBudget(cap, object, start_node, /*budget=*/-1) == Search::kFound;
 }
 
 CandidatePool::Search CandidatePool::AnyWithinBudget(const LinkCapsule& cap, ObjectIndex object,
@@ -58,10 +48,11 @@ CandidatePool::Search CandidatePool::AnyWithinBudget(const LinkCapsule& cap, Obj
   target_.bvh(object).QueryCapsuleShrinking(
       cap.a, cap.b, &radius,
       [&](uint32_t slot) {
-        if (budget-- == 0) {
+        if (budget == 0) {
           result = Search::kUndecided;
           return false;
         }
+        if (budget > 0) --budget;
         if (WithinFromQuery(cap, Candidate{static_cast<uint32_t>(object.value()), slot})) {
           result = Search::kFound;
           return false;

@@ -47,8 +47,8 @@ class CandidatePool {
   /// `start_node` is within the capsule (the test CollectFromBvh applies),
   /// stopping at the first.
   bool AnyWithin(const LinkCapsule& capsule, ObjectIndex object, uint32_t start_node);
-  /// As AnyWithin, giving up after `budget` primitive tests: kFound, kNone,
-  /// or kUndecided (the budget ran out first).
+  /// As AnyWithin, giving up after `budget` primitive tests (negative: no
+  /// limit): kFound, kNone, or kUndecided (the budget ran out first).
   enum class Search { kFound, kNone, kUndecided };
   Search AnyWithinBudget(const LinkCapsule& capsule, ObjectIndex object, uint32_t start_node,
                          int budget);

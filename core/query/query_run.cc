@@ -60,15 +60,14 @@ QueryResult QueryRun::Run() {
   CullWholePair();
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
   const LinkIndex rest = CloseLeadingLink();
-  if (Searching() && options_.per_link) {
-    roots_->FindOpen(cleared_by_culler_, rest);
-    CloseTouchingAtStart(rest, LinkIndex(num_links_));
-  } else if (Searching()) {
+  if (Searching()) {
     // Without --per-link each link found open is checked at s = 0 at once,
     // and the links above the first that touches are not searched: the
     // answer is the lowest touching link. If its witness cannot be measured
-    // (rounding), the links above it are searched after all.
-    roots_->FindOpen(cleared_by_culler_, rest, &QueryRun::CheckTouchesAtStart, this);
+    // (rounding), the links above it are searched after all. Per link, every
+    // link is searched (no check, no cutoff).
+    roots_->FindOpen(cleared_by_culler_, rest,
+                     options_.per_link ? nullptr : &QueryRun::CheckTouchesAtStart, this);
     const LinkIndex cutoff = roots_->cutoff();
     const LinkIndex end(cutoff.is_valid() ? cutoff + 1 : num_links_);
     CloseTouchingAtStart(rest, end);

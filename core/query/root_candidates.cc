@@ -44,7 +44,7 @@ void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, To
     link_order_.clear();
     for (int i : depth_first_) {
       const LinkIndex l(i);
-      if (cutoff_.is_valid() && l > cutoff_) continue;
+      if (Dropped(l)) continue;
       if (l >= first && !target_.Ignores(l, o) && !skip[l] && !links_[l].open) {
         link_order_.push_back(l);
       }
@@ -63,13 +63,18 @@ void RootCandidates::RunDeferred(ObjectIndex object) {
   std::stable_sort(deferred_.begin(), deferred_.end(),
                    [](const auto& x, const auto& y) { return x.first < y.first; });
   for (const auto& [l, env_node] : deferred_) {
-    if ((cutoff_.is_valid() && l > cutoff_) || links_[l].open) continue;
-    if (pool_.AnyWithin(links_[l].capsule, object, env_node)) {
-      links_[l].open = true;
-      if ((!cutoff_.is_valid() || l < cutoff_) && touches_(touches_context_, l)) cutoff_ = l;
-    }
+    if (Dropped(l) || links_[l].open) continue;
+    if (pool_.AnyWithin(links_[l].capsule, object, env_node)) MarkOpen(l);
   }
   deferred_.clear();
+}
+
+void RootCandidates::MarkOpen(LinkIndex link) {
+  links_[link].open = true;
+  if (touches_ != nullptr && (!cutoff_.is_valid() || link < cutoff_) &&
+      touches_(touches_context_, link)) {
+    cutoff_ = link;
+  }
 }
 
 bool RootCandidates::FindOpenOne(LinkIndex link) {
@@ -108,8 +113,7 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
   if (!node.box.Overlaps(env_box)) return;
   if (node.count == 1) {
     const LinkIndex l = link_order_[node.first];
-    const bool dropped = cutoff_.is_valid() && l > cutoff_;
-    if (!dropped) {
+    if (!Dropped(l)) {
       if (touches_ == nullptr) {
         if (!pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
       } else {
@@ -123,11 +127,7 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
             break;
         }
       }
-      links_[l].open = true;
-      if (touches_ != nullptr && (!cutoff_.is_valid() || l < cutoff_) &&
-          touches_(touches_context_, l)) {
-        cutoff_ = l;
-      }
+      MarkOpen(l);
     }
     for (uint32_t k = link_node;; k = link_nodes_[k].parent) {  // Decided.
       --link_nodes_[k].waiting;

@@ -99,6 +99,11 @@ class RootCandidates {
   // (hundreds of tests) is then never searched once a lower link touches.
   static constexpr int kLeafBudget = 16;
   void RunDeferred(ObjectIndex object);
+  // Above the cutoff: not searched (the answer is a lower link).
+  bool Dropped(LinkIndex link) const { return cutoff_.is_valid() && link > cutoff_; }
+  // Marks the link open and, with a touch check, lowers the cutoff to it
+  // when it touches at s = 0.
+  void MarkOpen(LinkIndex link);
   std::vector<std::pair<LinkIndex, uint32_t>> deferred_;
   TouchCheck touches_ = nullptr;
   void* touches_context_ = nullptr;
