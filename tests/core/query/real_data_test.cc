@@ -25,6 +25,7 @@
 #include <random>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "core/geometry/bvh.h"
@@ -592,6 +593,17 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
   EXPECT_EQ(disagreements, 0) << "first: " << first;
 }
 
+// The walk and the dance placed in the grey-white room (y up), their soles
+// at the given heights (negative: sunk into the floor).
+std::pair<MocapClip, MocapClip> WalkAndDanceInTheGreyRoom(double walk_sole, double dance_sole) {
+  const int up = 1;
+  MocapClip walk = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
+  Place(&walk, up, Vector3d(2.0, 0, -1.5), walk_sole);
+  MocapClip dance = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
+  Place(&dance, up, Vector3d(2.4, 0, -1.3), dance_sole);
+  return {std::move(walk), std::move(dance)};
+}
+
 // Without --per-link, an initially colliding answer names the lowest link
 // touching at s = 0; the search stops the traversal at the first touching
 // link it finds and drops the links above it. Its twin is per-link mode,
@@ -601,11 +613,7 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
 // the floor's and furniture's triangles.
 TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
   const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
-  const int up = 1;
-  MocapClip walk = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
-  Place(&walk, up, Vector3d(2.0, 0, -1.5), -0.03);
-  MocapClip dance = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
-  Place(&dance, up, Vector3d(2.4, 0, -1.3), -0.05);
+  const auto [walk, dance] = WalkAndDanceInTheGreyRoom(-0.03, -0.05);
   const CollisionFilter filter(kMocapNumLinks, env.num_objects());
   int checked = 0, above_zero = 0, free_or_later = 0;
   for (const MocapClip* clip : {&walk, &dance}) {
@@ -647,11 +655,7 @@ TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
 
 TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
   const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
-  const int up = 1;
-  MocapClip walk = LoadClip("cmu_02_01_walk.bvh.gz", 'y');
-  Place(&walk, up, Vector3d(2.0, 0, -1.5), -0.01);
-  MocapClip dance = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", 'y');
-  Place(&dance, up, Vector3d(2.4, 0, -1.3), -0.02);
+  const auto [walk, dance] = WalkAndDanceInTheGreyRoom(-0.01, -0.02);
   std::vector<Link> links(3);
   for (int i = 0; i < 3; ++i) {
     links[i].name = "c" + std::to_string(i);
