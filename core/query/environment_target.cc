@@ -33,7 +33,7 @@ Eigen::Vector3d UnitNormal(const SegmentTriangleResult& r, const Eigen::Vector3d
 }  // namespace
 
 bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, double s,
-                                  double slack) const {
+                                  double slack, Candidate* touching) const {
   Eigen::Vector3d a, b, ta, tb, tc;
   motion.SegmentAt(link, s, &a, &b);
   const double reach = skeleton_.link(link).radius + std::max(0.0, slack);
@@ -45,6 +45,9 @@ bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, doub
     bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
       bvh.Triangle(slot, &ta, &tb, &tc);
       touches = SegmentTriangleWithin(a, b, ta, tb, tc, reach);  // The distance's answer.
+      if (touches && touching != nullptr) {
+        *touching = Candidate{static_cast<uint32_t>(o.value()), slot};
+      }
       return !touches;
     });
   }
@@ -52,17 +55,33 @@ bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, doub
 }
 
 bool EnvironmentTarget::Separation(const PairMotion& motion, LinkIndex link, double s,
-                                   double search_radius, ContactRecord* record) const {
+                                   double search_radius, ContactRecord* record,
+                                   const Candidate* near) const {
   Eigen::Vector3d a, b, ta, tb, tc;
   motion.SegmentAt(link, s, &a, &b);
   const double radius = skeleton_.link(link).radius;
   const double reach = radius + std::max(0.0, search_radius);
   bool found = false;
+  double nearest = reach;  // The least distance found so far (when found).
+  if (near != nullptr) {
+    const ObjectIndex o(static_cast<int>(near->object));
+    if (o < env_.num_objects() && !filter_.Ignores(link, o)) {
+      const TriangleBvh& bvh = env_.object(o).bvh;
+      bvh.Triangle(near->slot, &ta, &tb, &tc);
+      const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);
+      if (r.distance <= reach) {
+        found = true;
+        nearest = r.distance;
+        *record = MakeRecord(link, o, near->slot, s, a, b, r, ta, tb, tc);
+        if (r.distance == 0) return true;  // Nothing is nearer than a crossing triangle.
+      }
+    }
+  }
   for (ObjectIndex o(0); o < env_.num_objects(); ++o) {
     if (filter_.Ignores(link, o)) continue;
     const TriangleBvh& bvh = env_.object(o).bvh;
     // Branch and bound: the search radius shrinks to the best distance so far.
-    double search = found ? record->separation + radius : reach;
+    double search = nearest;
     bvh.QueryCapsuleShrinking(a, b, &search, [&](uint32_t slot) {
       bvh.Triangle(slot, &ta, &tb, &tc);
       // Most triangles the search visits are farther than the best so far;
@@ -75,6 +94,7 @@ bool EnvironmentTarget::Separation(const PairMotion& motion, LinkIndex link, dou
       const double sep = r.distance - radius;
       if (!found || sep < record->separation) {
         found = true;
+        nearest = std::min(nearest, r.distance);
         *record = MakeRecord(link, o, slot, s, a, b, r, ta, tb, tc);
       }
       return r.distance > 0;  // Nothing is nearer than a crossing triangle.

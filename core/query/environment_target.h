@@ -52,9 +52,16 @@ class EnvironmentTarget {
   bool WithinCapsuleFromQuery(const LinkCapsule& capsule, Candidate candidate) const;
 
   /// As CcdEngine::TouchesAt and CcdEngine::Separation (which call these).
-  bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const;
+  /// TouchesAt also names, in *touching (when given and it touches), the
+  /// triangle it found within reach. Separation may start from such a
+  /// triangle (`near`): its distance bounds the search from the start, and
+  /// at distance 0 (crossing) nothing can be nearer, so the search ends
+  /// there. The separation is the same (the least over every triangle);
+  /// between triangles at exactly the same distance, `near` is kept.
+  bool TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack,
+                 Candidate* touching = nullptr) const;
   bool Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
-                  ContactRecord* record) const;
+                  ContactRecord* record, const Candidate* near = nullptr) const;
 
   /// The exact separation of `link` at s over `count` candidates from
   /// `first` only: false when count is 0. Adds count to *triangle_tests.

@@ -28,7 +28,7 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       cull_(engine.culler(), bounds_, &stats_),
       witnesses_(target_, motion_, num_links_),
       cleared_by_culler_(num_links_, false),
-      touches_at_start_(num_links_, -1) {
+      touches_at_start_(num_links_) {
   pool_.Adopt(std::move(buffers_->pool));
   queue_.Adopt(std::move(buffers_->queue));
 }
@@ -97,11 +97,15 @@ void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
   const double w = slicer_.FirstNarrowWidth();
   for (LinkIndex l = begin; l < end; ++l) {
     if (target_.IgnoresAll(l) || !roots_->Open(l)) continue;
-    const bool touches = touches_at_start_[l] >= 0 ? touches_at_start_[l] == 1
-                                                   : target_.TouchesAt(motion_, l, 0.0, 0.0);
-    if (!touches) continue;
+    AtStart& at_start = touches_at_start_[l];
+    if (at_start.touches < 0) {
+      at_start.touches = target_.TouchesAt(motion_, l, 0.0, 0.0, &at_start.touching) ? 1 : 0;
+    }
+    if (at_start.touches == 0) continue;
     ContactRecord at_zero;
-    if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero)) continue;  // Rounding: retry later.
+    if (!target_.Separation(motion_, l, 0.0, 0.0, &at_zero, &at_start.touching)) {
+      continue;  // Rounding: retry later.
+    }
     ++stats_.links_tested;
     witnesses_.CloseLeaf(l, 0, w, at_zero, /*exact_witness=*/true);
     if (!options_.per_link) break;
@@ -111,8 +115,9 @@ void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
 // FindOpen's touch check: TouchesAt at s = 0, kept for CloseTouchingAtStart.
 bool QueryRun::CheckTouchesAtStart(void* self, LinkIndex link) {
   QueryRun& run = *static_cast<QueryRun*>(self);
-  const bool touches = run.target_.TouchesAt(run.motion_, link, 0.0, 0.0);
-  run.touches_at_start_[link] = touches ? 1 : 0;
+  AtStart& at_start = run.touches_at_start_[link];
+  const bool touches = run.target_.TouchesAt(run.motion_, link, 0.0, 0.0, &at_start.touching);
+  at_start.touches = touches ? 1 : 0;
   return touches;
 }
 

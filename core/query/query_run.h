@@ -85,9 +85,14 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
-  // Whether the link touches at s = 0, once asked during the traversal: -1
-  // not asked, 0 no, 1 yes.
-  std::vector<signed char> touches_at_start_;
+  // Whether the link touches at s = 0, once asked during the traversal (-1
+  // not asked, 0 no, 1 yes), and where yes, the triangle TouchesAt found
+  // (Separation starts from it).
+  struct AtStart {
+    signed char touches = -1;
+    Candidate touching{0, 0};
+  };
+  std::vector<AtStart> touches_at_start_;
   std::optional<RootCandidates> roots_;  // Which links are open.
   bool out_of_work_ = false;
 };

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "core/avatar/motion.h"
@@ -14,6 +15,7 @@
 #include "core/geometry/distance.h"
 #include "core/query/candidate_pool.h"
 #include "core/query/cull_batcher.h"
+#include "core/query/environment_target.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
 #include "core/scene/collision_filter.h"
@@ -160,6 +162,94 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
   EXPECT_EQ(disagreements, 0);
   EXPECT_GT(listed_total, 1000);    // Capsules that meet triangles, not only misses.
   EXPECT_GT(budget_undecided, 50);  // Budgets that run out before the answer.
+}
+
+// EnvironmentTarget::Separation against its brute-force twin, the least
+// exact distance over every triangle, with and without a starting triangle:
+// the one TouchesAt names (it must touch), a random one (near or far), a
+// crossing one. The separation is the least distance less the radius, to the
+// bit, and the witness's triangle is at that distance.
+TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
+  Rng rng(0x5e9a);
+  Environment env;
+  for (int o = 0; o < 2; ++o) {
+    TriangleMesh mesh;
+    for (int t = 0; t < 300; ++t) {
+      const Eigen::Vector3d c = rng.Box(1.0);
+      const double size = rng.P(0.2) ? rng.U(0.3, 2) : rng.U(0.005, 0.2);
+      Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
+      if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
+      for (const Eigen::Vector3d& v : {a, b, d}) {
+        mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
+        mesh.vertices.push_back(v.cast<float>());
+      }
+    }
+    env.AddMesh(mesh, "soup" + std::to_string(o));
+  }
+  std::vector<Link> links(1);
+  links[0].name = "l";
+  links[0].b_L = Eigen::Vector3d(0, 0.3, 0);
+  links[0].radius = 0.08;
+  const Skeleton skeleton = Skeleton::FromLinks("one", links, "query_parts_test");
+  const LinkIndex link(0);
+  const double radius = skeleton.link(link).radius;
+  const CollisionFilter filter(1, env.num_objects());
+  const EnvironmentTarget target(skeleton, env, filter);
+  int touching = 0, crossing = 0, started = 0;
+  for (int i = 0; i < 400; ++i) {
+    const Pose pose = RandomPose(rng, 0, 1);
+    const PairMotion motion(skeleton, pose, pose, MotionModel::kArticulated);
+    Eigen::Vector3d sa, sb;
+    motion.SegmentAt(link, 0.0, &sa, &sb);
+    double least = HUGE_VAL;
+    std::vector<Candidate> all;
+    for (int o = 0; o < env.num_objects(); ++o) {
+      const TriangleBvh& bvh = env.object(o).bvh;
+      for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
+        Eigen::Vector3d ta, tb, tc;
+        bvh.Triangle(slot, &ta, &tb, &tc);
+        least = std::min(least, SegmentTriangleDistance(sa, sb, ta, tb, tc).distance);
+        all.push_back(Candidate{static_cast<uint32_t>(o), slot});
+      }
+    }
+    const double search = rng.P(0.5) ? 0.0 : rng.U(0, 0.5);
+    const bool expect_found = least <= radius + search;
+    Candidate hit{0, 0};
+    const bool touches = target.TouchesAt(motion, link, 0.0, 0.0, &hit);
+    EXPECT_EQ(touches, least <= radius);
+    std::vector<Candidate> starts;
+    if (touches) {
+      ++touching;
+      Eigen::Vector3d ta, tb, tc;
+      env.object(static_cast<int>(hit.object)).bvh.Triangle(hit.slot, &ta, &tb, &tc);
+      EXPECT_LE(SegmentTriangleDistance(sa, sb, ta, tb, tc).distance, radius);
+      starts.push_back(hit);
+    }
+    starts.push_back(all[rng.I(static_cast<int>(all.size()))]);
+    crossing += least == 0;
+    auto check = [&](const Candidate* near) {
+      ContactRecord record;
+      const bool found = target.Separation(motion, link, 0.0, search, &record, near);
+      EXPECT_EQ(found, expect_found);
+      if (!found || !expect_found) return;
+      EXPECT_EQ(record.separation, least - radius);
+      const TriangleBvh& bvh = env.object(record.object).bvh;
+      uint32_t slot = 0;
+      while (slot < bvh.num_triangles() && bvh.TriangleId(slot) != record.triangle) ++slot;
+      ASSERT_LT(slot, bvh.num_triangles());
+      Eigen::Vector3d ta, tb, tc;
+      bvh.Triangle(slot, &ta, &tb, &tc);
+      EXPECT_EQ(SegmentTriangleDistance(sa, sb, ta, tb, tc).distance, least);
+    };
+    check(nullptr);
+    for (const Candidate& c : starts) {
+      check(&c);
+      ++started;
+    }
+  }
+  EXPECT_GT(touching, 40);  // Links that touch, not only misses.
+  EXPECT_GT(crossing, 10);  // And that cross a triangle (distance 0).
+  EXPECT_GT(started, 400);
 }
 
 TEST(QueryPartsTest, SweptCapsuleIsOneRadiusComputedOneWay) {
