@@ -32,8 +32,8 @@ Eigen::Vector3d UnitNormal(const SegmentTriangleResult& r, const Eigen::Vector3d
 
 }  // namespace
 
-bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, double s,
-                                  double slack, Candidate* touching) const {
+bool EnvironmentTarget::TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack,
+                                  Candidate* touching) const {
   Eigen::Vector3d a, b, ta, tb, tc;
   motion.SegmentAt(link, s, &a, &b);
   const double reach = skeleton_.link(link).radius + std::max(0.0, slack);

@@ -103,8 +103,8 @@ inline bool EnvironmentTarget::WithinCapsule(const LinkCapsule& cap, Candidate c
   // refinements from a list do not pass through).
   const Eigen::Vector3d seg_lo = cap.a.cwiseMin(cap.b), seg_hi = cap.a.cwiseMax(cap.b);
   const double grow =
-      cap.radius + 1e-9 * (1 + cap.radius + std::max(seg_lo.cwiseAbs().maxCoeff(),
-                                                     seg_hi.cwiseAbs().maxCoeff()));
+      cap.radius + 1e-9 * (1 + cap.radius +
+                           std::max(seg_lo.cwiseAbs().maxCoeff(), seg_hi.cwiseAbs().maxCoeff()));
   if ((ta.cwiseMax(tb).cwiseMax(tc).array() < seg_lo.array() - grow).any() ||
       (ta.cwiseMin(tb).cwiseMin(tc).array() > seg_hi.array() + grow).any()) {
     return false;
