@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <iterator>
 #include <map>
 #include <regex>
 #include <sstream>
@@ -115,6 +116,18 @@ TEST_F(BenchCommandTest, PrintsOursBesideBulletAndFcl) {
   ASSERT_TRUE(quiet.count("cmu_02_01_walk.bvh")) << q.out;
   EXPECT_EQ(quiet.at("cmu_02_01_walk.bvh").at("contact"), clip.at("contact"));
   EXPECT_EQ(quiet.at("cmu_02_01_walk.bvh").at("pairs"), clip.at("pairs"));
+  // Only our own target is judged without the peers; theirs say n/a.
+  const std::regex own(
+      "median<=Bullet n/a;  median 5x FCL n/a;  p99 10x Bullet n/a \\(--no-peers\\);  "
+      "p99<=5x median \\(x[0-9.]+\\) (met|MISSED)");
+  EXPECT_EQ(
+      std::distance(std::sregex_iterator(q.out.begin(), q.out.end(), own), std::sregex_iterator()),
+      2)
+      << q.out;
+  EXPECT_FALSE(std::regex_search(q.out, std::regex("\\(x0\\.00\\) MISSED"))) << q.out;
+  ASSERT_TRUE(std::regex_search(q.out, total, std::regex("targets met: ([0-9]+) of ([0-9]+)")))
+      << q.out;
+  EXPECT_EQ(std::stoi(total[2]), 2);
 }
 
 }  // namespace
