@@ -148,6 +148,16 @@ bool BoxesOverlap(vec3 lo0, vec3 hi0, vec3 lo1, vec3 hi1) {
   return all(lessThanEqual(lo0, hi1)) && all(lessThanEqual(lo1, hi0));
 }
 
+// Every loop iteration of an invocation counts one step; past kMaxSteps it
+// gives up and answers "may touch" (the CPU decides). A driver may end long
+// loops on its own: Mesa's llvmpipe stops every loop of a shader once their
+// iterations together reach 65535 (LP_MAX_TGSI_LOOP_ITERATIONS), silently,
+// which left a traversal unfinished and its capsule "cleared" (a miss found
+// on the Stanford bunny, GpuCullerTest.LongTraversalsAreNeverCleared). With
+// the count our own and far below any such limit, an unfinished traversal
+// can only answer "may touch". It also bounds one capsule's time on a GPU.
+const uint kMaxSteps = 16384u;
+
 void main() {
   uint id = gl_GlobalInvocationID.x;
   if (id >= u_num_capsules) return;
@@ -157,14 +167,17 @@ void main() {
   vec3 lo = cap.lo.xyz, hi = cap.hi.xyz;
   uint link = cap.meta.x;
   uint hit = 0u;
+  uint steps = 0u;
   uint stack[128];
   for (uint o = 0u; o < u_num_objects && hit == 0u; ++o) {
+    if (++steps > kMaxSteps) { hit = 1u; break; }
     if ((masks[link * u_mask_words + (o >> 5)] & (1u << (o & 31u))) != 0u) continue;
     uvec4 obj = objects[o];
     if (obj.z == 0u) continue;  // No triangles.
     int top = 0;
     stack[top++] = 0u;
     while (top > 0 && hit == 0u) {
+      if (++steps > kMaxSteps) { hit = 1u; break; }
       uint w = 8u * (obj.x + stack[--top]);
       vec3 nlo = vec3(uintBitsToFloat(node_words[w]), uintBitsToFloat(node_words[w + 1u]),
                       uintBitsToFloat(node_words[w + 2u]));
@@ -179,6 +192,7 @@ void main() {
         continue;
       }
       for (uint k = 0u; k < count; ++k) {
+        if (++steps > kMaxSteps) { hit = 1u; break; }
         uint t = 9u * (obj.y + first + k);
         vec3 v0 = vec3(tri[t], tri[t + 1u], tri[t + 2u]);
         vec3 v1 = vec3(tri[t + 3u], tri[t + 4u], tri[t + 5u]);
