@@ -51,13 +51,12 @@ QueryRun::~QueryRun() {
 }
 
 QueryResult QueryRun::Run() {
-  // The whole-pair bounds first: a link they clear cannot touch at s = 0
-  // either (its capsule at 0 lies inside them), so the check at the start
-  // only looks at the links they leave open. Finding those stops at a link's
-  // first primitive. Nothing is listed for the whole pair: its capsules are
-  // the fattest of the descent, and the halves' own BVH queries refuse far
-  // triangles in groups where refining a long list tests each one.
-  CullWholePair();
+  // The whole-pair bounds first, on the CPU: a link they clear cannot touch
+  // at s = 0 either (its capsule at 0 lies inside them), so the check at the
+  // start only looks at the links they leave open. Finding those stops at a
+  // link's first primitive. Nothing is listed for the whole pair: its
+  // capsules are the fattest of the descent, and the halves' own BVH queries
+  // refuse far triangles in groups where refining a long list tests each one.
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
   const LinkIndex rest = CloseLeadingLink();
   if (Searching()) {
@@ -66,17 +65,17 @@ QueryResult QueryRun::Run() {
     // answer is the lowest touching link. If its witness cannot be measured
     // (rounding), the links above it are searched after all. Per link, every
     // link is searched (no check, no cutoff).
-    roots_->FindOpen(cleared_by_culler_, rest,
-                     options_.per_link ? nullptr : &QueryRun::CheckTouchesAtStart, this);
+    roots_->FindOpen(rest, options_.per_link ? nullptr : &QueryRun::CheckTouchesAtStart, this);
     const LinkIndex cutoff = roots_->cutoff();
     const LinkIndex end(cutoff.is_valid() ? cutoff + 1 : num_links_);
     CloseTouchingAtStart(rest, end);
     if (Searching() && end < num_links_) {
-      roots_->FindOpen(cleared_by_culler_, end);
+      roots_->FindOpen(end);
       CloseTouchingAtStart(end, LinkIndex(num_links_));
     }
   }
   if (Searching()) {
+    CullOpenLinks();
     SeedRoots();
     Descend();
   }
@@ -121,16 +120,22 @@ bool QueryRun::CheckTouchesAtStart(void* self, LinkIndex link) {
   return touches;
 }
 
-// The published method's culling step, on the culler: every link's swept
-// bound over the whole pair (and the first levels below it) in one round
-// trip. A link it clears is free for the pair without CPU work.
-void QueryRun::CullWholePair() {
+// The published method's culling step, on the culler (the GPU): the swept
+// bound over the whole pair (and the first levels below it) of every link
+// the CPU's whole-pair bounds left open, in one round trip. A link it clears
+// is free for the pair without CPU descent. Asked only after the CPU has
+// found the open links and answered the start: a pair touching at s = 0, or
+// with every link clear of the scene, costs no round trip (one round trip
+// costs more than the CPU's whole pair on every device measured, docs/GPU.md).
+void QueryRun::CullOpenLinks() {
   if (!cull_.active()) return;
+  bool any = false;
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (!TestsLink(l)) continue;
+    if (!TestsLink(l) || !roots_->Open(l)) continue;
     cull_.AppendSubtree(l, 0, 1, bounds_.EndsOver(l, 0, 1), CullBatcher::kLevels);
+    any = true;
   }
-  if (!cull_.Flush()) return;
+  if (!any || !cull_.Flush()) return;
   for (LinkIndex l(0); l < num_links_; ++l) {
     const CullAnswer* root = cull_.Find(l, 0, 1);
     cleared_by_culler_[l] = root != nullptr && root->cleared;
@@ -148,7 +153,7 @@ void QueryRun::CullWholePair() {
 LinkIndex QueryRun::CloseLeadingLink() {
   if (options_.per_link || num_links_ == 0) return LinkIndex(0);
   const LinkIndex first(0);
-  if (!target_.IgnoresAll(first) && !cleared_by_culler_[first] && roots_->FindOpenOne(first)) {
+  if (!target_.IgnoresAll(first) && roots_->FindOpenOne(first)) {
     CloseTouchingAtStart(first, LinkIndex(1));
   }
   return LinkIndex(1);

@@ -45,11 +45,11 @@ class QueryRun {
 
  private:
   // The phases, in order.
-  void CullWholePair();
   LinkIndex CloseLeadingLink();
   // RootCandidates::TouchCheck: TouchesAt(link, 0), kept in touches_at_start_.
   static bool CheckTouchesAtStart(void* self, LinkIndex link);
   void CloseTouchingAtStart(LinkIndex begin, LinkIndex end);
+  void CullOpenLinks();
   void SeedRoots();
   void Descend();
   void CloseOutOfWork();

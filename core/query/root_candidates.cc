@@ -35,8 +35,7 @@ void RootCandidates::Release(Buffers* buffers) {
   buffers->deferred = std::move(deferred_);
 }
 
-void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, TouchCheck touches,
-                              void* context) {
+void RootCandidates::FindOpen(LinkIndex first, TouchCheck touches, void* context) {
   touches_ = touches;
   touches_context_ = context;
   cutoff_ = LinkIndex();
@@ -45,7 +44,7 @@ void RootCandidates::FindOpen(const std::vector<bool>& skip, LinkIndex first, To
     for (int i : depth_first_) {
       const LinkIndex l(i);
       if (Dropped(l)) continue;
-      if (l >= first && !target_.Ignores(l, o) && !skip[l] && !links_[l].open) {
+      if (l >= first && !target_.Ignores(l, o) && !links_[l].open) {
         link_order_.push_back(l);
       }
     }

@@ -28,8 +28,7 @@ class RootCandidates {
   /// Gives the arrays back for the next query; this object is left unusable.
   void Release(Buffers* buffers);
 
-  /// Marks open every link not in `skip` (cleared by the culler already)
-  /// whose whole-pair capsule meets some primitive. A link leaves at its
+  /// Marks open every link whose whole-pair capsule meets some primitive. A link leaves at its
   /// first primitive. The traversal pairs each object's BVH with a small
   /// tree over the links' boxes (FindDual), so the scene's upper levels are
   /// tested against the whole avatar's box once, not against every link's;
@@ -46,8 +45,8 @@ class RootCandidates {
   /// query without --per-link answers with the lowest touching link, so
   /// only the links below it still matter. cutoff() is then that link.
   using TouchCheck = bool (*)(void* context, LinkIndex link);
-  void FindOpen(const std::vector<bool>& skip, LinkIndex first = LinkIndex(0),
-                TouchCheck touches = nullptr, void* context = nullptr);
+  void FindOpen(LinkIndex first = LinkIndex(0), TouchCheck touches = nullptr,
+                void* context = nullptr);
   /// The lowest link the last FindOpen's check found touching (links above
   /// it undecided), or an invalid index.
   LinkIndex cutoff() const { return cutoff_; }
