@@ -148,14 +148,19 @@ bool BoxesOverlap(vec3 lo0, vec3 hi0, vec3 lo1, vec3 hi1) {
   return all(lessThanEqual(lo0, hi1)) && all(lessThanEqual(lo1, hi0));
 }
 
-// Every loop iteration of an invocation counts one step; past kMaxSteps it
-// gives up and answers "may touch" (the CPU decides). A driver may end long
-// loops on its own: Mesa's llvmpipe stops every loop of a shader once their
-// iterations together reach 65535 (LP_MAX_TGSI_LOOP_ITERATIONS), silently,
-// which left a traversal unfinished and its capsule "cleared" (a miss found
-// on the Stanford bunny, GpuCullerTest.LongTraversalsAreNeverCleared). With
-// the count our own and far below any such limit, an unfinished traversal
-// can only answer "may touch". It also bounds one capsule's time on a GPU.
+// The whole search is one loop, each iteration one step: the next object,
+// one BVH node, or one triangle of the leaf in hand. Past kMaxSteps steps
+// the invocation gives up and answers "may touch" (the CPU decides). A
+// driver may end long loops on its own: Mesa's llvmpipe ends a shader's
+// loops, silently, once their iterations reach 65535
+// (LP_MAX_TGSI_LOOP_ITERATIONS, one count for all loops, kept per group of
+// invocations run together in SIMD lanes), which left a traversal
+// unfinished and its capsule "cleared" (misses on the Stanford bunny,
+// GpuCullerTest.LongTraversalsAreNeverCleared). With one loop, a group runs
+// it as often as its busiest invocation, at most kMaxSteps + 2 times, far
+// below that limit; and only a search that reached its end writes kCleared,
+// so an unfinished one can only answer "may touch".
+// The cap also bounds one capsule's time on a real GPU.
 const uint kMaxSteps = 16384u;
 
 void main() {
@@ -167,17 +172,25 @@ void main() {
   vec3 lo = cap.lo.xyz, hi = cap.hi.xyz;
   uint link = cap.meta.x;
   uint hit = 0u;
-  uint steps = 0u;
+  bool searched = false;  // Every object searched to its end.
   uint stack[128];
-  for (uint o = 0u; o < u_num_objects && hit == 0u; ++o) {
-    if (++steps > kMaxSteps) { hit = 1u; break; }
-    if ((masks[link * u_mask_words + (o >> 5)] & (1u << (o & 31u))) != 0u) continue;
-    uvec4 obj = objects[o];
-    if (obj.z == 0u) continue;  // No triangles.
-    int top = 0;
-    stack[top++] = 0u;
-    while (top > 0 && hit == 0u) {
-      if (++steps > kMaxSteps) { hit = 1u; break; }
+  int top = 0;                    // Nodes left of the current object.
+  uint next_object = 0u;          // The object after the current one.
+  uvec4 obj = uvec4(0u);          // The current object: node offset, slot offset, nodes.
+  uint leaf = 0u, leaf_end = 0u;  // Slots left of the leaf in hand, [leaf, leaf_end).
+  for (uint steps = 0u; hit == 0u; ++steps) {
+    if (steps >= kMaxSteps) { hit = 1u; break; }
+    if (leaf < leaf_end) {  // A triangle of the leaf in hand.
+      uint t = 9u * (obj.y + leaf);
+      ++leaf;
+      vec3 v0 = vec3(tri[t], tri[t + 1u], tri[t + 2u]);
+      vec3 v1 = vec3(tri[t + 3u], tri[t + 4u], tri[t + 5u]);
+      vec3 v2 = vec3(tri[t + 6u], tri[t + 7u], tri[t + 8u]);
+      if (!BoxesOverlap(lo, hi, min(min(v0, v1), v2), max(max(v0, v1), v2))) continue;
+      if (!TriangleSeparated(a, b, r, v0, v1, v2)) hit = 1u;
+      continue;
+    }
+    if (top > 0) {  // A node of the current object.
       uint w = 8u * (obj.x + stack[--top]);
       vec3 nlo = vec3(uintBitsToFloat(node_words[w]), uintBitsToFloat(node_words[w + 1u]),
                       uintBitsToFloat(node_words[w + 2u]));
@@ -189,20 +202,25 @@ void main() {
         if (top > 126) { hit = 1u; break; }  // Cannot happen (depth < 128); stay conservative.
         stack[top++] = first + 1u;
         stack[top++] = first;
-        continue;
+      } else {
+        leaf = first;
+        leaf_end = first + count;
       }
-      for (uint k = 0u; k < count; ++k) {
-        if (++steps > kMaxSteps) { hit = 1u; break; }
-        uint t = 9u * (obj.y + first + k);
-        vec3 v0 = vec3(tri[t], tri[t + 1u], tri[t + 2u]);
-        vec3 v1 = vec3(tri[t + 3u], tri[t + 4u], tri[t + 5u]);
-        vec3 v2 = vec3(tri[t + 6u], tri[t + 7u], tri[t + 8u]);
-        if (!BoxesOverlap(lo, hi, min(min(v0, v1), v2), max(max(v0, v1), v2))) continue;
-        if (!TriangleSeparated(a, b, r, v0, v1, v2)) { hit = 1u; break; }
-      }
+      continue;
     }
+    if (next_object >= u_num_objects) {  // Every object searched: cleared.
+      searched = true;
+      break;
+    }
+    uint o = next_object++;
+    if ((masks[link * u_mask_words + (o >> 5)] & (1u << (o & 31u))) != 0u) continue;
+    obj = objects[o];
+    if (obj.z == 0u) continue;  // No triangles.
+    stack[top++] = 0u;
   }
-  hits[id] = hit == 0u ? kCleared : 1u;
+  // Only a search that ran to its end clears: a loop ended any other way
+  // (the cap, a driver's limit) answers "may touch".
+  hits[id] = hit == 0u && searched ? kCleared : 1u;
 }
 )GLSL";
 

@@ -63,9 +63,10 @@ bool EnvironmentTarget::Separation(const PairMotion& motion, LinkIndex link, dou
   const double reach = radius + std::max(0.0, search_radius);
   bool found = false;
   double nearest = reach;  // The least distance found so far (when found).
-  if (near != nullptr) {
+  if (near != nullptr && near->object < static_cast<uint32_t>(env_.num_objects()) &&
+      near->slot < env_.object(static_cast<int>(near->object)).bvh.num_triangles()) {
     const ObjectIndex o(static_cast<int>(near->object));
-    if (o < env_.num_objects() && !filter_.Ignores(link, o)) {
+    if (!filter_.Ignores(link, o)) {
       const TriangleBvh& bvh = env_.object(o).bvh;
       bvh.Triangle(near->slot, &ta, &tb, &tc);
       const SegmentTriangleResult r = SegmentTriangleDistance(a, b, ta, tb, tc);

@@ -397,7 +397,8 @@ TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
 namespace sweptccd::gpu {
 namespace {
 
-// A dense real mesh (the Stanford bunny, 69,451 triangles in 0.16 m) and
+// A dense real mesh (the Stanford bunny, 69,451 triangles in 0.16 m, three
+// copies 0.1 m apart) and
 // capsules from a few millimetres to larger than the bunny, through and
 // around it: many traversals visit tens of thousands of nodes and
 // triangles, past the 65,535 loop iterations after which Mesa's llvmpipe
@@ -408,18 +409,25 @@ namespace {
 TEST(GpuCullerTest, LongTraversalsAreNeverCleared) {
   Fixture f;
   f.num_links = 2;
-  f.env.AddMesh(LoadMeshFile(SWEPTCCD_DATA_DIR "/env/stanford_bunny.obj.gz"), "bunny");
+  // Three copies side by side, each its own object: a search goes on from
+  // one object's BVH to the next (a driver's loop count runs on too).
+  const TriangleMesh bunny = LoadMeshFile(SWEPTCCD_DATA_DIR "/env/stanford_bunny.obj.gz");
+  for (int copy = -1; copy <= 1; ++copy) {
+    TriangleMesh moved = bunny;
+    for (Eigen::Vector3f& v : moved.vertices) v.x() += 0.1f * static_cast<float>(copy);
+    f.env.AddMesh(moved, "bunny" + std::to_string(copy));
+  }
   f.filter = CollisionFilter(f.num_links, f.env.num_objects());
   auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env);
   const GpuCuller culler(gpu_env, f.filter, f.num_links);
-  const Aabb box = f.env.object(0).bvh.bounds();
+  const Aabb box = f.env.object(1).bvh.bounds();
   const Vector3d centre = 0.5 * (box.lo + box.hi);
   Rng rng(0xb0bb1e);
   std::vector<LinkCapsule> caps;
-  for (int i = 0; i < 320; ++i) {
+  for (int i = 0; i < 160; ++i) {
     LinkCapsule c;
     const double size = rng.P(0.5) ? rng.U(0.005, 0.05) : rng.U(0.05, 0.4);
-    c.a = centre + rng.Box(0.15);
+    c.a = centre + Vector3d(rng.U(-0.25, 0.25), rng.U(-0.15, 0.15), rng.U(-0.15, 0.15));
     c.b = c.a + size * rng.Dir();
     c.radius = rng.U(0.2, 1.0) * size;
     c.link = LinkIndex(0);
@@ -428,14 +436,14 @@ TEST(GpuCullerTest, LongTraversalsAreNeverCleared) {
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
   // A miss can only be a cleared capsule: each of those is measured; of the
-  // rest, the first 60, to show what the batch holds.
+  // rest, the first 30, to show what the batch holds.
   int touching = 0, misses = 0, clear = 0, cleared = 0;
   for (size_t i = 0; i < caps.size(); ++i) {
-    if (may_touch[i] != 0 && i >= 60) continue;
+    if (may_touch[i] != 0 && i >= 30) continue;
     const double sep = f.Separation(caps[i]);
     touching += sep <= 0;
     if (sep <= 0 && may_touch[i] == 0 && ++misses <= 5) {
-      ADD_FAILURE() << "capsule " << i << " touches the bunny (separation " << sep
+      ADD_FAILURE() << "capsule " << i << " touches a bunny (separation " << sep
                     << ") but was cleared: a [" << caps[i].a.transpose() << "] b ["
                     << caps[i].b.transpose() << "] radius " << caps[i].radius;
     }
@@ -445,9 +453,12 @@ TEST(GpuCullerTest, LongTraversalsAreNeverCleared) {
     }
   }
   EXPECT_EQ(misses, 0);
-  EXPECT_GT(touching, 20);  // Most go through the bunny.
+  EXPECT_GT(touching, 10);  // Many go through a bunny.
   EXPECT_GT(clear, 10);     // Some miss it by a visible margin,
   EXPECT_GT(cleared, 5);    // and the culler still clears some of those.
+  std::printf("bunnies: %d of the capsules measured touch, %d are clear by 1e-5 m, %d of those "
+              "cleared\n",
+              touching, clear, cleared);
 }
 
 }  // namespace

@@ -165,10 +165,12 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
 }
 
 // EnvironmentTarget::Separation against its brute-force twin, the least
-// exact distance over every triangle, with and without a starting triangle:
-// the one TouchesAt names (it must touch), a random one (near or far), a
-// crossing one. The separation is the least distance less the radius, to the
-// bit, and the witness's triangle is at that distance.
+// exact distance over every triangle the filter keeps, with and without a
+// starting triangle: the one TouchesAt names (it must touch), a random one
+// (near, far, or on an object the filter ignores), a crossing one (distance
+// 0: the search may stop there), and indices out of range (ignored). The
+// separation is the least distance less the radius, to the bit, and the
+// witness's triangle is at that distance. Half the links ignore object 1.
 TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
   Rng rng(0x5e9a);
   Environment env;
@@ -186,30 +188,44 @@ TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
     }
     env.AddMesh(mesh, "soup" + std::to_string(o));
   }
-  std::vector<Link> links(1);
-  links[0].name = "l";
-  links[0].b_L = Eigen::Vector3d(0, 0.3, 0);
-  links[0].radius = 0.08;
-  const Skeleton skeleton = Skeleton::FromLinks("one", links, "query_parts_test");
-  const LinkIndex link(0);
-  const double radius = skeleton.link(link).radius;
-  const CollisionFilter filter(1, env.num_objects());
+  std::vector<Link> links(2);
+  for (int l = 0; l < 2; ++l) {
+    links[l].name = "l" + std::to_string(l);
+    links[l].b_L = Eigen::Vector3d(0, 0.3, 0);
+    links[l].radius = 0.08;
+    links[l].parent = l == 0 ? -1 : 0;
+  }
+  const Skeleton skeleton = Skeleton::FromLinks("two", links, "query_parts_test");
+  CollisionFilter filter(2, env.num_objects());
+  filter.Ignore(LinkIndex(1), ObjectIndex(1));
   const EnvironmentTarget target(skeleton, env, filter);
-  int touching = 0, crossing = 0, started = 0;
+  int touching = 0, crossing = 0, crossing_starts = 0, ignored_starts = 0, started = 0;
   for (int i = 0; i < 400; ++i) {
-    const Pose pose = RandomPose(rng, 0, 1);
-    const PairMotion motion(skeleton, pose, pose, MotionModel::kArticulated);
+    const LinkIndex link(i % 2);
+    const double radius = skeleton.link(link).radius;
+    const Pose pose = RandomPose(rng, 0, 2);
+    const PairMotion motion(skeleton, pose, pose, MotionModel::kIndependent);
     Eigen::Vector3d sa, sb;
     motion.SegmentAt(link, 0.0, &sa, &sb);
-    double least = HUGE_VAL;
-    std::vector<Candidate> all;
+    double least = HUGE_VAL, least_ignored = HUGE_VAL;
+    std::vector<Candidate> all, crossings;
+    Candidate nearest_ignored{0, 0};
     for (int o = 0; o < env.num_objects(); ++o) {
       const TriangleBvh& bvh = env.object(o).bvh;
       for (uint32_t slot = 0; slot < bvh.num_triangles(); ++slot) {
+        all.push_back(Candidate{static_cast<uint32_t>(o), slot});
         Eigen::Vector3d ta, tb, tc;
         bvh.Triangle(slot, &ta, &tb, &tc);
-        least = std::min(least, SegmentTriangleDistance(sa, sb, ta, tb, tc).distance);
-        all.push_back(Candidate{static_cast<uint32_t>(o), slot});
+        const double d = SegmentTriangleDistance(sa, sb, ta, tb, tc).distance;
+        if (filter.Ignores(link, ObjectIndex(o))) {
+          if (d < least_ignored) {
+            least_ignored = d;
+            nearest_ignored = all.back();
+          }
+          continue;
+        }
+        least = std::min(least, d);
+        if (d == 0) crossings.push_back(all.back());
       }
     }
     const double search = rng.P(0.5) ? 0.0 : rng.U(0, 0.5);
@@ -220,19 +236,32 @@ TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
     std::vector<Candidate> starts;
     if (touches) {
       ++touching;
+      EXPECT_FALSE(filter.Ignores(link, ObjectIndex(static_cast<int>(hit.object))));
       Eigen::Vector3d ta, tb, tc;
       env.object(static_cast<int>(hit.object)).bvh.Triangle(hit.slot, &ta, &tb, &tc);
       EXPECT_LE(SegmentTriangleDistance(sa, sb, ta, tb, tc).distance, radius);
       starts.push_back(hit);
     }
     starts.push_back(all[rng.I(static_cast<int>(all.size()))]);
-    crossing += least == 0;
+    // The nearest triangle the filter ignores, often nearer than any kept.
+    if (least_ignored < least && least_ignored <= radius + search) {
+      starts.push_back(nearest_ignored);
+      ++ignored_starts;
+    }
+    if (!crossings.empty()) {
+      ++crossing;
+      starts.push_back(crossings[rng.I(static_cast<int>(crossings.size()))]);
+      ++crossing_starts;
+    }
+    starts.push_back(Candidate{static_cast<uint32_t>(env.num_objects()), 0});  // No such object.
+    starts.push_back(Candidate{0, 1u << 30});                                  // No such slot.
     auto check = [&](const Candidate* near) {
       ContactRecord record;
       const bool found = target.Separation(motion, link, 0.0, search, &record, near);
       EXPECT_EQ(found, expect_found);
       if (!found || !expect_found) return;
       EXPECT_EQ(record.separation, least - radius);
+      EXPECT_FALSE(filter.Ignores(link, ObjectIndex(record.object)));
       const TriangleBvh& bvh = env.object(record.object).bvh;
       uint32_t slot = 0;
       while (slot < bvh.num_triangles() && bvh.TriangleId(slot) != record.triangle) ++slot;
@@ -247,9 +276,11 @@ TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
       ++started;
     }
   }
-  EXPECT_GT(touching, 40);  // Links that touch, not only misses.
-  EXPECT_GT(crossing, 10);  // And that cross a triangle (distance 0).
-  EXPECT_GT(started, 400);
+  EXPECT_GT(touching, 40);         // Links that touch, not only misses,
+  EXPECT_GT(crossing_starts, 10);  // searches that start on a crossing triangle,
+  EXPECT_GT(ignored_starts, 20);   // and on a nearer triangle the filter ignores.
+  EXPECT_GT(started, 1200);
+  EXPECT_EQ(crossing, crossing_starts);
 }
 
 TEST(QueryPartsTest, SweptCapsuleIsOneRadiusComputedOneWay) {
