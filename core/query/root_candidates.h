@@ -28,10 +28,11 @@ class RootCandidates {
   /// Gives the arrays back for the next query; this object is left unusable.
   void Release(Buffers* buffers);
 
-  /// Marks open every link whose whole-pair capsule meets some primitive. A link leaves at its
-  /// first primitive. The traversal pairs each object's BVH with a small
-  /// tree over the links' boxes (FindDual), so the scene's upper levels are
-  /// tested against the whole avatar's box once, not against every link's;
+  /// Marks open every link whose whole-pair capsule meets some primitive. A
+  /// link leaves at its first primitive. The traversal pairs each object's
+  /// BVH with a small tree over the links' boxes (FindDual), so the scene's
+  /// upper levels are tested against the whole avatar's box once, not
+  /// against every link's;
   /// a link is still tested against every node its own box meets, and
   /// searched (AnyWithin) from the node where it is alone.
   /// Without `touches`, which links are open does not depend on the tree's

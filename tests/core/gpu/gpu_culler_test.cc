@@ -79,14 +79,20 @@ struct Fixture {
   }
 };
 
+// Every capsule the culler clears is measured (a miss can only be one of
+// those); of those it keeps, the first `measure_kept` (all by default).
+// *touching, when given, counts the measured capsules that touch.
 void CheckBatch(const Fixture& f, const GpuCuller& culler, const std::vector<LinkCapsule>& caps,
-                const char* what, double scale, int64_t* clear, int64_t* cleared) {
+                const char* what, double scale, int64_t* clear, int64_t* cleared,
+                size_t measure_kept = SIZE_MAX, int64_t* touching = nullptr) {
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
   ASSERT_EQ(may_touch.size(), caps.size());
   int misses = 0;
   for (size_t i = 0; i < caps.size(); ++i) {
+    if (may_touch[i] != 0 && i >= measure_kept) continue;
     const double sep = f.Separation(caps[i]);
+    if (touching != nullptr) *touching += sep <= 0;
     if (sep <= 0 && may_touch[i] == 0 && ++misses <= 5) {
       const LinkCapsule& c = caps[i];
       ADD_FAILURE() << what << ": capsule " << i << " touches (separation " << sep
@@ -433,32 +439,17 @@ TEST(GpuCullerTest, LongTraversalsAreNeverCleared) {
     c.link = LinkIndex(0);
     caps.push_back(c);
   }
-  std::vector<uint8_t> may_touch;
-  ASSERT_TRUE(culler.Cull(caps, &may_touch));
-  // A miss can only be a cleared capsule: each of those is measured; of the
-  // rest, the first 30, to show what the batch holds.
-  int touching = 0, misses = 0, clear = 0, cleared = 0;
-  for (size_t i = 0; i < caps.size(); ++i) {
-    if (may_touch[i] != 0 && i >= 30) continue;
-    const double sep = f.Separation(caps[i]);
-    touching += sep <= 0;
-    if (sep <= 0 && may_touch[i] == 0 && ++misses <= 5) {
-      ADD_FAILURE() << "capsule " << i << " touches a bunny (separation " << sep
-                    << ") but was cleared: a [" << caps[i].a.transpose() << "] b ["
-                    << caps[i].b.transpose() << "] radius " << caps[i].radius;
-    }
-    if (sep > 1e-5) {
-      ++clear;
-      cleared += may_touch[i] == 0;
-    }
-  }
-  EXPECT_EQ(misses, 0);
+  // Each cleared capsule is measured; of the rest, the first 30, to show
+  // what the batch holds.
+  int64_t touching = 0, clear = 0, cleared = 0;
+  CheckBatch(f, culler, caps, "bunnies", 1.0, &clear, &cleared, 30, &touching);
   EXPECT_GT(touching, 10);  // Many go through a bunny.
   EXPECT_GT(clear, 10);     // Some miss it by a visible margin,
   EXPECT_GT(cleared, 5);    // and the culler still clears some of those.
-  std::printf("bunnies: %d of the capsules measured touch, %d are clear by 1e-5 m, %d of those "
-              "cleared\n",
-              touching, clear, cleared);
+  std::printf("bunnies: %lld of the capsules measured touch, %lld are clear by 1e-5 m, %lld of "
+              "those cleared\n",
+              static_cast<long long>(touching), static_cast<long long>(clear),
+              static_cast<long long>(cleared));
 }
 
 }  // namespace

@@ -64,6 +64,35 @@ class FakeCuller : public CapsuleCuller {
   mutable int round_trips = 0;
 };
 
+// Two objects of random triangles centred in [-half, half]^3: a fifth of
+// them large (size in [large_min, large_max]), the rest small (up to
+// small_max), one in ten a sliver and, with `points`, one in twenty a point.
+struct Soup {
+  int count;
+  double half, large_min, large_max, small_max;
+  bool points;
+};
+Environment TwoSoups(Rng& rng, const Soup& soup) {
+  Environment env;
+  for (int o = 0; o < 2; ++o) {
+    TriangleMesh mesh;
+    for (int t = 0; t < soup.count; ++t) {
+      const Eigen::Vector3d c = rng.Box(soup.half);
+      const double size =
+          rng.P(0.2) ? rng.U(soup.large_min, soup.large_max) : rng.U(0.005, soup.small_max);
+      Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
+      if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
+      if (soup.points && rng.P(0.05)) d = b = a;                                // A point.
+      for (const Eigen::Vector3d& v : {a, b, d}) {
+        mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
+        mesh.vertices.push_back(v.cast<float>());
+      }
+    }
+    env.AddMesh(mesh, "soup" + std::to_string(o));
+  }
+  return env;
+}
+
 // The candidate tests against their brute-force twin, the exact distance:
 // for random capsules among a random soup of small and large, thin and
 // sliver triangles (two objects), the pool's BVH collection lists exactly
@@ -72,22 +101,7 @@ class FakeCuller : public CapsuleCuller {
 // also shrunk to just below and just above a listed triangle's distance.
 TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
   Rng rng(0xca9d);
-  Environment env;
-  for (int o = 0; o < 2; ++o) {
-    TriangleMesh mesh;
-    for (int t = 0; t < 400; ++t) {
-      const Eigen::Vector3d c = rng.Box(1.5);
-      const double size = rng.P(0.2) ? rng.U(0.5, 3) : rng.U(0.005, 0.3);
-      Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
-      if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
-      if (rng.P(0.05)) d = b = a;                                               // A point.
-      for (const Eigen::Vector3d& v : {a, b, d}) {
-        mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
-        mesh.vertices.push_back(v.cast<float>());
-      }
-    }
-    env.AddMesh(mesh, "soup" + std::to_string(o));
-  }
+  const Environment env = TwoSoups(rng, Soup{400, 1.5, 0.5, 3, 0.3, /*points=*/true});
   std::vector<Link> links(1);
   links[0].name = "l";
   links[0].radius = 0.05;
@@ -173,21 +187,7 @@ TEST(QueryPartsTest, CandidateTestsGiveTheDistancesAnswer) {
 // witness's triangle is at that distance. Half the links ignore object 1.
 TEST(QueryPartsTest, SeparationFromAStartingTriangleIsTheLeastDistance) {
   Rng rng(0x5e9a);
-  Environment env;
-  for (int o = 0; o < 2; ++o) {
-    TriangleMesh mesh;
-    for (int t = 0; t < 300; ++t) {
-      const Eigen::Vector3d c = rng.Box(1.0);
-      const double size = rng.P(0.2) ? rng.U(0.3, 2) : rng.U(0.005, 0.2);
-      Eigen::Vector3d a = c + size * rng.Dir(), b = c + size * rng.Dir(), d = c + size * rng.Dir();
-      if (rng.P(0.1)) d = a + rng.U(0, 1) * (b - a) + 1e-5 * size * rng.Dir();  // Sliver.
-      for (const Eigen::Vector3d& v : {a, b, d}) {
-        mesh.indices.push_back(static_cast<uint32_t>(mesh.vertices.size()));
-        mesh.vertices.push_back(v.cast<float>());
-      }
-    }
-    env.AddMesh(mesh, "soup" + std::to_string(o));
-  }
+  const Environment env = TwoSoups(rng, Soup{300, 1.0, 0.3, 2, 0.2, /*points=*/false});
   std::vector<Link> links(2);
   for (int l = 0; l < 2; ++l) {
     links[l].name = "l" + std::to_string(l);
