@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "core/world/world_query.h"
 #include "msgs/text.h"
 
@@ -69,18 +70,15 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       }
     }
     if (options.bench) {
-      std::sort(record_us.begin(), record_us.end());
-      auto pct = [&](double p) {
-        return record_us.empty() ? 0.0 : record_us[static_cast<size_t>(p * (record_us.size() - 1))];
-      };
+      const Summary us = Summarise(record_us);  // The one percentile rule.
       double total = 0;
       for (double v : record_us) total += v;
       std::fprintf(stderr, "sweptccd world --bench: %s\n", options.world_path.c_str());
       *out << "avatars " << loaded.world.avatars.size() << "\nobjects "
            << loaded.world.objects.size() << "\nrecords " << records << "\nentity_entries "
            << entries << "\nentity_contacts " << contacts << "\nculled_by_box " << culled
-           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << pct(0.5) << "\nrecord_us_p99 "
-           << pct(0.99) << "\nrecord_us_max " << pct(1.0) << '\n';
+           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << us.median << "\nrecord_us_p99 "
+           << us.p99 << "\nrecord_us_max " << us.max << '\n';
     }
     out->flush();
     if (!*out) {

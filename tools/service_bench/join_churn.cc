@@ -24,18 +24,13 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "msgs/text.h"
 #include "sweptccd_client/live_client.h"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1) + 0.5)];
-}
 
 }  // namespace
 
@@ -142,12 +137,13 @@ int main(int argc, char** argv) {
     for (Live& l : live) {
       if (l.client) l.client->Leave();
     }
+    const Summary join = Summarise(join_ms);
     std::printf(
         "join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
         "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
         static_cast<long long>(joins), static_cast<long long>(refused),
-        static_cast<long long>(no_reply), seconds, static_cast<long long>(poses),
-        Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
+        static_cast<long long>(no_reply), seconds, static_cast<long long>(poses), join.median,
+        join.p99, join.max);
     return refused + no_reply == 0 ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

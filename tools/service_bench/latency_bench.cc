@@ -69,6 +69,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "msgs/channels.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
@@ -260,18 +261,8 @@ struct Collector {
   }
 };
 
-struct Stats {
-  size_t n = 0;
-  double median = 0, p99 = 0, max = 0;
-};
-
-Stats Summarise(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-  };
-  return {v.size(), at(0.5), at(0.99), v.empty() ? 0.0 : v.back()};
-}
+using Stats = sweptccd::Summary;  // The one percentile rule (core/percentile.h).
+using sweptccd::Summarise;
 
 struct Options {
   bool room = false;
