@@ -1,12 +1,15 @@
 #include "core/world/world_file.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/avatar/link_key.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/json_text.h"
@@ -32,24 +35,21 @@ std::string StringField(const json& entry, const char* key, const std::string& w
   return entry[key].get<std::string>();
 }
 
-// A link given by name, index or "*" (-1).
+// A link of a rule, -1 for all: a JSON number is an index; text is a name
+// first, then "*", then an index (ResolveLinkKey, SPEC 8 "Filters").
 int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string& where,
                    const char* field) {
-  if (key.is_number_integer() || key.is_number_unsigned()) {
-    const int64_t i = key.get<int64_t>();
-    if (i >= 0 && i < skeleton.num_links()) return static_cast<int>(i);
-    throw InputError(where + ": \"" + field + "\" index " + std::to_string(i) +
-                     " is out of range (the skeleton has " + std::to_string(skeleton.num_links()) +
-                     " links)");
+  const std::string at = where + ": \"" + field + "\"";
+  if (key.is_number_unsigned()) {
+    return ResolveLinkIndex(
+               static_cast<int64_t>(std::min<uint64_t>(key.get<uint64_t>(), INT64_MAX)), skeleton,
+               at)
+        .value();
   }
+  if (key.is_number_integer()) return ResolveLinkIndex(key.get<int64_t>(), skeleton, at).value();
   if (!key.is_string())
     throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
-  const std::string name = key.get<std::string>();
-  if (name == "*") return -1;
-  const int found = skeleton.FindLink(name);
-  if (found >= 0) return found;
-  throw InputError(where + ": unknown link '" + name + "' in \"" + field + "\" (skeleton '" +
-                   skeleton.name() + "')");
+  return sweptccd::ResolveLinkKey(key.get<std::string>(), skeleton, at).value();
 }
 
 void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
