@@ -13,6 +13,7 @@
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/json_text.h"
+#include "core/utime_json.h"
 
 namespace sweptccd::world {
 namespace {
@@ -77,39 +78,9 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
 }
 
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
-  std::ifstream in = OpenInputFile(path, "object pose file");
-  // A line holds 7 numbers and a utime: a line over 64 KiB is read to its
-  // newline without being kept, and is not used (as a malformed line).
-  constexpr std::streamsize kMaxLine = 64 << 10;
-  std::vector<char> buffer(kMaxLine + 1);
-  for (;;) {
-    in.getline(buffer.data(), kMaxLine + 1);
-    if (in.bad()) break;
-    const bool too_long = in.fail() && !in.eof() && in.gcount() == kMaxLine;
-    if (in.fail() && !too_long && in.gcount() == 0) break;  // End of the stream.
-    if (too_long) {
-      in.clear();
-      in.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
-      continue;
-    }
-    const bool last = in.eof();
-    // The bytes read, NULs included, without the newline.
-    const std::string line(buffer.data(), static_cast<size_t>(in.gcount() - (last ? 0 : 1)));
-    in.clear(in.rdstate() & ~std::ios::failbit);
-    if (line.find_first_not_of(" \t\r\n") == std::string::npos) {
-      if (last) break;
-      continue;
-    }
-    RigidSample x;
-    std::string error;
-    if (!ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
-      if (last) break;
-      continue;
-    }
+  ReadObjectPoseFile(path, "object pose file", [object](const RigidSample& x) {
     if (object->used.empty() || x.utime > object->used.back().utime) object->used.push_back(x);
-    if (last) break;
-  }
-  if (in.bad()) throw InputError(path + ": error while reading");
+  });
 }
 
 }  // namespace
@@ -124,13 +95,7 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
     *error = "expected {\"utime\": ..., \"pose\": [7 numbers]}";
     return false;
   }
-  const json& u = j["utime"];
-  if (u.is_number_integer() || u.is_number_unsigned()) {
-    sample->utime = u.get<int64_t>();
-  } else if (u.is_number_float() && std::isfinite(u.get<double>()) &&
-             u.get<double>() == std::floor(u.get<double>()) && std::fabs(u.get<double>()) < 9e18) {
-    sample->utime = static_cast<int64_t>(u.get<double>());
-  } else {
+  if (!ReadUtime(j["utime"], &sample->utime)) {  // The one utime rule of pose lines.
     *error = "utime must be an integer";
     return false;
   }
@@ -150,6 +115,26 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
   const int64_t utime = sample->utime;
   *error = MakeRigidSample(utime, v, sample);
   return error->empty();
+}
+
+int64_t ReadObjectPoseFile(const std::string& path, const std::string& what,
+                           const std::function<void(const RigidSample&)>& usable) {
+  std::ifstream in = OpenInputFile(path, what);
+  int64_t unusable = 0;
+  std::string line;
+  bool too_long = false, blank = true;
+  while (in.good() && ReadBoundedLine(in, kMaxObjectPoseLineBytes, &line, &too_long, &blank)) {
+    if (blank) continue;
+    RigidSample x;
+    std::string error;
+    if (too_long || !ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
+      ++unusable;
+      continue;
+    }
+    usable(x);
+  }
+  if (in.bad()) throw InputError(path + ": error while reading the " + what);
+  return unusable;
 }
 
 LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
