@@ -29,6 +29,7 @@
 #include "sweptccd/object_pose_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace sweptccd {
 namespace {
@@ -426,17 +427,11 @@ void SendRound(const SimulateTrackerCommandOptions& o, const Pose& sample, int64
       ++counters->dropped;
       continue;
     }
-    tracker_pose_t m;
+    tracker_pose_t m = TrackerPoseOf(sample, c.offset_W);
     m.utime = utime;
     m.client_id = c.id;
     m.session = session;
     m.seq = client_seq;
-    m.num_links = static_cast<int32_t>(sample.links.size());
-    for (const LinkPose& l : sample.links) {
-      const Eigen::Vector3d p_W = l.p + c.offset_W;
-      m.position.push_back({p_W.x(), p_W.y(), p_W.z()});
-      m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
-    }
     // At most one sample of a client is held at a time. (A sample held at the
     // end of the run is sent after the last round, after nothing newer.)
     if (hold && !c.held) {

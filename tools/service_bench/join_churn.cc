@@ -27,6 +27,7 @@
 #include "core/percentile.h"
 #include "msgs/text.h"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -49,14 +50,7 @@ int main(int argc, char** argv) {
     std::ifstream in(argv[3]);
     std::string line;
     if (!std::getline(in, line)) throw InputError(std::string(argv[3]) + ": no pose");
-    const nlohmann::json first = nlohmann::json::parse(line);
-    tracker_pose_t pose;
-    pose.num_links = static_cast<int32_t>(first["links"].size());
-    for (const auto& l : first["links"]) {
-      pose.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-      pose.orientation.push_back(
-          {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-    }
+    tracker_pose_t pose = TrackerPoseOfLine(line);
     const MacKey room = LoadKeyFile(argv[4]);
     const double joins_hz = std::stod(argv[5]), lifetime_s = std::stod(argv[6]);
     const double seconds = std::stod(argv[7]);

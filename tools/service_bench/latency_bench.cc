@@ -76,6 +76,7 @@
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -409,15 +410,8 @@ int main(int argc, char** argv) {
     std::ifstream in(argv[2]);
     std::string line;
     while (std::getline(in, line)) {
-      const auto j = nlohmann::json::parse(line);
-      sweptccd::tracker_pose_t m;
+      sweptccd::tracker_pose_t m = sweptccd::TrackerPoseOfLine(line);
       m.session = 1;
-      m.num_links = static_cast<int32_t>(j["links"].size());
-      for (const auto& l : j["links"]) {
-        m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-        m.orientation.push_back(
-            {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-      }
       poses.push_back(m);
     }
   }
