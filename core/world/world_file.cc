@@ -188,6 +188,7 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
       throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
     env_written.push_back(env[i].get<std::string>());
     env_paths.push_back(Resolve(dir, env_written.back()));
+    out.files.emplace_back("env[" + std::to_string(i) + "]", env_paths.back());
   }
   out.env = Environment::LoadFiles(env_paths, options.mesh);
 
@@ -197,8 +198,10 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
     AvatarEntity a;
     a.id = avatar_ids[i];
-    a.skeleton =
-        LoadSkeletonFile(Resolve(dir, StringField(e, "skeleton", where)), options.max_links);
+    const std::string role = where.substr(path.size() + 2);  // "avatars[i] ('id')".
+    const std::string skeleton_path = Resolve(dir, StringField(e, "skeleton", where));
+    out.files.emplace_back(role + " skeleton", skeleton_path);
+    a.skeleton = LoadSkeletonFile(skeleton_path, options.max_links);
     const std::string motion = StringField(e, "motion", where, /*required=*/false);
     if (!motion.empty()) {
       const std::optional<MotionModel> m = ParseMotionModel(motion);
@@ -206,7 +209,9 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
       a.motion = *m;
     }
-    ReadAvatarPoses(Resolve(dir, StringField(e, "poses", where)), &a);
+    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+    out.files.emplace_back(role + " poses", poses_path);
+    ReadAvatarPoses(poses_path, &a);
     out.world.avatars.push_back(std::move(a));
   }
   for (size_t i = 0; i < objects.size(); ++i) {
@@ -215,11 +220,15 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
     ObjectEntity o;
     o.id = object_ids[i];
+    const std::string role = where.substr(path.size() + 2);  // "objects[i] ('id')".
     const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
+    out.files.emplace_back(role + " mesh", mesh_path);
     auto mesh = std::make_shared<Environment>();
     mesh->AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
     o.mesh = std::move(mesh);
-    ReadObjectPoses(Resolve(dir, StringField(e, "poses", where)), &o);
+    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+    out.files.emplace_back(role + " poses", poses_path);
+    ReadObjectPoses(poses_path, &o);
     out.world.objects.push_back(std::move(o));
   }
 

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/geometry/mesh.h"
@@ -18,6 +19,10 @@ struct LoadedWorld {
   World world;
   Environment env;                           // The static environment (may be empty).
   std::vector<CollisionFilter> env_filters;  // Per avatar: its {"link", "object"} rules.
+  /// Every file the world file names, as read: (its role, e.g. "avatars[0]
+  /// ('alice') poses", and its path), so a command can refuse an output
+  /// that would overwrite one.
+  std::vector<std::pair<std::string, std::string>> files;
 };
 
 struct WorldLoadOptions {
