@@ -101,9 +101,10 @@ function(sweptccd_export_library target)
 endfunction()
 
 # --- The exported libraries: one line each, in link order. -----------------
-# core/errors.h (InputError, what the signing functions throw) and the
-# bounded file reader.
-sweptccd_export_library(sweptccd_errors HEADERS core/errors.h core/bounded_file.h)
+# core/errors.h (InputError, what the signing functions throw), the
+# bounded file reader and the typed indices (core/avatar/link_key.h).
+sweptccd_export_library(sweptccd_errors HEADERS core/errors.h core/bounded_file.h
+                                                core/typed_index.h)
 # The message library: checked decoding, signing and keys, the id rule and
 # escaping, channel names; its generated headers are installed below.
 sweptccd_export_library(sweptccd_msgs HEADERS msgs)

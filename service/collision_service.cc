@@ -9,10 +9,10 @@
 #include <utility>
 
 #include "core/errors.h"
-#include "msgs/text.h"
+#include "core/percentile.h"
 #include "core/query/result_json.h"
+#include "msgs/text.h"
 #include "service/contact_event.h"
-#include "service/percentile.h"
 
 namespace sweptccd {
 

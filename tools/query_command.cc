@@ -17,7 +17,7 @@
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
 #include "msgs/text.h"
-#include "tools/output_paths.h"
+#include "tools/command_common.h"
 
 namespace sweptccd {
 
@@ -30,7 +30,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
                                      {"--poses", options.poses_path},
                                      {"--filter", options.filter_path}};
     for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
-    RefuseClashingPaths(inputs, {{"--output", options.output_path}});
+    ResultsOutput results(options.output_path, inputs);  // Refuses an output that is an input.
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
     std::ifstream poses = OpenInputFile(options.poses_path, "pose stream file");
 
@@ -47,25 +47,16 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     for (const std::string& rule : options.ignore_rules) filter.AddRule(rule, skeleton, env);
 
-    std::ofstream file_out;
-    std::ostream* out = &std::cout;
-    if (!options.output_path.empty()) {
-      file_out.open(options.output_path, std::ios::binary | std::ios::trunc);
-      if (!file_out) throw InputError(options.output_path + ": cannot open the output file");
-      out = &file_out;
-    }
+    results.Open();
+    std::ostream* out = &results.stream();
 
     CcdEngine engine(skeleton, env, std::move(filter));
     // The backend: says on stderr which it picked and why (a GPU that cannot
     // be had is logged and the CPU answers).
-    gpu::BackendOptions backend_options;
-    backend_options.backend = options.backend;
-    backend_options.device_index = options.gpu_device;
-    backend_options.require_hardware = options.require_hardware;
-    gpu::Backend backend(backend_options);
+    gpu::Backend backend(options.backend.Options());
     // auto: a short calibration on this scene and skeleton picks the faster.
     backend.ResolveAuto(env, &skeleton, &engine.filter(), options.query);
-    if (options.backend != gpu::BackendKind::kCpu) {
+    if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
     }
     backend.Attach(&engine);
@@ -93,12 +84,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     if (!reader.first_line_error().empty()) {
       spdlog::warn("{}: {}", options.poses_path, reader.first_line_error());
     }
-    out->flush();
-    if (!*out) {
-      throw InputError(
-          (options.output_path.empty() ? std::string("standard output") : options.output_path) +
-          ": error while writing the results");
-    }
+    results.Finish();
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
     return 0;
   } catch (const InputError& e) {

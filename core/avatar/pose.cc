@@ -9,7 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/avatar/skeleton.h"
+#include "core/bounded_file.h"
 #include "core/json_text.h"
+#include "core/utime_json.h"
 
 namespace sweptccd {
 
@@ -97,27 +99,6 @@ void FlushTinyComponents(Eigen::Quaterniond* q) {
   }
 }
 
-namespace {
-
-bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
-  if (j.is_number_integer()) {
-    *utime = j.get<int64_t>();
-    if (j.is_number_unsigned() && j.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX))
-      return false;
-    return true;
-  }
-  if (j.is_number_float()) {
-    // Accept 1000000.0: integral values within the int64 range.
-    const double v = j.get<double>();
-    if (!std::isfinite(v) || v != std::floor(v) || std::fabs(v) >= 9.2e18) return false;
-    *utime = static_cast<int64_t>(v);
-    return true;
-  }
-  return false;
-}
-
-}  // namespace
-
 std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
                                            std::string* error) {
   if (const std::string nul = NulByteProblem(line); !nul.empty()) {
@@ -202,46 +183,6 @@ uint64_t DefaultMaxPoseLineBytes(int num_links) {
   const uint64_t links = static_cast<uint64_t>(num_links < 0 ? kDefaultMaxLinks : num_links);
   return 4096 + links * 7 * 64;
 }
-
-namespace {
-
-// Reads one line (to '\n' or the end) through the stream buffer, keeping at
-// most max_bytes of it in *line. Returns false at the end of the stream with
-// nothing read. *too_long: the line had more bytes; *blank: only whitespace.
-bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
-                     bool* blank) {
-  line->clear();
-  *too_long = false;
-  *blank = true;
-  std::streambuf* buf = in.rdbuf();
-  bool any = false;
-  for (;;) {
-    int c;
-    try {
-      c = buf->sbumpc();
-    } catch (const std::exception&) {
-      // A read error (e.g. EISDIR: a folder opens, but cannot be read):
-      // libstdc++'s filebuf throws where istream's own reads would set
-      // badbit. Set it as they would; the reader stops and says bad().
-      in.setstate(std::ios::badbit);
-      return false;
-    }
-    if (c == std::char_traits<char>::eof()) {
-      in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
-      return any;
-    }
-    any = true;
-    if (c == '\n') return true;
-    if (*blank && !std::isspace(c)) *blank = false;
-    if (line->size() < max_bytes) {
-      line->push_back(static_cast<char>(c));
-    } else {
-      *too_long = true;
-    }
-  }
-}
-
-}  // namespace
 
 PoseLineReader::PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes)
     : in_(in),

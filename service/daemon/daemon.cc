@@ -22,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/avatar/link_key.h"
 #include "core/avatar/skeleton.h"
 #include "core/errors.h"
 #include "core/geometry/mesh.h"
@@ -66,29 +67,6 @@ std::shared_ptr<const Environment> LoadEnvironment(const ServiceConfig& config) 
   return env;
 }
 
-// A link index written as 1-9 decimal digits, else nullopt.
-std::optional<int> LinkIndexOf(const std::string& key) {
-  if (key.empty() || key.size() > 9 || key.find_first_not_of("0123456789") != std::string::npos) {
-    return std::nullopt;
-  }
-  return std::stoi(key);
-}
-
-// A link of a filter rule (EntityRuleSpec): a link name first, then "*" (-1),
-// then an index. Throws InputError naming the rule and the skeleton.
-int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std::string& where) {
-  const int found = skeleton.FindLink(key);
-  if (found >= 0) return found;
-  if (key == "*") return -1;
-  if (const std::optional<int> index = LinkIndexOf(key); index && *index < skeleton.num_links()) {
-    return *index;
-  }
-  throw InputError(where + ": no link '" + EscapeForDisplay(key) + "' in skeleton '" +
-                   EscapeForDisplay(skeleton.name()) + "' (" +
-                   std::to_string(skeleton.num_links()) +
-                   " links; give a link name, an index or \"*\")");
-}
-
 // What a shared-world filter's other entity can be resolved against: the
 // configured clients' skeletons (a live client's skeleton may differ at its
 // next join, so its links are given by index or "*") and the tracked objects
@@ -114,7 +92,7 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
                      "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
   }
   world::EntityRule rule;
-  rule.link = ResolveRuleLink(r.link, own, where + ".link");
+  rule.link = ResolveLinkKey(r.link, own, where + ".link").value();  // kAllLinks: -1.
   rule.entity = r.entity;
   if (r.other_link.empty()) return rule;
   if (targets.objects.count(r.entity)) {
@@ -123,11 +101,9 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
   }
   const auto other = targets.skeletons.find(r.entity);
   if (other != targets.skeletons.end()) {
-    rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
-  } else if (r.other_link == "*") {
-    rule.other_link = -1;
-  } else if (const std::optional<int> index = LinkIndexOf(r.other_link)) {
-    rule.other_link = *index;
+    rule.other_link = ResolveLinkKey(r.other_link, *other->second, where + ".other_link").value();
+  } else if (const std::optional<LinkIndex> index = LinkKeyWithoutNames(r.other_link)) {
+    rule.other_link = index->value();
   } else {
     throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
                      "' names a link of '" + r.entity +

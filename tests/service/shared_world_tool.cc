@@ -47,6 +47,7 @@
 #include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -400,17 +401,10 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
   for (const Sample& x : order) {
     std::this_thread::sleep_until(t0 + std::chrono::microseconds(x.utime - u_first));
     if (x.kind == 0) {
-      tracker_pose_t m{};
-      m.utime = x.utime;
+      tracker_pose_t m = TrackerPoseOfLine(json{{"utime", x.utime}, {"links", x.values}}.dump());
       m.client_id = x.id;
       m.session = 1;
       m.seq = x.seq;
-      m.num_links = static_cast<int32_t>(x.values.size());
-      for (const json& l : x.values) {
-        m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-        m.orientation.push_back(
-            {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-      }
       Send(lcm, kPoseChannel, m);
       last_seq[x.id] = m.seq;
     } else {
