@@ -10,6 +10,8 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
@@ -239,6 +241,12 @@ class PyWorld {
 PYBIND11_MODULE(_sweptccd, m) {
   using namespace sweptccd;
   m.doc() = "SweptCCD's C++ engine; use the `sweptccd` package, not this module.";
+  // The core's log lines go to standard error, as the command's do, and only
+  // warnings: a notebook's output holds results, not "environment loaded".
+  if (!spdlog::get("sweptccd")) {
+    spdlog::set_default_logger(spdlog::stderr_color_mt("sweptccd"));
+  }
+  spdlog::set_level(spdlog::level::warn);
   // The command's exit-2 path prints "error: " + DisplayError(what): the same
   // line, without "error: ", is the exception's message.
   static py::exception<InputError> input_error(m, "InputError", PyExc_ValueError);
