@@ -24,6 +24,14 @@ wait_for "$work/daemon.log" ready || { cat "$work/daemon.log" >&2; fail "no daem
 PYTHONPATH=$pypath PYTHONDONTWRITEBYTECODE=1 "$python" "$(dirname "$0")/client_e2e.py" \
   "ws://127.0.0.1:$port/ws" "$work/room.key" "$work/skeleton.json" "$work/poses.jsonl" \
   "$work/expected.jsonl" || { tail -20 "$work/daemon.log" >&2; fail "client_e2e.py"; }
+# The example: joins, streams 40 poses at 60 Hz, prints contacts, leaves.
+PYTHONPATH=$pypath PYTHONDONTWRITEBYTECODE=1 "$python" "$src/python/examples/live_walk.py" \
+  --url "ws://127.0.0.1:$port/ws" --key "$work/room.key" --id example \
+  --skeleton "$work/skeleton.json" --poses "$work/poses.jsonl" --rate 60 --count 40 \
+  > "$work/example.out" || { cat "$work/example.out" >&2; fail "live_walk.py"; }
+cat "$work/example.out"
+grep -q "^joined as example: session" "$work/example.out" || fail "the example did not join"
+grep -q "^left: 40 poses sent, 39 events" "$work/example.out" || fail "the example lost events"
 kill -TERM $daemon
 wait $daemon || true
 echo "client_e2e: passed"
