@@ -42,7 +42,7 @@ using PoseArray = py::array_t<double, py::array::c_style | py::array::forcecast>
 using UtimeArray = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
 
 QueryOptions MakeOptions(const std::string& motion, double eps, double delta, bool per_link,
-                         const std::string& who) {
+                         std::optional<int64_t> max_intervals, const std::string& who) {
   QueryOptions options;
   const std::optional<MotionModel> m = ParseMotionModel(motion);
   if (!m) throw InputError(who + ": --motion must be articulated or independent");
@@ -50,6 +50,7 @@ QueryOptions MakeOptions(const std::string& motion, double eps, double delta, bo
   options.eps_s = eps;
   options.delta_m = delta;
   options.per_link = per_link;
+  if (max_intervals) options.max_intervals = *max_intervals;  // Else the command's default.
   const std::string problem = ValidateQueryOptions(options);
   if (!problem.empty()) throw InputError(who + ": " + problem);
   return options;
@@ -84,9 +85,10 @@ class PyEngine {
   PyEngine(const std::optional<std::string>& skeleton_path,
            const std::optional<std::string>& skeleton_json, const std::vector<std::string>& env,
            const std::string& filter_path, const std::vector<std::string>& ignore,
-           const std::string& motion, double eps, double delta, bool per_link) {
+           const std::string& motion, double eps, double delta, bool per_link,
+           std::optional<int64_t> max_intervals) {
     {
-      options_ = MakeOptions(motion, eps, delta, per_link, "sweptccd query");
+      options_ = MakeOptions(motion, eps, delta, per_link, max_intervals, "sweptccd query");
       skeleton_ =
           std::make_unique<Skeleton>(skeleton_path ? LoadSkeletonFile(*skeleton_path)
                                                    : ParseSkeletonJson(*skeleton_json, "skeleton"));
@@ -200,9 +202,10 @@ class PyEngine {
 
 class PyWorld {
  public:
-  PyWorld(const std::string& path, double eps, double delta, bool per_link) {
+  PyWorld(const std::string& path, double eps, double delta, bool per_link,
+          std::optional<int64_t> max_intervals) {
     {
-      options_ = MakeOptions("articulated", eps, delta, per_link, "sweptccd world");
+      options_ = MakeOptions("articulated", eps, delta, per_link, max_intervals, "sweptccd world");
       py::gil_scoped_release release;
       loaded_ = std::make_unique<world::LoadedWorld>(world::LoadWorldFile(path));
       answerer_ = std::make_unique<world::WorldAnswerer>(*loaded_, options_);
@@ -260,10 +263,11 @@ PYBIND11_MODULE(_sweptccd, m) {
   py::class_<PyEngine>(m, "Engine")
       .def(py::init<const std::optional<std::string>&, const std::optional<std::string>&,
                     const std::vector<std::string>&, const std::string&,
-                    const std::vector<std::string>&, const std::string&, double, double, bool>(),
+                    const std::vector<std::string>&, const std::string&, double, double, bool,
+                    std::optional<int64_t>>(),
            py::arg("skeleton_path"), py::arg("skeleton_json"), py::arg("env"),
            py::arg("filter_path"), py::arg("ignore"), py::arg("motion"), py::arg("eps"),
-           py::arg("delta"), py::arg("per_link"))
+           py::arg("delta"), py::arg("per_link"), py::arg("max_intervals"))
       .def_property_readonly("num_links", &PyEngine::num_links)
       .def_property_readonly("link_names", &PyEngine::link_names)
       .def_property_readonly("num_objects", &PyEngine::num_objects)
@@ -271,8 +275,9 @@ PYBIND11_MODULE(_sweptccd, m) {
       .def("query", &PyEngine::Query, py::arg("utimes"), py::arg("poses"))
       .def("separations", &PyEngine::Separations, py::arg("poses"), py::arg("search_radius"));
   py::class_<PyWorld>(m, "World")
-      .def(py::init<const std::string&, double, double, bool>(), py::arg("path"), py::arg("eps"),
-           py::arg("delta"), py::arg("per_link"))
+      .def(py::init<const std::string&, double, double, bool, std::optional<int64_t>>(),
+           py::arg("path"), py::arg("eps"), py::arg("delta"), py::arg("per_link"),
+           py::arg("max_intervals"))
       .def_property_readonly("avatar_ids", &PyWorld::avatar_ids)
       .def("records", &PyWorld::Records);
 }

@@ -33,6 +33,10 @@ def _path(p: PathLike) -> str:
     return os.fspath(p)
 
 
+def _optional_int(v: Optional[int]) -> Optional[int]:
+    return None if v is None else int(v)
+
+
 def _float64_poses(poses: npt.ArrayLike) -> npt.NDArray[np.float64]:
     a = np.asarray(poses)
     if a.dtype.kind not in "fiu":
@@ -57,7 +61,9 @@ class Engine:
     skeleton: a SPEC 1 skeleton file, or the same document as a dict.
     env: one or more mesh files (SPEC 4); object i is env[i] (one path: one object).
     filter: a filter file as `sweptccd query --filter`; ignore: LINK:OBJECT
-    rules as `--ignore`. motion, eps, delta, per_link: as the command's flags.
+    rules as `--ignore`. motion, eps, delta, per_link, max_intervals: as the
+    command's flags (--motion, --eps, --delta, --per-link, --max-intervals;
+    None: the command's default).
 
     Thread-safe: query() releases the GIL, and several threads may query one
     engine at once.
@@ -67,7 +73,7 @@ class Engine:
                  env: Union[PathLike, Sequence[PathLike]], *,
                  filter: Optional[PathLike] = None, ignore: Iterable[str] = (),
                  motion: str = "articulated", eps: float = 1e-4, delta: float = 1e-3,
-                 per_link: bool = False) -> None:
+                 per_link: bool = False, max_intervals: Optional[int] = None) -> None:
         envs: List[PathLike] = [env] if isinstance(env, (str, os.PathLike)) else list(env)
         if isinstance(skeleton, Mapping):
             skel_path, skel_json = None, json.dumps(skeleton, allow_nan=True)
@@ -76,7 +82,7 @@ class Engine:
         self._engine = _sweptccd.Engine(
             skel_path, skel_json, [_path(e) for e in envs],
             "" if filter is None else _path(filter), list(ignore), motion, float(eps),
-            float(delta), bool(per_link))
+            float(delta), bool(per_link), _optional_int(max_intervals))
         self.per_link = bool(per_link)
 
     @property
@@ -123,8 +129,9 @@ class World:
     once. records() answers every avatar pair."""
 
     def __init__(self, path: PathLike, *, eps: float = 1e-4, delta: float = 1e-3,
-                 per_link: bool = False) -> None:
-        self._world = _sweptccd.World(_path(path), float(eps), float(delta), bool(per_link))
+                 per_link: bool = False, max_intervals: Optional[int] = None) -> None:
+        self._world = _sweptccd.World(_path(path), float(eps), float(delta), bool(per_link),
+                                      _optional_int(max_intervals))
 
     @property
     def avatar_ids(self) -> List[str]:

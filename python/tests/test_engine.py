@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import threading
+import time
 from pathlib import Path
 from typing import Any, Dict, List
 
@@ -64,6 +65,20 @@ def test_ignore_rules_and_independent_motion(walk: Dict[str, Any]) -> None:
     py = engine.query(walk["utimes"], walk["array"])
     assert_same(py, engine.query_json(walk["utimes"], walk["array"]), cli)
     assert all(r.result != "contact" for r in py)  # Everything ignored.
+
+
+def test_work_limit_gives_the_commands_undecided_records(walk: Dict[str, Any]) -> None:
+    cli = cli_records("query", "--skeleton", str(walk["skeleton"]), "--poses", str(walk["poses"]),
+                      "--env", APARTMENT, "--max-intervals", "3", "--per-link")
+    engine = sweptccd.Engine(walk["skeleton"], [APARTMENT], max_intervals=3, per_link=True)
+    py = engine.query(walk["utimes"], walk["array"])
+    assert_same(py, engine.query_json(walk["utimes"], walk["array"]), cli)
+    assert any(r.undecided for r in py)
+    expected = cli_error("query", "--poses", str(walk["poses"]), "--skeleton",
+                         str(walk["skeleton"]), "--env", APARTMENT, "--max-intervals", "0")
+    with pytest.raises(sweptccd.InputError) as info:
+        sweptccd.Engine(walk["skeleton"], [APARTMENT], max_intervals=0)
+    assert str(info.value) == expected
 
 
 def test_skeleton_dict_equals_file(walk: Dict[str, Any]) -> None:
@@ -209,6 +224,36 @@ def test_threads_share_one_engine(walk: Dict[str, Any]) -> None:
     for t in threads:
         t.join()
     assert len(results) == 4 and all(r == expected for r in results)
+
+
+def test_gil_released_during_query(walk: Dict[str, Any]) -> None:
+    """While one thread is inside a long query, another keeps running Python:
+    with the GIL held, its longest pause would be the whole query."""
+    engine = sweptccd.Engine(walk["skeleton"], [APARTMENT])
+    reps = 200  # The clip again and again, later each time: a long stream.
+    span = int(walk["utimes"][-1] - walk["utimes"][0]) + 33333
+    utimes = np.concatenate([walk["utimes"] + k * span for k in range(reps)])
+    poses = np.concatenate([walk["array"]] * reps)
+    done = threading.Event()
+    took: List[float] = []
+
+    def work() -> None:
+        t0 = time.perf_counter()
+        engine.query_json(utimes, poses)
+        took.append(time.perf_counter() - t0)
+        done.set()
+
+    worker = threading.Thread(target=work)
+    last = time.perf_counter()
+    longest = 0.0
+    worker.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        longest = max(longest, now - last)
+        last = now
+    worker.join()
+    assert took[0] > 0.05, f"the query was too short to tell ({took[0]:.3f} s)"
+    assert longest < 0.5 * took[0], (longest, took[0])
 
 
 def test_separations_agree_with_answers(walk: Dict[str, Any]) -> None:
