@@ -131,14 +131,9 @@ class PyEngine {
       records.reserve(n > 0 ? n - 1 : 0);
       PosePairer pairer;
       for (int64_t r = 0; r < n; ++r) {
-        std::optional<Pose> pose = RowPose(data + r * n_links * 7, times[r], n_links);
         std::string error;
-        const std::string problem = ValidateAndNormalizePose(&*pose, n_links);
-        if (!problem.empty()) {
-          error = "line " + std::to_string(r + 1) + ": " + problem;
-          pose.reset();
-        }
-        std::optional<PairOutcome> outcome = pairer.Feed(std::move(pose), error);
+        std::optional<PairOutcome> outcome = FeedCountedPose(
+            &pairer, RowPose(data + r * n_links * 7, times[r], n_links), r + 1, n_links, &error);
         if (!outcome) continue;
         if (!outcome->valid) {
           records.push_back(
