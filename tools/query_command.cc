@@ -13,6 +13,7 @@
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
+#include "core/query/query_scene.h"
 #include "core/query/result_json.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
@@ -25,7 +26,6 @@ int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd query: " + problem);
-    if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
     std::vector<NamedPath> inputs = {{"--skeleton", options.skeleton_path},
                                      {"--poses", options.poses_path},
                                      {"--filter", options.filter_path}};
@@ -34,23 +34,18 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
     std::ifstream poses = OpenInputFile(options.poses_path, "pose stream file");
 
-    const auto load_start = std::chrono::steady_clock::now();
-    const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);
-    spdlog::info(
-        "environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s", env.num_objects(),
-        env.num_triangles(), env.memory_bytes() / 1048576.0,
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count());
-
-    CollisionFilter filter(skeleton.num_links(), env.num_objects());
-    if (!options.filter_path.empty()) {
-      filter = CollisionFilter::FromFile(options.filter_path, skeleton, env);
-    }
-    for (const std::string& rule : options.ignore_rules) filter.AddRule(rule, skeleton, env);
+    QuerySceneSpec spec;
+    spec.env_paths = options.env_paths;
+    spec.filter_path = options.filter_path;
+    spec.ignore_rules = options.ignore_rules;
+    spec.mesh = options.mesh;
+    const std::unique_ptr<QueryScene> scene = LoadQueryScene(spec, skeleton, "sweptccd query");
+    const Environment& env = scene->env;
 
     results.Open();
     std::ostream* out = &results.stream();
 
-    CcdEngine engine(skeleton, env, std::move(filter));
+    CcdEngine engine(skeleton, env, std::move(scene->filter));
     // The backend: says on stderr which it picked and why (a GPU that cannot
     // be had is logged and the CPU answers).
     gpu::Backend backend(options.backend.Options());

@@ -210,18 +210,23 @@ std::optional<PoseLine> PoseLineReader::Next() {
   return std::nullopt;
 }
 
+std::optional<PairOutcome> FeedCountedPose(PosePairer* pairer, std::optional<Pose> pose,
+                                           int64_t line_number, int num_links, std::string* error) {
+  if (pose) {
+    const std::string problem = ValidateAndNormalizePose(&*pose, num_links);
+    if (!problem.empty()) {
+      *error = "line " + std::to_string(line_number) + ": " + problem;
+      pose.reset();
+    }
+  }
+  return pairer->Feed(std::move(pose), *error);
+}
+
 std::optional<PairOutcome> PoseStreamReader::Next() {
   while (std::optional<PoseLine> line = lines_.Next()) {
     std::string error = line->error;
-    std::optional<Pose> pose = std::move(line->pose);
-    if (pose) {
-      const std::string problem = ValidateAndNormalizePose(&*pose, num_links_);
-      if (!problem.empty()) {
-        error = "line " + std::to_string(line->line_number) + ": " + problem;
-        pose.reset();
-      }
-    }
-    std::optional<PairOutcome> outcome = pairer_.Feed(std::move(pose), error);
+    std::optional<PairOutcome> outcome =
+        FeedCountedPose(&pairer_, std::move(line->pose), line->line_number, num_links_, &error);
     if (outcome) return outcome;
     first_line_error_ = error;  // Only the first counted line yields no record.
   }

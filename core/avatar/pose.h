@@ -157,6 +157,15 @@ class PosePairer {
   std::optional<Pose> anchor_;
 };
 
+/// Validates the pose of one counted line (ValidateAndNormalizePose) and
+/// feeds it to `pairer`: a pose with a problem is fed as invalid, `*error`
+/// set to "line N: problem" (N = `line_number`); `pose` empty means the line
+/// did not parse, `*error` saying why. Returns what the pairer returns. The
+/// one wording of pose-stream records, shared by PoseStreamReader and the
+/// Python engine (python/, whose array rows are lines).
+std::optional<PairOutcome> FeedCountedPose(PosePairer* pairer, std::optional<Pose> pose,
+                                           int64_t line_number, int num_links, std::string* error);
+
 /// A SPEC pose stream file read line by line (PoseLineReader: blank lines not
 /// counted, lines over `max_line_bytes` (0: the default cap) invalid), each
 /// counted line validated (ValidateAndNormalizePose, so as ParsePoseLine) and
