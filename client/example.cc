@@ -1,4 +1,4 @@
-// The client library in a few lines (README, "Live clients"): join a
+// The client library in a few lines (docs/USAGE.md, "Live clients"): join a
 // sweptccd-service daemon with a skeleton, publish poses, print the contact
 // events and rejections it answers, leave.
 //   sweptccd_client_example LCM_URL CLIENT_ID SKELETON.json [ROOM_KEY_FILE]

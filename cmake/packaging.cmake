@@ -231,7 +231,7 @@ install(CODE "
 install(FILES ${PROJECT_SOURCE_DIR}/deploy/sweptccd.yaml
               ${PROJECT_SOURCE_DIR}/deploy/sweptccd-service-gpu.conf
         DESTINATION ${SWEPTCCD_INSTALL_DOCDIR}/examples COMPONENT runtime)
-install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
+install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/USAGE.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
               ${PROJECT_SOURCE_DIR}/docs/SECURITY.md
         DESTINATION ${SWEPTCCD_INSTALL_DOCDIR} COMPONENT runtime)
 # The Java classes of the message types (msgs/CMakeLists.txt), for lcm-spy.
