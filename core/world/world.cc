@@ -1,5 +1,6 @@
 #include "core/world/world.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace sweptccd::world {
@@ -21,21 +22,35 @@ bool RuleMatches(const EntityRule& r, int link, const std::string& entity, int o
 }
 }  // namespace
 
-bool World::IgnoresLinkPair(int a, int link_a, int b, int link_b) const {
-  for (const EntityRule& r : rules[a]) {
-    if (RuleMatches(r, link_a, avatars[b].id, link_b)) return true;
+bool IgnoresLinkPair(const FilterSide& a, int link_a, const FilterSide& b, int link_b) {
+  for (const EntityRule& r : a.rules) {
+    if (RuleMatches(r, link_a, b.id, link_b)) return true;
   }
-  for (const EntityRule& r : rules[b]) {
-    if (RuleMatches(r, link_b, avatars[a].id, link_a)) return true;
+  for (const EntityRule& r : b.rules) {
+    if (RuleMatches(r, link_b, a.id, link_a)) return true;
   }
   return false;
 }
 
-bool World::IgnoresObject(int a, int link_a, int o) const {
-  for (const EntityRule& r : rules[a]) {
-    if (RuleMatches(r, link_a, objects[o].id, -1)) return true;
+bool IgnoresObject(const FilterSide& a, int link_a, const std::string& object) {
+  for (const EntityRule& r : a.rules) {
+    if (RuleMatches(r, link_a, object, -1)) return true;
   }
   return false;
+}
+
+bool NamesEntity(const FilterSide& a, const std::string& other) {
+  return std::any_of(a.rules.begin(), a.rules.end(),
+                     [&](const EntityRule& r) { return r.entity == other; });
+}
+
+bool World::IgnoresLinkPair(int a, int link_a, int b, int link_b) const {
+  return world::IgnoresLinkPair(FilterSide{avatars[a].id, rules[a]}, link_a,
+                                FilterSide{avatars[b].id, rules[b]}, link_b);
+}
+
+bool World::IgnoresObject(int a, int link_a, int o) const {
+  return world::IgnoresObject(FilterSide{avatars[a].id, rules[a]}, link_a, objects[o].id);
 }
 
 RigidMotion::RigidMotion(const RigidSample& a, const RigidSample& b) : x0(a), x1(b) {

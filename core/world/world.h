@@ -64,6 +64,22 @@ struct EntityRule {
   int other_link = -1;
 };
 
+/// Who an entity is to the filters: its id and its rules (an object has
+/// none). The one rule of the filters, whoever holds the entities (a World,
+/// the daemon's shared world):
+struct FilterSide {
+  const std::string& id;
+  const std::vector<EntityRule>& rules;
+};
+/// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
+/// never count as contact (a rule of either avatar applies).
+bool IgnoresLinkPair(const FilterSide& a, int link_a, const FilterSide& b, int link_b);
+/// Whether link `link_a` of avatar `a` never touches the object `object`.
+bool IgnoresObject(const FilterSide& a, int link_a, const std::string& object);
+/// Whether some rule of `a` names `other` (only then can a rule of `a`
+/// ignore a link pair with it).
+bool NamesEntity(const FilterSide& a, const std::string& other);
+
 /// The whole world. Plain data, immutable while queried.
 struct World {
   std::vector<AvatarEntity> avatars;

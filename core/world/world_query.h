@@ -1,7 +1,8 @@
 #pragma once
 // Answers every record of every avatar of a loaded world (SPEC section 8,
 // "What is answered"): the static-environment part through CcdEngine (on the
-// chosen backend), the part per other entity through AnswerOther (CPU).
+// chosen backend), the part per other entity through the entity query
+// (entity_query.h, CPU), whose records it writes as JSON.
 
 #include <functional>
 #include <memory>
@@ -10,7 +11,8 @@
 #include <vector>
 
 #include "core/query/ccd_query.h"
-#include "core/world/entity_ccd.h"
+#include "core/world/entity_query.h"
+#include "core/world/interval_motions.h"
 #include "core/world/world_file.h"
 
 namespace sweptccd::world {

@@ -21,6 +21,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/world/entity_broad_phase.h"
 #include "core/world/world_query.h"
 
 namespace sweptccd {

@@ -1,4 +1,4 @@
-// The shared-world engine (core/world/entity_ccd) against an independent
+// The shared-world engine (core/world/entity_query and its parts) against an independent
 // dense-sampling reference: link against link of another avatar and link
 // against a tracked object, both motion models, off-phase sampling, windows
 // that start or stop mid-pair, thin fast objects, exactly touching and
@@ -17,7 +17,7 @@
 // reference, is <= delta), and the witness itself (points, normal,
 // separation) recomputed.
 
-#include "core/world/entity_ccd.h"
+#include "core/world/entity_query.h"
 
 #include <gtest/gtest.h>
 
@@ -36,7 +36,11 @@
 #include <vector>
 
 #include "core/geometry/distance.h"
+#include "core/world/avatar_target.h"
+#include "core/world/entity_broad_phase.h"
+#include "core/world/entity_run.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/object_target.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
@@ -181,7 +185,7 @@ void CheckPair(const World& w, int a, int b, int o, const Pose& pose0, const Pos
   if (t_from > t_to) return;
   const AvatarEntity& A = w.avatars[a];
   const PairMotion motion(A.skeleton, pose0, pose1, A.motion);
-  const auto target = b >= 0 ? MakeAvatarTarget(w, a, b) : MakeObjectTarget(w, a, o);
+  const auto target = b >= 0 ? MakeAvatarTarget(WindowOfAvatar(w, a).who, WindowOfAvatar(w, b)) : MakeObjectTarget(WindowOfAvatar(w, a).who, WindowOfObject(w, o));
   const std::vector<Piece> pieces = SplitWindow(pose0.utime, t_from, t_to, times);
   ASSERT_FALSE(pieces.empty());
   const OtherAnswer ans =
@@ -786,8 +790,8 @@ TEST(EntityCcdLinkBoxes, NeverChangeAnAnswer) {
     if (t_from > t_to) continue;
     const std::vector<Piece> pieces = SplitWindow(p0.utime, t_from, t_to, times);
     const PairMotion motion(w.avatars[0].skeleton, p0, p1, w.avatars[0].motion);
-    const auto target = MakeAvatarTarget(w, 0, 1);
-    const auto plain_target = MakeAvatarTarget(w, 0, 1);  // Its own memos.
+    const auto target = MakeAvatarTarget(WindowOfAvatar(w, 0).who, WindowOfAvatar(w, 1));
+    const auto plain_target = MakeAvatarTarget(WindowOfAvatar(w, 0).who, WindowOfAvatar(w, 1));  // Its own memos.
     const WithoutLinkBoxes plain(*plain_target);
     const OtherAnswer x =
         AnswerOther(w.avatars[0].skeleton, motion, p0.utime, p1.utime, pieces, *target, opt);
@@ -986,7 +990,7 @@ TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
   EXPECT_EQ(t0.contact, 1);
   // B's rule about A's link 0 silences A's answer too.
   w.rules[1].push_back(EntityRule{0, "a", 0});
-  const auto target = MakeAvatarTarget(w, 0, 1);
+  const auto target = MakeAvatarTarget(WindowOfAvatar(w, 0).who, WindowOfAvatar(w, 1));
   EXPECT_TRUE(target->RootCandidates(0).empty());
   Tally t1;
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t1);
@@ -1118,8 +1122,8 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           EXPECT_TRUE(pair_box.lo == own_box.lo && pair_box.hi == own_box.hi) << seed << " " << a;
           const std::vector<Piece> pieces = SplitWindow(rec.pose0.utime, t_from, t_to, times);
           // Fresh: the target's own motions, a memo for this answer alone.
-          const auto target = b >= 0 ? MakeAvatarTarget(w, a, b, WindowScale(w.avatars[b], pieces))
-                                     : MakeObjectTarget(w, a, o, WindowScale(w.objects[o], pieces));
+          const auto target = b >= 0 ? MakeAvatarTarget(WindowOfAvatar(w, a).who, WindowOfAvatar(w, b), WindowScale(w.avatars[b], pieces))
+                                     : MakeObjectTarget(WindowOfAvatar(w, a).who, WindowOfObject(w, o), WindowScale(w.objects[o], pieces));
           const OtherAnswer direct = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
                                                  rec.pose1.utime, pieces, *target, eo);
           ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
