@@ -286,16 +286,13 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
   double v[7];
   for (int k = 0; k < 3; ++k) v[k] = msg.position[k];
   for (int k = 0; k < 4; ++k) v[3 + k] = msg.orientation[k];
-  world::RigidSample x;
-  const std::string problem = world::MakeRigidSample(msg.utime, v, &x);
-  if (!problem.empty()) {
-    const char* code = problem.find("finite") != std::string::npos ? rejection_code::kNonFinite
-                       : problem.find("position") != std::string::npos
-                           ? rejection_code::kPositionOutOfRange
-                           : rejection_code::kZeroQuaternion;
-    return Rejection{code, "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) + ": " +
-                               problem + "; send a finite pose with a unit quaternion"};
+  // The rule and the wording of an avatar's link pose (one link).
+  if (const std::optional<PoseProblem> problem = world::FindRigidProblem(v)) {
+    return PoseRejection(*problem,
+                         "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) + ": ");
   }
+  world::RigidSample x;
+  SWEPTCCD_CHECK(world::MakeRigidSample(msg.utime, v, &x).empty());
   const bool new_stream = !e.has_stream || msg.session > e.session;
   if (!new_stream) {
     if (msg.session < e.session) {
@@ -310,14 +307,17 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
                            " is not greater than " + std::to_string(e.last_seq) +
                            "; number samples strictly increasingly"};
     }
-    const int64_t last = e.object_samples.empty() ? msg.utime - 1 : e.object_samples.back().utime;
+    // A stream's history is never empty: a new stream starts with its sample.
+    SWEPTCCD_CHECK(!e.object_samples.empty());
+    const int64_t last = e.object_samples.back().utime;
     if (msg.utime <= last) {
       return Rejection{rejection_code::kNonIncreasingUtime,
                        "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
                            " is not after " + std::to_string(last) +
                            "; stamp samples strictly increasingly"};
     }
-    if (msg.utime - last > max_utime_jump_us) {
+    // The avatar's rule (UtimeJump: no signed overflow for hostile utimes).
+    if (UtimeJump(last, msg.utime) > static_cast<uint64_t>(max_utime_jump_us)) {
       return Rejection{rejection_code::kUtimeJump,
                        "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
                            " is more than max_utime_jump_s after " + std::to_string(last) +

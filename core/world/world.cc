@@ -57,16 +57,26 @@ RigidMotion::RigidMotion(const RigidSample& a, const RigidSample& b) : x0(a), x1
   angle = SlerpAngle(x0.q, x1.q);
 }
 
+std::optional<PoseProblem> FindRigidProblem(const double pose[7]) {
+  Pose one;
+  one.links.resize(1);
+  one.links[0].p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
+  one.links[0].q = Eigen::Quaterniond(pose[3], pose[4], pose[5], pose[6]);
+  return FindPoseProblem(one, 1);
+}
+
 std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out) {
-  for (int k = 0; k < 7; ++k) {
-    if (!std::isfinite(pose[k])) return "non-finite number";
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (std::fabs(pose[k]) > kMaxCoordinate) return "position beyond 1e9 m";
+  if (const std::optional<PoseProblem> problem = FindRigidProblem(pose)) {
+    switch (problem->kind) {
+      case PoseProblem::Kind::kNonFinite:
+        return "non-finite number";
+      case PoseProblem::Kind::kPositionOutOfRange:
+        return "position beyond 1e9 m";
+      default:
+        return "quaternion norm below 1e-6";
+    }
   }
   const Eigen::Quaterniond q(pose[3], pose[4], pose[5], pose[6]);
-  const double norm = q.norm();
-  if (!(norm >= kMinQuaternionNorm)) return "quaternion norm below 1e-6";
   out->utime = utime;
   out->p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
   // Normalised as an avatar's link (ValidateAndNormalizePose), so that the

@@ -28,11 +28,18 @@ struct RigidSample {
   Eigen::Quaterniond q{1, 0, 0, 0};
 };
 
-/// A rigid sample from its utime and pose [px, py, pz, qw, qx, qy, qz] (SPEC
-/// 8, "Trajectory"): empty and *out set (quaternion normalised) when usable,
-/// else the problem ("non-finite number", "position beyond 1e9 m",
-/// "quaternion norm below 1e-6"). The one rule of object pose lines
-/// (ParseObjectPoseLine) and of the service's object_pose_t. Pure.
+/// Why an object pose [px, py, pz, qw, qx, qy, qz] is unusable (SPEC 8,
+/// "Trajectory"), or nullopt: the rule of an avatar's link pose
+/// (FindPoseProblem over one link, reported as link 0): a non-finite
+/// number, a coordinate beyond 1e9 m, a quaternion norm below 1e-6. The one
+/// rule of object pose lines (MakeRigidSample) and of the service's
+/// object_pose_t, which maps its kind to a rejection code. Pure.
+std::optional<PoseProblem> FindRigidProblem(const double pose[7]);
+
+/// A rigid sample from its utime and pose (as above): empty and *out set
+/// (quaternion normalised) when usable, else FindRigidProblem's problem as
+/// the world file words it ("non-finite number", "position beyond 1e9 m",
+/// "quaternion norm below 1e-6"). Pure.
 std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out);
 
 /// An avatar: its skeleton, motion model, the records of its stream (SPEC 2
