@@ -34,7 +34,8 @@ class AvatarTarget : public OtherTarget {
     out->clear();
     out->reserve(static_cast<size_t>(e_.skeleton.num_links()));
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      if (!filtered_ || !IgnoresLinkPair(a_, link_a, e_.who, j)) out->push_back(j);
+      if (!filtered_ || !IgnoresLinkPair(a_, LinkIndex(link_a), e_.who, LinkIndex(j)))
+        out->push_back(j);
     }
   }
 
@@ -101,8 +102,8 @@ class AvatarTarget : public OtherTarget {
       const double sep = d - radius_a - e_.skeleton.link(j).radius;
       if (sep > search || (have && sep >= out->separation)) continue;
       have = true;
-      out->link = link_a;
-      out->other_link = j;
+      out->link = LinkIndex(link_a);
+      out->other_link = LinkIndex(j);
       out->triangle = -1;
       out->tau = tau;
       out->point_link = c1;

@@ -41,8 +41,8 @@ struct EntityQueryOptions {
 
 /// One witness between A and E, world frame.
 struct OtherContact {
-  int link = 0;           // A's link.
-  int other_link = -1;    // E's link (avatar), else -1.
+  LinkIndex link{0};      // A's link.
+  LinkIndex other_link;   // E's link (avatar), else invalid (-1).
   int64_t triangle = -1;  // E's triangle id (object), else -1.
   double tau = 0;         // Microseconds since utime0.
   Eigen::Vector3d point_link{0, 0, 0}, point_other{0, 0, 0};
@@ -52,7 +52,7 @@ struct OtherContact {
 
 /// A bracket in tau (per link, or the answer's own).
 struct OtherBracket {
-  int link = -1;
+  LinkIndex link;  // A's link.
   double tau_lo = 0, tau_hi = 0;
   bool initially_colliding = false;
   bool undecided = false;
@@ -93,8 +93,8 @@ OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const 
 
 /// A witness as reported: s = tau over the pair, clamped to [0, 1].
 struct EntityContactRecord {
-  int link = 0;
-  int other_link = -1;    // An avatar's link, else -1.
+  LinkIndex link{0};
+  LinkIndex other_link;   // An avatar's link, else invalid (-1).
   int64_t triangle = -1;  // An object's triangle id, else -1.
   double s = 0;
   Eigen::Vector3d point_link{0, 0, 0}, point_other{0, 0, 0}, normal{0, 0, 1};
@@ -105,7 +105,7 @@ struct EntityContactRecord {
 /// bracket (s_lo down, s_hi up), t inside the window [t_from, t_to] (its
 /// ends are exact integers).
 struct EntityBracketRecord {
-  int link = -1;
+  LinkIndex link;
   bool initially_colliding = false, undecided = false;
   double s_lo = 0, s_hi = 0, t_lo = 0, t_hi = 0;
   bool has_witness = false;

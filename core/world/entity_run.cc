@@ -194,7 +194,7 @@ void EntityRun::CloseTouchingAtStart() {
                         CandidatesOf(l, 0), 0.0, &c) &&
         c.separation <= 0) {
       OtherBracket br;
-      br.link = l;
+      br.link = LinkIndex(l);
       br.tau_lo = tau_from_;
       br.tau_hi = std::min(tau_to_, tau_from_ + eps_us_);
       br.initially_colliding = true;
@@ -267,7 +267,7 @@ EntityRun::Step EntityRun::Visit(const EntityItem& item) {
   const double mid = 0.5 * (item.tau0 + item.tau1);
   if (!(mid > item.tau0 && mid < item.tau1)) {
     OtherBracket br;  // Cannot split further.
-    br.link = item.link;
+    br.link = LinkIndex(item.link);
     br.tau_lo = item.tau0;
     br.tau_hi = tau_to_;
     br.undecided = true;
@@ -298,7 +298,7 @@ bool EntityRun::TryClose(const EntityItem& item) {
   }
   if (!have || best.separation > accept_) return false;
   OtherBracket br;
-  br.link = item.link;
+  br.link = LinkIndex(item.link);
   br.tau_lo = item.tau0;
   br.tau_hi = item.tau1;
   br.has_witness = true;
@@ -331,7 +331,7 @@ void EntityRun::CloseOutOfWork(const EntityItem& item) {
     if (!done_[static_cast<size_t>(t.link)]) open.Note(t.link, t.tau0);
   }
   queue.clear();
-  for (int l : open.ByEarliest()) {
+  for (LinkIndex l : open.ByEarliest()) {
     if (!Searching()) break;
     OtherBracket br;
     br.link = l;

@@ -29,14 +29,14 @@ double MeshScale(const Environment& mesh) {
 
 }  // namespace
 
-AvatarWindow WindowOfAvatar(const World& world, int a) {
+AvatarWindow WindowOfAvatar(const World& world, AvatarIndex a) {
   const AvatarEntity& e = world.avatars[static_cast<size_t>(a)];
   const std::vector<EntityRule>& rules =
       static_cast<size_t>(a) < world.rules.size() ? world.rules[static_cast<size_t>(a)] : NoRules();
   return AvatarWindow{FilterSide{e.id, rules}, e.skeleton, e.motion, e.used};
 }
 
-ObjectWindow WindowOfObject(const World& world, int o) {
+ObjectWindow WindowOfObject(const World& world, TrackedObjectIndex o) {
   const ObjectEntity& e = world.objects[static_cast<size_t>(o)];
   return ObjectWindow{e.id, *e.mesh, e.used};
 }

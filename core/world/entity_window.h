@@ -54,8 +54,8 @@ struct ObjectWindow {
 };
 
 /// The views of a World's entities (every used sample).
-AvatarWindow WindowOfAvatar(const World& world, int a);
-ObjectWindow WindowOfObject(const World& world, int o);
+AvatarWindow WindowOfAvatar(const World& world, AvatarIndex a);
+ObjectWindow WindowOfObject(const World& world, TrackedObjectIndex o);
 
 /// Largest absolute coordinate of an entity's samples and geometry (its
 /// rounding slack scales with it); O(samples).

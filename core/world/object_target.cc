@@ -22,7 +22,7 @@ class ObjectTarget : public OtherTarget {
 
   void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
     out->clear();
-    if (bvh_.num_triangles() == 0 || IgnoresObject(a_, link_a, e_.id)) return;
+    if (bvh_.num_triangles() == 0 || IgnoresObject(a_, LinkIndex(link_a), e_.id)) return;
     out->push_back(0);
   }
 
@@ -84,8 +84,8 @@ class ObjectTarget : public OtherTarget {
       if (sep <= search && sep < best) {
         best = sep;
         have = true;
-        out->link = link_a;
-        out->other_link = -1;
+        out->link = LinkIndex(link_a);
+        out->other_link = LinkIndex();
         out->triangle = bvh_.TriangleId(slot);
         out->tau = tau;
         out->point_link = x + R * st.p_segment;

@@ -22,7 +22,7 @@ bool RuleMatches(const EntityRule& r, int link, const std::string& entity, int o
 }
 }  // namespace
 
-bool IgnoresLinkPair(const FilterSide& a, int link_a, const FilterSide& b, int link_b) {
+bool IgnoresLinkPair(const FilterSide& a, LinkIndex link_a, const FilterSide& b, LinkIndex link_b) {
   for (const EntityRule& r : a.rules) {
     if (RuleMatches(r, link_a, b.id, link_b)) return true;
   }
@@ -32,7 +32,7 @@ bool IgnoresLinkPair(const FilterSide& a, int link_a, const FilterSide& b, int l
   return false;
 }
 
-bool IgnoresObject(const FilterSide& a, int link_a, const std::string& object) {
+bool IgnoresObject(const FilterSide& a, LinkIndex link_a, const std::string& object) {
   for (const EntityRule& r : a.rules) {
     if (RuleMatches(r, link_a, object, -1)) return true;
   }
@@ -44,12 +44,13 @@ bool NamesEntity(const FilterSide& a, const std::string& other) {
                      [&](const EntityRule& r) { return r.entity == other; });
 }
 
-bool World::IgnoresLinkPair(int a, int link_a, int b, int link_b) const {
+bool World::IgnoresLinkPair(AvatarIndex a, LinkIndex link_a, AvatarIndex b,
+                            LinkIndex link_b) const {
   return world::IgnoresLinkPair(FilterSide{avatars[a].id, rules[a]}, link_a,
                                 FilterSide{avatars[b].id, rules[b]}, link_b);
 }
 
-bool World::IgnoresObject(int a, int link_a, int o) const {
+bool World::IgnoresObject(AvatarIndex a, LinkIndex link_a, TrackedObjectIndex o) const {
   return world::IgnoresObject(FilterSide{avatars[a].id, rules[a]}, link_a, objects[o].id);
 }
 

@@ -15,8 +15,17 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/scene/environment.h"
+#include "core/typed_index.h"
 
 namespace sweptccd::world {
+
+struct AvatarTag;
+struct TrackedObjectTag;
+/// An avatar of a World (0-based, in file order).
+using AvatarIndex = TypedIndex<AvatarTag>;
+/// A tracked object of a World (0-based, in file order); not an object of
+/// an Environment (ObjectIndex).
+using TrackedObjectIndex = TypedIndex<TrackedObjectTag>;
 
 /// Whether `id` is a valid entity id: 1-64 characters from [A-Za-z0-9_.-].
 bool IsValidEntityId(const std::string& id);
@@ -80,9 +89,9 @@ struct FilterSide {
 };
 /// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
 /// never count as contact (a rule of either avatar applies).
-bool IgnoresLinkPair(const FilterSide& a, int link_a, const FilterSide& b, int link_b);
+bool IgnoresLinkPair(const FilterSide& a, LinkIndex link_a, const FilterSide& b, LinkIndex link_b);
 /// Whether link `link_a` of avatar `a` never touches the object `object`.
-bool IgnoresObject(const FilterSide& a, int link_a, const std::string& object);
+bool IgnoresObject(const FilterSide& a, LinkIndex link_a, const std::string& object);
 /// Whether some rule of `a` names `other` (only then can a rule of `a`
 /// ignore a link pair with it).
 bool NamesEntity(const FilterSide& a, const std::string& other);
@@ -96,9 +105,9 @@ struct World {
 
   /// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
   /// never count as contact (a rule of either avatar applies).
-  bool IgnoresLinkPair(int a, int link_a, int b, int link_b) const;
+  bool IgnoresLinkPair(AvatarIndex a, LinkIndex link_a, AvatarIndex b, LinkIndex link_b) const;
   /// Whether link `link_a` of avatar `a` never touches object `o`.
-  bool IgnoresObject(int a, int link_a, int o) const;
+  bool IgnoresObject(AvatarIndex a, LinkIndex link_a, TrackedObjectIndex o) const;
 };
 
 /// The rigid motion of a one-link `independent` body between two samples

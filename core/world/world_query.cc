@@ -21,8 +21,8 @@ ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()})
 
 ojson ContactJson(const EntityContactRecord& c) {
   ojson j;
-  j["link"] = c.link;
-  if (c.other_link >= 0) j["other_link"] = c.other_link;
+  j["link"] = c.link.value();
+  if (c.other_link >= 0) j["other_link"] = c.other_link.value();
   if (c.triangle >= 0) j["triangle"] = c.triangle;
   j["s"] = c.s;
   j["point_link"] = Vec(c.point_link);
@@ -61,7 +61,7 @@ ojson EntityJson(const EntityRecord& r) {
     ojson links = ojson::array();
     for (const EntityBracketRecord& br : r.links) {
       ojson l;
-      l["link"] = br.link;
+      l["link"] = br.link.value();
       BracketFields(br, &l);
       if (br.has_witness) l["contact"] = ContactJson(br.witness);
       links.push_back(l);
@@ -103,7 +103,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
       link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
-        WindowOfAvatar(w_.world, static_cast<int>(interval_motions_.size())), 4,
+        WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
         std::move(link_boxes)));
     avatar_sample_scales_.emplace_back();
     for (const Pose& pose : e.used) avatar_sample_scales_.back().push_back(SampleScale(pose));
@@ -126,31 +126,43 @@ void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
   for (auto& e : engines_) f(e.get());
 }
 
-bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer,
-                                 int64_t* t_from, int64_t* t_to) const {
+std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerAvatar(AvatarIndex a, size_t r,
+                                                                AvatarIndex b) const {
+  return AnswerEntity(a, r, b, TrackedObjectIndex());
+}
+
+std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerObject(AvatarIndex a, size_t r,
+                                                                TrackedObjectIndex o) const {
+  return AnswerEntity(a, r, AvatarIndex(), o);
+}
+
+std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, size_t r,
+                                                                AvatarIndex b,
+                                                                TrackedObjectIndex o) const {
+  SWEPTCCD_CHECK(b.is_valid() != o.is_valid());
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
   const std::optional<EntryWindow> window =
-      WindowOf(u0, u1, b >= 0 ? avatar_times_[b] : object_times_[o]);
-  if (!window) return false;
-  *t_from = window->t_from;
-  *t_to = window->t_to;
+      WindowOf(u0, u1, b.is_valid() ? avatar_times_[b] : object_times_[o]);
+  if (!window) return std::nullopt;
+  Entry entry;
+  entry.t_from = window->t_from;
+  entry.t_to = window->t_to;
   // Broad phase: A's box over the pair against E's box of each piece's
   // sample interval.
-  const std::vector<Aabb>& boxes = b >= 0 ? avatar_boxes_[b] : object_boxes_[o];
+  const std::vector<Aabb>& boxes = b.is_valid() ? avatar_boxes_[b] : object_boxes_[o];
   if (box_a_ != a || box_r_ != r) {
     box_ = PairBox(a, r);
     box_a_ = a;
     box_r_ = r;
   }
   if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; })) {
-    *answer = OtherAnswer();
-    answer->culled_by_box = true;
-    return true;
+    entry.answer.culled_by_box = true;
+    return entry;
   }
   RecordMotion(a, r);  // Sets memo_ to this record's.
-  if (b >= 0 && link_boxes_a_ == nullptr) {
+  if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {
       link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
     } else {
@@ -158,17 +170,18 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
       link_boxes_a_ = &link_boxes_;
     }
   }
-  const PairSide side{FilterSide{A.id, w_.world.rules[a]}, A.skeleton, u0, u1, &*memo_,
-                      b >= 0 ? link_boxes_a_ : nullptr};
-  *answer = b >= 0
-                ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
-                                      AvatarWindowScale(b, window->pieces),
-                                      interval_motions_[static_cast<size_t>(b)].get())
-                : AnswerAgainstObject(side, WindowOfObject(w_.world, o), *window, entity_options_);
-  return true;
+  const PairSide side{FilterSide{A.id, w_.world.rules[a]},   A.skeleton, u0, u1, &*memo_,
+                      b.is_valid() ? link_boxes_a_ : nullptr};
+  entry.answer =
+      b.is_valid()
+          ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
+                                AvatarWindowScale(b, window->pieces),
+                                interval_motions_[static_cast<size_t>(b)].get())
+          : AnswerAgainstObject(side, WindowOfObject(w_.world, o), *window, entity_options_);
+  return entry;
 }
 
-double WorldAnswerer::AvatarWindowScale(int b, const std::vector<Piece>& pieces) const {
+double WorldAnswerer::AvatarWindowScale(AvatarIndex b, const std::vector<Piece>& pieces) const {
   // WindowScale(avatars[b], pieces) from the kept maxima.
   const std::vector<double>& samples = avatar_sample_scales_[static_cast<size_t>(b)];
   SWEPTCCD_CHECK(!pieces.empty() && !samples.empty());
@@ -180,7 +193,7 @@ double WorldAnswerer::AvatarWindowScale(int b, const std::vector<Piece>& pieces)
   return std::max(scale, avatar_skeleton_scales_[static_cast<size_t>(b)]);
 }
 
-const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
+const PairMotion& WorldAnswerer::RecordMotion(AvatarIndex a, size_t r) const {
   if (motion_ != nullptr && motion_a_ == a && motion_r_ == r) return *motion_;
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
@@ -207,14 +220,14 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   return *motion_;
 }
 
-Aabb WorldAnswerer::PairBox(int a, size_t r) const {
+Aabb WorldAnswerer::PairBox(AvatarIndex a, size_t r) const {
   const PairMotion& motion = RecordMotion(a, r);
   // The interval's box was made from the same samples by the same function.
   if (motion_k_ >= 0) return avatar_boxes_[static_cast<size_t>(a)][static_cast<size_t>(motion_k_)];
   return AvatarMotionBox(w_.world.avatars[a].skeleton, motion);
 }
 
-QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
+QueryResult WorldAnswerer::AnswerEnvironment(AvatarIndex a, size_t r) const {
   if (w_.env.num_objects() == 0) return QueryResult();  // `free`.
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
@@ -223,7 +236,7 @@ QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
   return engines_[a]->Query(RecordMotion(a, r), rec.pose0, rec.pose1, options);
 }
 
-std::string WorldAnswerer::RecordJson(int a, size_t r) const {
+std::string WorldAnswerer::RecordJson(AvatarIndex a, size_t r) const {
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   ojson j;
@@ -237,18 +250,17 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
   const QueryResult env_result = AnswerEnvironment(a, r);
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
   ojson others = ojson::array();
-  auto add = [&](int b, int o) {
-    OtherAnswer ans;
-    int64_t t_from = 0, t_to = 0;
-    if (!AnswerEntity(a, r, b, o, &ans, &t_from, &t_to)) return;
-    others.push_back(
-        EntityJson(MakeEntityRecord(b >= 0 ? w_.world.avatars[b].id : w_.world.objects[o].id, b < 0,
-                                    u0, u1, t_from, t_to, ans, options_.per_link)));
+  auto add = [&](const std::string& id, bool is_object, const std::optional<Entry>& e) {
+    if (!e) return;
+    others.push_back(EntityJson(
+        MakeEntityRecord(id, is_object, u0, u1, e->t_from, e->t_to, e->answer, options_.per_link)));
   };
-  for (int b = 0; b < static_cast<int>(w_.world.avatars.size()); ++b) {
-    if (b != a) add(b, -1);
+  for (AvatarIndex b(0); b < static_cast<int>(w_.world.avatars.size()); ++b) {
+    if (b != a) add(w_.world.avatars[b].id, false, AnswerAvatar(a, r, b));
   }
-  for (int o = 0; o < static_cast<int>(w_.world.objects.size()); ++o) add(-1, o);
+  for (TrackedObjectIndex o(0); o < static_cast<int>(w_.world.objects.size()); ++o) {
+    add(w_.world.objects[o].id, true, AnswerObject(a, r, o));
+  }
   const double elapsed_us =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
   j = ojson::parse(ResultToJson(rec.pair, u0, u1, env_result, options_.per_link, elapsed_us));

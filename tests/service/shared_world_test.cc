@@ -136,7 +136,7 @@ struct Offline {
   // The `others` entries of avatar a's record r, by entity id.
   std::map<std::string, json> Others(int a, size_t r) const {
     std::map<std::string, json> out;
-    const json record = json::parse(answerer->RecordJson(a, r));
+    const json record = json::parse(answerer->RecordJson(world::AvatarIndex(a), r));
     for (const json& e : record["others"]) {
       out[e["entity"].get<std::string>()] = e;
     }
@@ -367,7 +367,8 @@ void RunClientsAtDifferentRates(bool far_tail) {
     EXPECT_TRUE(m.links.empty()) << "no per-link brackets outside per-link mode";
     if (i % 4 == 0 || m.result == shared_entry_t::RESULT_CONTACT) {
       const shared_entry_t ml = AnswerSharedJob(job, eo_links);
-      const json record = json::parse(links_answerer.RecordJson(a, static_cast<size_t>(job.pair)));
+      const json record = json::parse(
+          links_answerer.RecordJson(world::AvatarIndex(a), static_cast<size_t>(job.pair)));
       for (const json& o : record["others"]) {
         if (o["entity"] != job.entity) continue;
         ExpectLinksEqualToOffline(job, ml, o);
@@ -572,8 +573,9 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
     EXPECT_EQ(job.own_a->eps_s, alice ? kEps : 0.0);
     EXPECT_EQ(job.own_a->delta_m, alice ? kDelta : 0.0);
     const shared_entry_t m = AnswerSharedJob(job, eo);
-    const json record = json::parse((alice ? alice_answerer : *off.answerer)
-                                        .RecordJson(alice ? 0 : 1, static_cast<size_t>(job.pair)));
+    const json record = json::parse(
+        (alice ? alice_answerer : *off.answerer)
+            .RecordJson(world::AvatarIndex(alice ? 0 : 1), static_cast<size_t>(job.pair)));
     for (const json& o : record["others"]) {
       if (o["entity"] == job.entity) {
         ExpectEqualToOffline(job, m, o);
