@@ -15,9 +15,10 @@
 // Equality with `sweptccd world`: an entry answered because the entity
 // covered the window (a sample at or after the pair's utime1; after it for a
 // window of one instant, Covered) is given
-// exactly the samples the offline answer uses (WindowScale, SplitWindow over
-// the same slice), so it is bit-equal to the offline entry on the same
-// samples. Entries ended by the timeout, or whose window starts before the
+// exactly the samples the offline answer uses and is answered by the same
+// code: the window rule (core/world/window_split.h), the broad phase
+// (EntryNear), the entity query and its record (core/world/entity_query.h),
+// so it is bit-equal to the offline entry on the same samples. Entries ended by the timeout, or whose window starts before the
 // entity's oldest kept sample (history cut), say ended_by_timeout.
 
 #include <cstdint>

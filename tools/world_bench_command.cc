@@ -262,11 +262,13 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
     QueryResult env = answerer.AnswerEnvironment(ia, r);
     const double t_env = bench::ThreadCpuSeconds();
     for (int e = 0; e < n_avatars + n_objects; ++e) {
-      std::optional<world::WorldAnswerer::Entry> x;
-      if (e != a) {
-        x = e < n_avatars ? answerer.AnswerAvatar(ia, r, world::AvatarIndex(e))
-                          : answerer.AnswerObject(ia, r, world::TrackedObjectIndex(e - n_avatars));
+      if (e == a) {
+        answered[e] = false;
+        continue;
       }
+      std::optional<world::WorldAnswerer::Entry> x =
+          e < n_avatars ? answerer.AnswerAvatar(ia, r, world::AvatarIndex(e))
+                        : answerer.AnswerObject(ia, r, world::TrackedObjectIndex(e - n_avatars));
       answered[e] = x.has_value();
       if (x) answers[e] = std::move(x->answer);
     }

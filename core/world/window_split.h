@@ -38,17 +38,19 @@ struct EntryWindow {
 };
 
 /// Splits the window [t_from, t_to] (utimes, t_from <= t_to, inside both
-/// the pair and [times(0), times(n - 1)]) at the sample times; `times(k)`
-/// is sample k's utime (strictly increasing), n >= 1.
+/// the pair and [times(0), times(n - 1)]) at the sample times, into *out
+/// (replaced; its capacity reused); `times(k)` is sample k's utime
+/// (strictly increasing), n >= 1.
 template <class Times>
-std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to, size_t n,
-                               const Times& times) {
-  std::vector<Piece> pieces;
+void SplitWindowInto(int64_t utime0, int64_t t_from, int64_t t_to, size_t n, const Times& times,
+                     std::vector<Piece>* out) {
+  std::vector<Piece>& pieces = *out;
+  pieces.clear();
   pieces.reserve(4);  // A pair's window meets a few of E's intervals.
   if (n == 1) {
     pieces.push_back({static_cast<double>(t_from - utime0), static_cast<double>(t_to - utime0), 0,
                       static_cast<double>(times(0) - utime0), 0});
-    return pieces;
+    return;
   }
   // The first interval that can overlap: the last sample at or before
   // t_from (at most the last interval: a window that is the last sample's
@@ -73,6 +75,14 @@ std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to, siz
                       static_cast<double>(times(k + 1) - times(k))});
     if (t_from == t_to) break;
   }
+}
+
+/// The same, returned.
+template <class Times>
+std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to, size_t n,
+                               const Times& times) {
+  std::vector<Piece> pieces;
+  SplitWindowInto(utime0, t_from, t_to, n, times, &pieces);
   return pieces;
 }
 
@@ -81,28 +91,44 @@ std::vector<Piece> SplitWindow(int64_t utime0, int64_t t_from, int64_t t_to,
                                const std::vector<int64_t>& samples);
 
 /// The window [t_from, t_to] (as SplitWindow's) with its pieces and the
-/// samples they use.
+/// samples they use, into *w.
+template <class Times>
+void FillWindow(int64_t utime0, int64_t t_from, int64_t t_to, size_t n, const Times& times,
+                EntryWindow* w) {
+  w->t_from = t_from;
+  w->t_to = t_to;
+  SplitWindowInto(utime0, t_from, t_to, n, times, &w->pieces);
+  w->first = static_cast<size_t>(w->pieces.front().k);
+  w->last = std::min(static_cast<size_t>(w->pieces.back().k) + 1, n - 1);
+}
+
+/// The same, returned.
 template <class Times>
 EntryWindow WindowOver(int64_t utime0, int64_t t_from, int64_t t_to, size_t n, const Times& times) {
   EntryWindow w;
-  w.t_from = t_from;
-  w.t_to = t_to;
-  w.pieces = SplitWindow(utime0, t_from, t_to, n, times);
-  w.first = static_cast<size_t>(w.pieces.front().k);
-  w.last = std::min(static_cast<size_t>(w.pieces.back().k) + 1, n - 1);
+  FillWindow(utime0, t_from, t_to, n, times, &w);
   return w;
 }
 
 /// The window of A's pair [utime0, utime1] over E's n samples (times as
-/// above): nullopt when E has none or they do not overlap the pair (then
-/// there is no entry).
+/// above), into *w (its capacity reused): false, *w untouched, when E has
+/// none or they do not overlap the pair (then there is no entry).
 template <class Times>
-std::optional<EntryWindow> WindowOf(int64_t utime0, int64_t utime1, size_t n, const Times& times) {
-  if (n == 0) return std::nullopt;
+bool WindowInto(int64_t utime0, int64_t utime1, size_t n, const Times& times, EntryWindow* w) {
+  if (n == 0) return false;
   const int64_t t_from = std::max(utime0, times(0));
   const int64_t t_to = std::min(utime1, times(n - 1));
-  if (t_from > t_to) return std::nullopt;
-  return WindowOver(utime0, t_from, t_to, n, times);
+  if (t_from > t_to) return false;
+  FillWindow(utime0, t_from, t_to, n, times, w);
+  return true;
+}
+
+/// The same, returned: nullopt when there is no entry.
+template <class Times>
+std::optional<EntryWindow> WindowOf(int64_t utime0, int64_t utime1, size_t n, const Times& times) {
+  std::optional<EntryWindow> w(std::in_place);  // Every return returns it (no copy).
+  if (!WindowInto(utime0, utime1, n, times, &*w)) w.reset();
+  return w;
 }
 
 /// The same over a vector of utimes.

@@ -143,12 +143,15 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
-  const std::optional<EntryWindow> window =
-      WindowOf(u0, u1, b.is_valid() ? avatar_times_[b] : object_times_[o]);
-  if (!window) return std::nullopt;
-  Entry entry;
-  entry.t_from = window->t_from;
-  entry.t_to = window->t_to;
+  const std::vector<int64_t>& times = b.is_valid() ? avatar_times_[b] : object_times_[o];
+  std::optional<Entry> entry;      // Every return returns it (no copy).
+  EntryWindow* window = &window_;  // Its capacity kept from entry to entry.
+  if (!WindowInto(
+          u0, u1, times.size(), [&](size_t k) { return times[k]; }, window))
+    return entry;
+  entry.emplace();
+  entry->t_from = window->t_from;
+  entry->t_to = window->t_to;
   // Broad phase: A's box over the pair against E's box of each piece's
   // sample interval.
   const std::vector<Aabb>& boxes = b.is_valid() ? avatar_boxes_[b] : object_boxes_[o];
@@ -158,7 +161,7 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
     box_r_ = r;
   }
   if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; })) {
-    entry.answer.culled_by_box = true;
+    entry->answer.culled_by_box = true;
     return entry;
   }
   RecordMotion(a, r);  // Sets memo_ to this record's.
@@ -172,7 +175,7 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
   }
   const PairSide side{FilterSide{A.id, w_.world.rules[a]},   A.skeleton, u0, u1, &*memo_,
                       b.is_valid() ? link_boxes_a_ : nullptr};
-  entry.answer =
+  entry->answer =
       b.is_valid()
           ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
                                 AvatarWindowScale(b, window->pieces),

@@ -63,6 +63,8 @@ class WorldAnswerer {
   std::vector<std::vector<double>> avatar_sample_scales_;
   std::vector<double> avatar_skeleton_scales_;
   double AvatarWindowScale(AvatarIndex b, const std::vector<Piece>& pieces) const;
+  // The window of the entry being answered (its arrays kept between entries).
+  mutable EntryWindow window_;
   // AnswerAvatar (b valid) or AnswerObject (o valid).
   std::optional<Entry> AnswerEntity(AvatarIndex a, size_t r, AvatarIndex b,
                                     TrackedObjectIndex o) const;
