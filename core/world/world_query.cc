@@ -126,16 +126,6 @@ void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
   for (auto& e : engines_) f(e.get());
 }
 
-std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerAvatar(AvatarIndex a, size_t r,
-                                                                AvatarIndex b) const {
-  return AnswerEntity(a, r, b, TrackedObjectIndex());
-}
-
-std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerObject(AvatarIndex a, size_t r,
-                                                                TrackedObjectIndex o) const {
-  return AnswerEntity(a, r, AvatarIndex(), o);
-}
-
 std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, size_t r,
                                                                 AvatarIndex b,
                                                                 TrackedObjectIndex o) const {

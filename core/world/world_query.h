@@ -42,8 +42,12 @@ class WorldAnswerer {
   /// first: A's AvatarMotionBox over the pair against E's box of each
   /// piece's sample interval (computed once per entity); apart, the answer
   /// is `free` without any link work.
-  std::optional<Entry> AnswerAvatar(AvatarIndex a, size_t r, AvatarIndex b) const;
-  std::optional<Entry> AnswerObject(AvatarIndex a, size_t r, TrackedObjectIndex o) const;
+  std::optional<Entry> AnswerAvatar(AvatarIndex a, size_t r, AvatarIndex b) const {
+    return AnswerEntity(a, r, b, TrackedObjectIndex());
+  }
+  std::optional<Entry> AnswerObject(AvatarIndex a, size_t r, TrackedObjectIndex o) const {
+    return AnswerEntity(a, r, AvatarIndex(), o);
+  }
 
   /// A box holding every link of avatar a over its valid record r.
   Aabb PairBox(AvatarIndex a, size_t r) const;
