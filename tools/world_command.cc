@@ -49,7 +49,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     for (int a = 0; a < static_cast<int>(loaded.world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
         const auto start = std::chrono::steady_clock::now();
-        const std::string line = answerer.RecordJson(a, r);
+        const std::string line = answerer.RecordJson(world::AvatarIndex(a), r);
         record_us.push_back(
             std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
                 .count());
