@@ -32,7 +32,8 @@ T Get(const YAML::Node& node, const std::string& where) {
   }
 }
 
-void CheckKeys(const YAML::Node& map, const std::set<std::string>& known, const std::string& where) {
+void CheckKeys(const YAML::Node& map, const std::set<std::string>& known,
+               const std::string& where) {
   for (const auto& kv : map) {
     // A key may be any YAML node ("? [a, b]: 1"); as<std::string>() would
     // throw YAML's own exception for a non-scalar one (found by fuzz_config).
@@ -98,12 +99,14 @@ void ValidateSecurity(const ServiceConfig& c) {
   }
   if (sc.mode == "unsigned") return;
   if (sc.room_key.empty() && sc.service_key.empty()) {
-    throw InputError("configuration: signed mode needs security.room_key or security.service_key "
-                     "(make one with `sweptccd keygen --out FILE`), or security.mode: unsigned");
+    throw InputError(
+        "configuration: signed mode needs security.room_key or security.service_key "
+        "(make one with `sweptccd keygen --out FILE`), or security.mode: unsigned");
   }
   for (const ClientSpec& spec : c.clients) {
     if (sc.room_key.empty() && !sc.client_keys.count(spec.id)) {
-      throw InputError("configuration: client '" + spec.id + "' has no key; add it under "
+      throw InputError("configuration: client '" + spec.id +
+                       "' has no key; add it under "
                        "security.client_keys or set security.room_key");
     }
   }
@@ -132,19 +135,22 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   ServiceConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
-  CheckKeys(root,
-            {"lcm_url", "channels", "environment", "query", "backend", "gpu_device", "require_hardware", "workers",
-             "status_period_s", "log_level", "clients", "security", "max_mesh_bytes",
-             "max_links", "max_pose_rate_hz", "max_object_pose_rate_hz", "max_live_clients",
-             "silence_timeout_ms",
-             "shared_world", "objects"},
-            source);
+  CheckKeys(
+      root,
+      {"lcm_url",          "channels",           "environment",      "query",
+       "backend",          "gpu_device",         "require_hardware", "workers",
+       "status_period_s",  "log_level",          "clients",          "security",
+       "max_mesh_bytes",   "max_links",          "max_pose_rate_hz", "max_object_pose_rate_hz",
+       "max_live_clients", "silence_timeout_ms", "shared_world",     "objects",
+       "websocket"},
+      source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
   if (const YAML::Node ch = root["channels"]) {
     if (!ch.IsMap()) throw InputError(at + "channels: expected a mapping");
-    CheckKeys(ch, {"pose", "contact", "reject", "status", "join", "join_reply", "leave",
-                   "object_pose", "shared_contact"},
+    CheckKeys(ch,
+              {"pose", "contact", "reject", "status", "join", "join_reply", "leave", "object_pose",
+               "shared_contact"},
               at + "channels");
     if (ch["object_pose"]) {
       c.channels.object_pose = Get<std::string>(ch["object_pose"], at + "channels.object_pose");
@@ -159,7 +165,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     }
     if (ch["leave"]) c.channels.leave = Get<std::string>(ch["leave"], at + "channels.leave");
     if (ch["pose"]) c.channels.pose = Get<std::string>(ch["pose"], at + "channels.pose");
-    if (ch["contact"]) c.channels.contact = Get<std::string>(ch["contact"], at + "channels.contact");
+    if (ch["contact"])
+      c.channels.contact = Get<std::string>(ch["contact"], at + "channels.contact");
     if (ch["reject"]) c.channels.reject = Get<std::string>(ch["reject"], at + "channels.reject");
     if (ch["status"]) c.channels.status = Get<std::string>(ch["status"], at + "channels.status");
   }
@@ -224,10 +231,12 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       if (e["motion"]) {
         const std::string m = Get<std::string>(e["motion"], where + ".motion");
         const auto model = ParseMotionModel(m);
-        if (!model) throw InputError(where + ".motion: must be articulated or independent, got '" + m + "'");
+        if (!model)
+          throw InputError(where + ".motion: must be articulated or independent, got '" + m + "'");
         spec.motion = *model;
       }
-      if (e["filter"]) spec.filter_path = Resolve(base_dir, Get<std::string>(e["filter"], where + ".filter"));
+      if (e["filter"])
+        spec.filter_path = Resolve(base_dir, Get<std::string>(e["filter"], where + ".filter"));
       if (e["ignore"]) spec.ignore_rules = StringList(e["ignore"], where + ".ignore");
       if (const YAML::Node rules = e["ignore_entities"]) {
         if (!rules.IsSequence()) throw InputError(where + ".ignore_entities: expected a list");
@@ -235,15 +244,17 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
           const std::string rw = where + ".ignore_entities[" + std::to_string(k) + "]";
           const YAML::Node r = rules[k];
           if (!r.IsMap()) {
-            throw InputError(rw + ": expected {link: L, entity: ID} or {link: L, entity: ID, "
-                                  "other_link: M}");
+            throw InputError(rw +
+                             ": expected {link: L, entity: ID} or {link: L, entity: ID, "
+                             "other_link: M}");
           }
           CheckKeys(r, {"link", "entity", "other_link"}, rw);
           if (!r["link"] || !r["entity"]) throw InputError(rw + ": needs 'link' and 'entity'");
           EntityRuleSpec rule;
           rule.link = Get<std::string>(r["link"], rw + ".link");
           rule.entity = Get<std::string>(r["entity"], rw + ".entity");
-          if (r["other_link"]) rule.other_link = Get<std::string>(r["other_link"], rw + ".other_link");
+          if (r["other_link"])
+            rule.other_link = Get<std::string>(r["other_link"], rw + ".other_link");
           if (!IsValidClientId(rule.entity)) {
             throw InputError(rw + ".entity: '" + EscapeForDisplay(rule.entity) +
                              "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
@@ -274,6 +285,56 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
       c.objects.push_back(spec);
     }
   }
+  if (const YAML::Node w = root["websocket"]) {
+    const std::string where = at + "websocket";
+    if (!w.IsMap()) throw InputError(where + ": expected a mapping");
+    CheckKeys(w,
+              {"listen", "cert", "key", "allow_origins", "view_dir", "max_connections",
+               "max_connections_per_address", "handshake_timeout_ms", "idle_timeout_ms",
+               "max_message_bytes", "message_rate_hz", "message_burst", "send_queue_messages",
+               "send_queue_bytes", "max_objects_per_connection", "max_scene_triangles"},
+              where);
+    WsDoorOptions& o = c.websocket;
+    const std::string in = where + ".";
+    if (w["listen"]) o.listen = Get<std::string>(w["listen"], in + "listen");
+    if (w["cert"]) o.cert_path = Resolve(base_dir, Get<std::string>(w["cert"], in + "cert"));
+    if (w["key"]) o.key_path = Resolve(base_dir, Get<std::string>(w["key"], in + "key"));
+    if (w["allow_origins"]) o.allow_origins = StringList(w["allow_origins"], in + "allow_origins");
+    if (w["view_dir"]) {
+      o.view_dir = Resolve(base_dir, Get<std::string>(w["view_dir"], in + "view_dir"));
+    }
+    if (w["max_connections"])
+      o.max_connections = Get<int>(w["max_connections"], in + "max_connections");
+    if (w["max_connections_per_address"]) {
+      o.max_connections_per_address =
+          Get<int>(w["max_connections_per_address"], in + "max_connections_per_address");
+    }
+    if (w["handshake_timeout_ms"]) {
+      o.handshake_timeout_ms = Get<int64_t>(w["handshake_timeout_ms"], in + "handshake_timeout_ms");
+    }
+    if (w["idle_timeout_ms"]) {
+      o.idle_timeout_ms = Get<int64_t>(w["idle_timeout_ms"], in + "idle_timeout_ms");
+    }
+    if (w["max_message_bytes"]) {
+      o.max_message_bytes = Get<size_t>(w["max_message_bytes"], in + "max_message_bytes");
+    }
+    if (w["message_rate_hz"])
+      o.message_rate_hz = Get<double>(w["message_rate_hz"], in + "message_rate_hz");
+    if (w["message_burst"]) o.message_burst = Get<int>(w["message_burst"], in + "message_burst");
+    if (w["send_queue_messages"]) {
+      o.send_queue_messages = Get<size_t>(w["send_queue_messages"], in + "send_queue_messages");
+    }
+    if (w["send_queue_bytes"]) {
+      o.send_queue_bytes = Get<size_t>(w["send_queue_bytes"], in + "send_queue_bytes");
+    }
+    if (w["max_objects_per_connection"]) {
+      o.max_objects_per_connection =
+          Get<int>(w["max_objects_per_connection"], in + "max_objects_per_connection");
+    }
+    if (w["max_scene_triangles"]) {
+      o.max_scene_triangles = Get<int>(w["max_scene_triangles"], in + "max_scene_triangles");
+    }
+  }
   return c;
 }
 
@@ -282,8 +343,7 @@ ServiceConfig LoadServiceConfig(const std::string& path) {
   if (!in) throw InputError(path + ": cannot open the configuration file");
   std::stringstream buffer;
   buffer << in.rdbuf();
-  return ParseServiceConfig(buffer.str(), path,
-                            std::filesystem::path(path).parent_path().string());
+  return ParseServiceConfig(buffer.str(), path, std::filesystem::path(path).parent_path().string());
 }
 
 void ValidateServiceConfig(const ServiceConfig& c) {
@@ -291,8 +351,9 @@ void ValidateServiceConfig(const ServiceConfig& c) {
     throw InputError("configuration: no environment (give 'environment' or --env)");
   }
   if (c.clients.empty() && c.max_live_clients < 1) {
-    throw InputError("configuration: no clients and max_live_clients is 0 (give 'clients' or "
-                     "--client, or allow live clients)");
+    throw InputError(
+        "configuration: no clients and max_live_clients is 0 (give 'clients' or "
+        "--client, or allow live clients)");
   }
   if (c.max_live_clients < 0 || c.max_live_clients > 4096) {
     throw InputError("configuration: max_live_clients must be in [0, 4096], got " +
@@ -312,7 +373,8 @@ void ValidateServiceConfig(const ServiceConfig& c) {
       throw InputError("configuration: client id '" + EscapeForDisplay(s.id) +
                        "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
     }
-    if (!ids.insert(s.id).second) throw InputError("configuration: duplicate client id '" + s.id + "'");
+    if (!ids.insert(s.id).second)
+      throw InputError("configuration: duplicate client id '" + s.id + "'");
   }
   for (const ObjectSpec& o : c.objects) {
     if (!IsValidClientId(o.id)) {
@@ -333,10 +395,14 @@ void ValidateServiceConfig(const ServiceConfig& c) {
                        "' has no key; give objects[].key or set security.room_key");
     }
   }
+  if (const std::string problem = ValidateWsDoorOptions(c.websocket); !problem.empty()) {
+    throw InputError("configuration: " + problem);
+  }
   if (!c.shared_world && !c.objects.empty()) {
     throw InputError("configuration: objects need shared_world: true");
   }
-  if (c.workers < 1) throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
+  if (c.workers < 1)
+    throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
   if (!(c.max_pose_rate_hz > 0 && c.max_pose_rate_hz <= 1e6)) {
     throw InputError("configuration: max_pose_rate_hz must be in (0, 1e6] Hz");
@@ -349,8 +415,10 @@ void ValidateServiceConfig(const ServiceConfig& c) {
     throw InputError("configuration: max_links must be >= 1, got " + std::to_string(c.max_links));
   }
   if (c.gpu_device < -1) {
-    throw InputError("configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "
-                     "first that works), got " + std::to_string(c.gpu_device));
+    throw InputError(
+        "configuration: gpu_device must be an EGL device index >= 0 (or -1 for the "
+        "first that works), got " +
+        std::to_string(c.gpu_device));
   }
   const std::string problem = ValidateQueryOptions(c.query);
   if (!problem.empty()) throw InputError("configuration: query: " + problem);

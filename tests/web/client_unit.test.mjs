@@ -270,3 +270,42 @@ test("link ends: p + R(q) a with q normalised", () => {
   close(lib.rotate([0, 1, 0, 0], [0, 1, 1]), [0, -1, -1]);
   close(lib.rotate([1, 0, 0, 0], [4, 5, 6]), [4, 5, 6]);
 });
+
+test("the WebXR skeleton: head, controllers, 25 joints per hand, held poses, y-up to z-up", () => {
+  const id = [1, 0, 0, 0];
+  const quarter = [Math.SQRT1_2, 0, Math.SQRT1_2, 0]; // 90 degrees about y: x -> -z
+  const hand = new Map();
+  lib.HAND_JOINTS.forEach((name, i) => hand.set(name, { position: [0.3, 1, -0.01 * i], orientation: name === "wrist" ? quarter : id, radius: 0.005 + i * 0.0001 }));
+  const snap = { head: { position: [0, 1.6, 0], orientation: id }, controllers: { left: { position: [-0.3, 1, -0.2], orientation: id } }, hands: { right: hand } };
+  const xs = lib.buildXrSkeleton(snap);
+  assert.equal(xs.skeleton.links.length, 1 + 1 + 25);
+  const arr = lib.skeletonToArrays(xs.skeleton); // a valid SPEC skeleton: one root, known parents, radii > 0
+  assert.equal(arr.link_name[0], "head");
+  assert.equal(arr.parent[0], -1);
+  const wrist = arr.link_name.indexOf("right_wrist");
+  assert.equal(arr.parent[wrist], 0);
+  // The wrist's capsule reaches the middle finger's knuckle, in the wrist's frame.
+  const knuckle = hand.get("middle-finger-phalanx-proximal").position;
+  const reach = lib.transformPoint(hand.get("wrist").position, quarter, arr.b[wrist]);
+  reach.forEach((x, i) => assert.ok(Math.abs(x - knuckle[i]) < 1e-12));
+  assert.equal(arr.radius[wrist], 0.005);
+  const tip = arr.link_name.indexOf("right_index-finger-tip");
+  assert.deepEqual(arr.b[tip], [0, 0, 0]);
+  assert.equal(arr.link_name[arr.parent[tip]], "right_index-finger-phalanx-distal");
+  // Every link has a pose; a part lost later keeps its last one.
+  const s0 = lib.xrSample(xs, snap, null);
+  assert.equal(s0.length, 27);
+  const lost = { ...snap, controllers: {}, head: { position: [0, 1.5, 0], orientation: id } };
+  const s1 = lib.xrSample(xs, lost, s0);
+  assert.deepEqual(s1[1].position, [-0.3, 1, -0.2]);
+  assert.deepEqual(s1[0].position, [0, 1.5, 0]);
+  assert.equal(lib.xrSample(xs, lost, null), null);
+  assert.throws(() => lib.buildXrSkeleton({ head: null, controllers: {}, hands: {} }), /no head/);
+  // WebXR's y-up into the room's z-up: up stays up, forward (-z) becomes +y; then the origin.
+  const r = lib.xrToRoom({ position: [0, 1.6, -1], orientation: id }, [2, 3, 0], 0);
+  [2, 4, 1.6].forEach((x, i) => assert.ok(Math.abs(r.position[i] - x) < 1e-12, `${r.position}`));
+  const up = lib.rotate(r.orientation, [0, 1, 0]);
+  [0, 0, 1].forEach((x, i) => assert.ok(Math.abs(up[i] - x) < 1e-12));
+  const turned = lib.xrToRoom({ position: [0, 0, -1], orientation: id }, [0, 0, 0], Math.PI / 2);
+  [-1, 0, 0].forEach((x, i) => assert.ok(Math.abs(turned.position[i] - x) < 1e-12, `${turned.position}`));
+});

@@ -11,3 +11,4 @@ export * from "./live_client.js";
 export * from "./viewer.js";
 export * from "./scene_mesh.js";
 export * from "./pose_math.js";
+export * from "./xr_skeleton.js";

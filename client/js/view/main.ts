@@ -78,9 +78,9 @@ const avatars = new Map<string, Avatar>();
 let capacity = 0;
 let cylinders: THREE.InstancedMesh | null = null;
 let spheres: THREE.InstancedMesh | null = null;
-const cylGeo = new THREE.CylinderGeometry(1, 1, 1, 14, 1, true);
+const cylGeo = new THREE.CylinderGeometry(1, 1, 1, 10, 1, true);
 cylGeo.rotateX(Math.PI / 2); // axis along z: the instance's z is the segment
-const sphGeo = new THREE.SphereGeometry(1, 14, 10);
+const sphGeo = new THREE.SphereGeometry(1, 10, 6);
 const avatarMat = new THREE.MeshLambertMaterial({ color: 0xffffff });
 const zero = new THREE.Matrix4().makeScale(0, 0, 0);
 
@@ -529,6 +529,8 @@ export interface ViewHook {
   /** Keep markers (no fading) for a screenshot; hide or show the environment meshes. */
   holdMarkers(on: boolean): void;
   showEnvironment(on: boolean): void;
+  /** Hide or show the HTML panels and labels over the canvas. */
+  showOverlays(on: boolean): void;
   /** Poses received and poses applied to the instanced meshes. */
   counts(): { poses_received: number; poses_applied: number; avatars: number; markers: number };
   /** The background colour (RGB). */
@@ -555,6 +557,9 @@ const hook: ViewHook = {
   contacts: () => allContacts.map((c) => ({ ...c, pixel: project(c.point) })),
   holdMarkers: (on) => { holdMarkers = on; },
   showEnvironment: (on) => { envGroup.visible = on; },
+  showOverlays: (on) => {
+    for (const el of [statusEl, document.getElementById("clients")!, stripEl, labelsEl]) el.style.visibility = on ? "" : "hidden";
+  },
   counts: () => ({ poses_received: posesReceived, poses_applied: posesApplied, avatars: avatars.size, markers: markers.length }),
   background: [(BACKGROUND >> 16) & 255, (BACKGROUND >> 8) & 255, BACKGROUND & 255],
 };
