@@ -102,6 +102,26 @@ try {
   assert.ok(far.d > 100 && isBackground(img1.pixel(far.x, far.y)), `control pixel ${far.x},${far.y} not background: ${img1.pixel(far.x, far.y)}`);
   log(`known avatar: ${drawn} of ${pts.length} capsule midpoints drawn; control pixel (${far.x}, ${far.y}) background`);
 
+  // The WebXR page's headset-free mode: the walk's first 30 poses through the
+  // page's streamer; every pair answered, as many contacts as the query has.
+  const xr = await browser.newPage();
+  xr.on("pageerror", (e) => pageErrors.push(`xr.html: ${e.message}`));
+  await xr.goto(`${base}/xr.html#key=${key}&id=xrreplay`, { timeout: 15000 });
+  await xr.waitForFunction(() => window.__sweptccdXr, { timeout: 10000 });
+  const lines = readFileSync(poses30File, "utf8").split("\n").filter((l) => l.trim()).slice(0, 30).join("\n");
+  const replayed = await xr.evaluate((sk, ps) => window.__sweptccdXr.replay(sk, ps, 3), readFileSync(skeletonFile, "utf8"), lines);
+  assert.equal(replayed, 30);
+  await xr.waitForFunction(() => window.__sweptccdXr.stats().events >= 29, { timeout: 10000 });
+  const xrStats = await xr.evaluate(() => window.__sweptccdXr.stats());
+  const wantXr = readFileSync(expectedFile, "utf8").split("\n").filter((l) => l.trim()).slice(0, 29).filter((l) => JSON.parse(l).result === "contact").length;
+  assert.equal(xrStats.events, 29);
+  assert.equal(xrStats.sent, 30);
+  assert.equal(xrStats.rejections, 0);
+  assert.equal(xrStats.contacts, wantXr, `xr.html replay: ${xrStats.contacts} contacts, sweptccd query ${wantXr}`);
+  await xr.evaluate(() => window.__sweptccdXr.leave());
+  await xr.close();
+  log(`xr.html replay: 30 poses through the page's streamer, 29 events, ${xrStats.contacts} contacts as sweptccd query`);
+
   // 2. 16 avatars at 90 Hz.
   await page.evaluate(() => { __sweptccdView.holdMarkers(false); __sweptccdView.showEnvironment(true); __sweptccdView.showOverlays(true); });
   const load = [];
