@@ -244,6 +244,38 @@ function fitCamera(): void {
   controls.update();
 }
 
+/** Points the camera at every avatar's capsules (key "f"; "r": the whole room again). */
+function fitToAvatars(): boolean {
+  const box = new THREE.Box3();
+  for (const a of avatars.values()) {
+    for (let i = 0; i < a.links; i++) {
+      const e = linkEnds(a, i);
+      if (!e) continue;
+      const r = a.client.radius![i];
+      for (const p of e) {
+        box.expandByPoint(new THREE.Vector3(p[0] - r, p[1] - r, p[2] - r));
+        box.expandByPoint(new THREE.Vector3(p[0] + r, p[1] + r, p[2] + r));
+      }
+    }
+  }
+  if (box.isEmpty()) return false;
+  const center = box.getCenter(new THREE.Vector3());
+  const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 0.5);
+  const dist = (1.15 * radius) / Math.sin((camera.fov * Math.PI) / 360);
+  const dir = new THREE.Vector3(-0.35, -1, 0.6).normalize();
+  controls.target.copy(center);
+  camera.position.copy(center).addScaledVector(dir, dist);
+  camera.near = dist / 100;
+  camera.far = dist * 100;
+  camera.updateProjectionMatrix();
+  controls.update();
+  return true;
+}
+window.addEventListener("keydown", (ev) => {
+  if (ev.key === "f") fitToAvatars();
+  if (ev.key === "r") fitCamera();
+});
+
 function objectsFromRoom(room: Room): void {
   for (const o of room.objects ?? []) {
     if (o && typeof o.object_id === "string" && typeof o.scene_index === "number") objectIds.set(o.object_id, o.scene_index);
@@ -531,6 +563,8 @@ export interface ViewHook {
   showEnvironment(on: boolean): void;
   /** Hide or show the HTML panels and labels over the canvas. */
   showOverlays(on: boolean): void;
+  /** Points the camera at the avatars (false: none posed yet). */
+  fitToAvatars(): boolean;
   /** Poses received and poses applied to the instanced meshes. */
   counts(): { poses_received: number; poses_applied: number; avatars: number; markers: number };
   /** The background colour (RGB). */
@@ -556,6 +590,7 @@ const hook: ViewHook = {
     }),
   contacts: () => allContacts.map((c) => ({ ...c, pixel: project(c.point) })),
   holdMarkers: (on) => { holdMarkers = on; },
+  fitToAvatars: () => fitToAvatars(),
   showEnvironment: (on) => { envGroup.visible = on; },
   showOverlays: (on) => {
     for (const el of [statusEl, document.getElementById("clients")!, stripEl, labelsEl]) el.style.visibility = on ? "" : "hidden";
