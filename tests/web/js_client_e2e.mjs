@@ -111,11 +111,16 @@ assert.equal(rejections[0].client_id, "jsalice");
 log(`rejection: ${rejections[0].reason}`);
 
 // The viewer saw poses, contacts and status of jsalice; the client its status.
-await until(() => seen.status && seen.status.client_id.includes("jsalice") && status, 5000, "status with jsalice");
+// (status is periodic: wait for one that counts every pair answered.)
+const answered = (s) => {
+  const i = s ? s.client_id.indexOf("jsalice") : -1;
+  return i >= 0 && s.rejected[i] >= 1 ? s.pairs_answered[i] : -1;
+};
+await until(() => answered(seen.status) >= poses.length - 1 && answered(status) >= poses.length - 1, 5000, "status with every pair and the rejection of jsalice");
 assert.ok(seen.poses > 0, "the viewer got no forwarded pose");
 assert.ok(seen.contacts > 0, "the viewer got no contact event");
 const k = seen.status.client_id.indexOf("jsalice");
-assert.ok(seen.status.pairs_answered[k] >= poses.length - 1);
+assert.equal(seen.status.rejected[k], 1, "status: the one rejection");
 log(`viewer: ${seen.poses} forwarded poses (latest-wins), ${seen.contacts} contact events, status pairs_answered ${seen.status.pairs_answered[k]}`);
 
 // The connection drops: reconnect, join again (same nonce), a greater session.
