@@ -20,7 +20,7 @@ query_walk "$sweptccd" "$src/data/env/morse_apartment.ply.gz" "$work"
 port=7702
 "$service" --lcm-url "$SWEPTCCD_URL" --env "$src/data/env/morse_apartment.ply.gz" \
   --room-key "$work/room.key" --max-live-clients 20 --status-period 0.25 \
-  --ws-listen "127.0.0.1:$port" --ws-view-dir "$view" --log-level info 2> "$work/daemon.log" &
+  --ws-listen "127.0.0.1:$port" --ws-view-dir "$view" --ws-max-connections-per-address 32 --log-level info 2> "$work/daemon.log" &
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready || { cat "$work/daemon.log" >&2; fail "no daemon"; }

@@ -280,7 +280,8 @@ function objectsFromRoom(room: Room): void {
   for (const o of room.objects ?? []) {
     if (o && typeof o.object_id === "string" && typeof o.scene_index === "number") objectIds.set(o.object_id, o.scene_index);
   }
-  sceneInfo.envNames = Array.isArray(room.environment) ? room.environment.map(String) : [];
+  // Names as the daemon loaded them (paths): the file name is enough on a label.
+  sceneInfo.envNames = Array.isArray(room.environment) ? room.environment.map((n) => String(n).split("/").pop()!) : [];
 }
 
 const latestObjectPose = new Map<string, ObjectPose>();

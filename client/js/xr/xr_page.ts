@@ -31,6 +31,8 @@ if (params.get("key")) {
 }
 
 interface Stats { state: string; joined: boolean; session: number; links: number; sent: number; dropped: number; events: number; contacts: number; shared_contacts: number; rejections: number; last: string; }
+/** The answers of this page's pairs (the test hook compares them with sweptccd query). */
+const answers: { seq0: number; seq1: number; result: number; s_lo: number; s_hi: number }[] = [];
 const stats: Stats = { state: "idle", joined: false, session: 0, links: 0, sent: 0, dropped: 0, events: 0, contacts: 0, shared_contacts: 0, rejections: 0, last: "" };
 function show(): void {
   statsEl.textContent = Object.entries(stats).map(([k, v]) => `${k.padEnd(16)} ${v}`).join("\n");
@@ -51,6 +53,7 @@ class Streamer {
     c.on("close", () => { stats.joined = false; show(); });
     c.on("contact", (e) => {
       stats.events++;
+      if (answers.length < 10000) answers.push({ seq0: e.seq0, seq1: e.seq1, result: e.result, s_lo: e.s_lo, s_hi: e.s_hi });
       if (e.result === RESULT.CONTACT) {
         stats.contacts++;
         const w = e.contacts[0];
@@ -192,6 +195,7 @@ $<HTMLButtonElement>("replay").onclick = async () => {
 (window as unknown as { __sweptccdXr: unknown }).__sweptccdXr = {
   replay,
   stats: () => ({ ...stats }),
+  answers: () => answers.slice(),
   leave: () => streamer.client?.leave(),
 };
 show();
