@@ -80,7 +80,7 @@ let cylinders: THREE.InstancedMesh | null = null;
 let spheres: THREE.InstancedMesh | null = null;
 const cylGeo = new THREE.CylinderGeometry(1, 1, 1, 10, 1, true);
 cylGeo.rotateX(Math.PI / 2); // axis along z: the instance's z is the segment
-const sphGeo = new THREE.SphereGeometry(1, 10, 6);
+const sphGeo = new THREE.SphereGeometry(1, 8, 5);
 const avatarMat = new THREE.MeshLambertMaterial({ color: 0xffffff });
 const zero = new THREE.Matrix4().makeScale(0, 0, 0);
 
