@@ -17,6 +17,7 @@ if (!out) {
 mkdirSync(out, { recursive: true });
 const pages = [
   { entry: "view/main.ts", js: "view.js", html: "view/index.html" },
+  { entry: "view/socket_worker.ts", js: "view_worker.js" },
   { entry: "xr/xr_page.ts", js: "xr.js", html: "xr/xr.html" },
   { entry: "examples/example_page.ts", js: "example.js", html: "examples/example.html" },
 ];
@@ -33,6 +34,6 @@ for (const page of pages) {
     legalComments: "linked",
     logLevel: "warning",
   });
-  copyFileSync(path.join(here, page.html), path.join(out, path.basename(page.html)));
+  if (page.html) copyFileSync(path.join(here, page.html), path.join(out, path.basename(page.html)));
 }
 console.log(`build.mjs: ${pages.length} pages in ${out}`);

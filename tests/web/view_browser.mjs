@@ -110,7 +110,7 @@ try {
   await xr.goto(`${base}/xr.html#key=${key}&id=xrreplay`, { timeout: 15000 });
   await xr.waitForFunction(() => window.__sweptccdXr, { timeout: 10000 });
   const lines = readFileSync(poses30File, "utf8").split("\n").filter((l) => l.trim()).slice(0, 30).join("\n");
-  const replayed = await xr.evaluate((sk, ps) => window.__sweptccdXr.replay(sk, ps, 3), readFileSync(skeletonFile, "utf8"), lines);
+  const replayed = await xr.evaluate((sk, ps) => window.__sweptccdXr.replay(sk, ps, 1), readFileSync(skeletonFile, "utf8"), lines);
   assert.equal(replayed, 30);
   // The daemon may skip pairs when it is behind (latest-wins): the answers
   // chain seq 0 to 29, and every consecutive pair equals the query's.
@@ -134,7 +134,7 @@ try {
     compared++;
   }
   assert.equal(chain, 29);
-  assert.ok(compared >= 20, `xr.html replay: only ${compared} pairs answered unskipped`);
+  assert.ok(compared >= 15, `xr.html replay: only ${compared} pairs answered unskipped`);
   await xr.evaluate(() => window.__sweptccdXr.leave());
   await xr.close();
   log(`xr.html replay: 30 poses through the page's streamer, ${answers.length} events (${skipped} pairs skipped by the daemon's latest-wins), ${compared} equal to sweptccd query`);

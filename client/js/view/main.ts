@@ -17,6 +17,7 @@ import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import {
   ContactEvent,
+  Hello,
   ObjectPose,
   Room,
   RoomClient,
@@ -25,7 +26,6 @@ import {
   Status,
   TrackerPose,
   Vec3,
-  Viewer,
   escapeForDisplay,
   parseKey,
   parseSceneMesh,
@@ -461,6 +461,7 @@ let fps = 0;
 let fpsFrames = 0;
 let fpsSince = performance.now();
 function frame(now: number): void {
+  requestPoses();
   resize();
   applyPoses();
   applyObjectPoses();
@@ -478,13 +479,13 @@ function frame(now: number): void {
   requestAnimationFrame(frame);
 }
 
-// ---- the connection ----
+// ---- the connection (in a worker: view/socket_worker.ts) ----
 let posesReceived = 0;
-let viewer: Viewer | null = null;
+let worker: Worker | null = null;
+let hello: Hello | null = null;
 let connState = "connecting";
 let lastError = "";
 function updateStatusLine(): void {
-  const hello = viewer?.serverHello;
   statusEl.textContent = `SweptCCD live view: ${connState}${hello ? ` (${hello.security}, instance ${hello.instance})` : ""}` +
     ` | ${avatars.size} avatars | ${fps.toFixed(0)} fps${lastError ? " | " + lastError : ""}`;
 }
@@ -500,28 +501,58 @@ function keyFromPage(): string | undefined {
   return sessionStorage.getItem("sweptccd.room_key") ?? undefined;
 }
 
+function onPose(p: TrackerPose): void {
+  const a = avatars.get(p.client_id);
+  if (!a || !Array.isArray(p.position) || p.position.length !== a.links || !Array.isArray(p.orientation) || p.orientation.length !== a.links) return;
+  a.latest = p; // applied at the next frame
+  a.dirty = true;
+}
+
+let framePending = false;
+/** Asks the worker for the latest poses (at most one request in flight). */
+function requestPoses(): void {
+  if (worker && !framePending) {
+    framePending = true;
+    worker.postMessage({ kind: "frame" });
+  }
+}
+
 function start(key: string | undefined): void {
   const url = `${location.protocol === "https:" ? "wss:" : "ws:"}//${location.host}/ws`;
-  viewer = new Viewer({ url, key });
-  viewer.on("state", (s) => { connState = s; updateStatusLine(); });
-  viewer.on("room", setRoom);
-  viewer.on("pose", (p) => {
-    const a = avatars.get(p.client_id);
-    posesReceived++;
-    if (!a || !Array.isArray(p.position) || p.position.length !== a.links || !Array.isArray(p.orientation) || p.orientation.length !== a.links) return;
-    a.latest = p; // latest wins: applied at the next frame
-    a.dirty = true;
-  });
-  viewer.on("objectPose", (p) => latestObjectPose.set(p.object_id, p));
-  viewer.on("contact", onContact);
-  viewer.on("sharedContact", onShared);
-  viewer.on("status", (s) => { lastStatus = s; renderClientTable(); });
-  viewer.on("serverError", (e) => { lastError = `${escapeForDisplay(e.code, 40)}: ${escapeForDisplay(e.message, 120)}`; updateStatusLine(); });
-  viewer.connect().catch((e) => {
-    lastError = escapeForDisplay(String((e as Error).message), 160);
-    if ((e as { code?: string }).code === "no_key" || (e as { code?: string }).code === "bad_proof") askKey();
-    updateStatusLine();
-  });
+  worker?.terminate();
+  worker = new Worker("./view_worker.js", { type: "module" });
+  framePending = false;
+  worker.onmessage = (ev: MessageEvent) => {
+    const m = ev.data as { kind: string; name?: string; value?: unknown; poses?: TrackerPose[]; objects?: ObjectPose[]; received?: number; message?: string; code?: string };
+    if (m.kind === "poses") {
+      framePending = false;
+      posesReceived = m.received ?? posesReceived;
+      for (const p of m.poses ?? []) onPose(p);
+      for (const p of m.objects ?? []) latestObjectPose.set(p.object_id, p);
+    } else if (m.kind === "event") {
+      const v = m.value;
+      switch (m.name) {
+        case "state": connState = String(v); updateStatusLine(); break;
+        case "hello": hello = v as Hello; break;
+        case "room": setRoom(v as Room); break;
+        case "contact": onContact(v as ContactEvent); break;
+        case "sharedContact": onShared(v as SharedContact); break;
+        case "status": lastStatus = v as Status; renderClientTable(); break;
+        case "serverError": {
+          const e = v as { code: string; message: string };
+          lastError = `${escapeForDisplay(String(e.code), 40)}: ${escapeForDisplay(String(e.message), 120)}`;
+          updateStatusLine();
+          break;
+        }
+      }
+    } else if (m.kind === "failed") {
+      lastError = escapeForDisplay(String(m.message), 160);
+      if (m.code === "no_key" || m.code === "bad_proof") askKey();
+      updateStatusLine();
+    }
+  };
+  worker.onerror = (e) => { lastError = escapeForDisplay(`worker: ${e.message}`, 160); updateStatusLine(); };
+  worker.postMessage({ kind: "start", url, key });
 }
 
 function askKey(): void {
