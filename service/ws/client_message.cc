@@ -75,6 +75,10 @@ ClientDecodeResult DecodeClientMessage(std::string_view text, const WireLimits& 
     } else if (type == "object_pose") {
       m.kind = ClientMessage::Kind::kObjectPose;
       FromJson(v, limits, &m.object_pose);
+    } else if (type == "ping") {
+      const Fields f(v, type);
+      m.kind = ClientMessage::Kind::kPing;
+      if (f.Find("utime")) m.ping_utime = f.Int("utime", -kMaxSafeInteger, kMaxSafeInteger);
     } else if (type == "subscribe" || type == "object_attach") {
       const Fields f(v, type);
       m.kind = type == "subscribe" ? ClientMessage::Kind::kSubscribe

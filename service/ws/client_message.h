@@ -21,7 +21,7 @@ namespace sweptccd::ws {
 inline constexpr int kMaxJsonDepth = 32;
 
 struct ClientMessage {
-  enum class Kind { kJoin, kPose, kLeave, kSubscribe, kObjectAttach, kObjectPose };
+  enum class Kind { kJoin, kPose, kLeave, kSubscribe, kObjectAttach, kObjectPose, kPing };
   Kind kind = Kind::kPose;
   join_request_t join;        // kJoin.
   tracker_pose_t pose;        // kPose.
@@ -29,6 +29,7 @@ struct ClientMessage {
   object_pose_t object_pose;  // kObjectPose.
   std::string object_id;      // kObjectAttach.
   std::string proof;          // kJoin, kSubscribe, kObjectAttach ("" when absent).
+  int64_t ping_utime = 0;     // kPing: the client's utime, echoed (0 when absent).
 };
 
 /// The message, or an error code of docs/WEBSOCKET.md (bad_json,

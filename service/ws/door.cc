@@ -121,8 +121,10 @@ struct WsDoor::Impl {
   Impl(WsDoorOptions o, WsDoorContext c) : options(std::move(o)), ctx(std::move(c)) {
     limits = ctx.limits;
     limits.max_message_bytes = options.max_message_bytes;
-    idle_timeout = std::chrono::milliseconds(options.idle_timeout_ms > 0 ? options.idle_timeout_ms
-                                                                         : ctx.silence_timeout_ms);
+    idle_timeout = std::chrono::milliseconds(
+        options.idle_timeout_ms > 0
+            ? options.idle_timeout_ms
+            : std::max<int64_t>(ctx.silence_timeout_ms, kDefaultIdleTimeoutMs));
   }
 
   // I/O thread state (declared before ioc: handlers destroyed with ioc may
@@ -372,6 +374,14 @@ class WsSession : public Conn {
       case ws::ClientMessage::Kind::kObjectAttach:
         OnAttach(m.object_id, m.proof);
         break;
+      case ws::ClientMessage::Kind::kPing: {
+        OrderedJson j;
+        j["type"] = "pong";
+        j["utime"] = m.ping_utime;
+        j["server_utime"] = WallUtime();
+        SendOwn(MakeFrame(j));
+        break;
+      }
       case ws::ClientMessage::Kind::kObjectPose:
         if (!attached_.count(m.object_pose.object_id)) {
           Error("not_attached", "object_pose of '" + EscapeForDisplay(m.object_pose.object_id) +

@@ -9,6 +9,8 @@
 
 namespace sweptccd {
 
+inline constexpr int64_t kDefaultIdleTimeoutMs = 15000;
+
 struct WsDoorOptions {
   std::string listen;                      // HOST:PORT; empty: no door.
   std::string cert_path;                   // PEM certificate chain: TLS (wss://) with key_path.
@@ -18,7 +20,9 @@ struct WsDoorOptions {
   int max_connections = 64;
   int max_connections_per_address = 8;
   int64_t handshake_timeout_ms = 5000;  // TCP accept -> upgrade done.
-  int64_t idle_timeout_ms = 0;          // No frame for this long: closed; 0: silence_timeout_ms.
+  /// No frame for this long: closed; 0: the larger of silence_timeout_ms
+  /// and kDefaultIdleTimeoutMs.
+  int64_t idle_timeout_ms = 0;
   size_t max_message_bytes = 256 * 1024;
   double message_rate_hz = 480;  // Per connection, every message.
   int message_burst = 64;
