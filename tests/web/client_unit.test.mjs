@@ -309,3 +309,26 @@ test("the WebXR skeleton: head, controllers, 25 joints per hand, held poses, y-u
   const turned = lib.xrToRoom({ position: [0, 0, -1], orientation: id }, [0, 0, 0], Math.PI / 2);
   [-1, 0, 0].forEach((x, i) => assert.ok(Math.abs(turned.position[i] - x) < 1e-12, `${turned.position}`));
 });
+
+test("a tracked object attaches with its proof and streams object poses; a refusal is final", async () => {
+  const server = await standIn((sock, msg) => {
+    if (msg.type === "object_attach") sock.send(JSON.stringify({ type: "object_attach_reply", object_id: msg.object_id, ok: msg.object_id === "ball", message: msg.object_id === "ball" ? "" : "no tracked object 'cup'" }));
+  });
+  const ball = new lib.NodeObjectTracker({ url: server.url, key: KEY, objectId: "ball" });
+  assert.equal(ball.publishPose({ position: [0, 0, 1], orientation: [1, 0, 0, 0] }), false);
+  await ball.connect();
+  const attach = server.received[0].msg;
+  assert.equal(attach.proof, await lib.makeProof(lib.nodeSubtle, lib.parseKey(KEY), "object_attach", server.challenges[0], "ball"));
+  assert.ok(ball.publishPose({ position: [0, 0, 1], orientation: [1, 0, 0, 0] }));
+  assert.ok(ball.publishPose({ position: [0, 0, 1.1], orientation: [1, 0, 0, 0] }));
+  await until(() => server.received.length === 3);
+  const [p0, p1] = server.received.slice(1).map((r) => r.msg);
+  assert.deepEqual([p0.type, p0.object_id, p0.seq, p1.seq, p0.session === ball.session], ["object_pose", "ball", 0, 1, true]);
+  assert.deepEqual(p1.position, [0, 0, 1.1]);
+  assert.ok(p1.utime > p0.utime);
+  ball.close();
+  const cup = new lib.NodeObjectTracker({ url: server.url, key: KEY, objectId: "cup" });
+  await assert.rejects(cup.connect(), (e) => e.code === "attach_refused" && /no tracked object/.test(e.message));
+  assert.throws(() => lib.decodeServerMessage('{"type":"object_attach_reply","object_id":"x","ok":"yes"}'), /ok/);
+  await server.close();
+});

@@ -42,6 +42,7 @@ const REQUIRED: Record<string, Record<string, "number" | "string" | "array" | "b
   tracker_pose: { client_id: "string", seq: "number", position: "array", orientation: "array" },
   object_pose: { object_id: "string", position: "array", orientation: "array" },
   error: { code: "string", message: "string" },
+  object_attach_reply: { object_id: "string", ok: "boolean" },
 };
 
 /**

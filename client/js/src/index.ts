@@ -12,3 +12,4 @@ export * from "./viewer.js";
 export * from "./scene_mesh.js";
 export * from "./pose_math.js";
 export * from "./xr_skeleton.js";
+export * from "./object_tracker.js";

@@ -6,6 +6,7 @@ import WebSocket from "ws";
 import type { ConnectionOptions, SocketFactory, SocketLike } from "./connection.js";
 import { LiveClient, LiveClientOptions } from "./live_client.js";
 import { Viewer } from "./viewer.js";
+import { ObjectTracker, ObjectTrackerOptions } from "./object_tracker.js";
 import { DEFAULT_MAX_MESSAGE_BYTES } from "./protocol.js";
 import type { SubtleLike } from "./proof.js";
 
@@ -44,6 +45,12 @@ export class NodeLiveClient extends LiveClient {
 
 export class NodeViewer extends Viewer {
   constructor(options: ConnectionOptions & NodeSocketOptions) {
+    super(withNode(options));
+  }
+}
+
+export class NodeObjectTracker extends ObjectTracker {
+  constructor(options: ObjectTrackerOptions & NodeSocketOptions) {
     super(withNode(options));
   }
 }
