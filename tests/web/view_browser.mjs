@@ -10,7 +10,9 @@
 //   2. 16 more avatars stream the walk at 90 Hz for a few seconds: every one
 //      is drawn, the page applied their poses; frames per second are logged
 //      (never asserted: a timing).
-//   node view_browser.mjs BASE_URL KEY_FILE SKELETON POSES_30HZ EXPECTED POSES_90HZ WORK_DIR
+//   3. in a second room with the shared world on (SHARED_BASE_URL), a tracked
+//      object attached and posed: the page draws its mesh where it was put.
+//   node view_browser.mjs BASE_URL KEY_FILE SKELETON POSES_30HZ EXPECTED POSES_90HZ WORK_DIR SHARED_BASE_URL
 import assert from "node:assert/strict";
 import { readFileSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
@@ -21,7 +23,7 @@ import { decodePng } from "./png.mjs";
 const jsDir = process.env.SWEPTCCD_JS_DIR;
 const lib = await import(pathToFileURL(path.join(jsDir, "dist", "node.js")).href);
 const puppeteer = createRequire(path.join(jsDir, "package.json"))("puppeteer-core");
-const [base, keyFile, skeletonFile, poses30File, expectedFile, poses90File, work] = process.argv.slice(2);
+const [base, keyFile, skeletonFile, poses30File, expectedFile, poses90File, work, sharedBase] = process.argv.slice(2);
 const key = readFileSync(keyFile, "utf8").trim();
 const skeleton = JSON.parse(readFileSync(skeletonFile, "utf8"));
 const poses30 = lib.parsePoseLines(readFileSync(poses30File, "utf8"));
@@ -170,12 +172,23 @@ try {
     }
     await sleep(Math.max(0, t0 + k * period - Date.now()));
   }
+  // A client the daemon closed (slow_reader: this process could not read its
+  // answers in time on a busy machine) has re-joined by itself: one more pose
+  // each, so every avatar has a pose to draw.
+  const rejoins = load.reduce((n, c) => n + c.rejoins, 0);
+  for (let t = 0; !load.every((c) => c.joined) && t < 10000; t += 20) await sleep(20);
+  const p = poses90[k % poses90.length];
+  load.forEach((c, i) => {
+    const dx = (i % 4) * 0.7 - 1.0, dy = Math.floor(i / 4) * 0.7 - 1.0;
+    c.publishPose({ utime: poses90[0].utime + Math.round(k * period * 1000), seq: k, position: p.position.map((q) => [q[0] + dx, q[1] + dy, q[2]]), orientation: p.orientation });
+  });
+  await page.waitForFunction(() => __sweptccdView.avatars().filter((a) => a.client_id.startsWith("load") && a.midpoints.length > 0).length === 16, { timeout: 10000 });
   const counts1 = await page.evaluate(() => __sweptccdView.counts());
   const sent = load.reduce((n, c) => n + c.sentPoses, 0);
   const sorted = [...fpsLog].sort((a, b) => a - b);
   log(`16 avatars at 90 Hz for ${seconds} s (+1 still): ${sent} poses sent, page received ${counts1.poses_received - counts0.poses_received}` +
       ` (latest-wins forwarding), applied ${counts1.poses_applied - counts0.poses_applied}; fps per second ${fpsLog.map((f) => f.toFixed(1)).join(" ")}` +
-      ` (median ${sorted[Math.floor(sorted.length / 2)]?.toFixed(1)}, min ${sorted[0]?.toFixed(1)}; SwiftShader on this machine's CPUs, logged, not asserted)`);
+      ` (median ${sorted[Math.floor(sorted.length / 2)]?.toFixed(1)}, min ${sorted[0]?.toFixed(1)}; SwiftShader on this machine's CPUs, logged, not asserted); ${rejoins} re-joins`);
   assert.ok(counts1.poses_applied > counts0.poses_applied + 16, "the page applied no poses of the 16 avatars");
   await page.evaluate(() => { __sweptccdView.fitToAvatars(); __sweptccdView.showEnvironment(false); __sweptccdView.showOverlays(false); });
   const f1 = await page.evaluate(() => __sweptccdView.frames());
@@ -194,6 +207,38 @@ try {
     assert.ok(hit >= 0.8 * on.length, `${a.id}: only ${hit} of ${on.length} capsule midpoints drawn`);
   }
   log(`all ${loaded.length} streaming avatars drawn in the screenshot`);
+  // 3. A tracked object in the shared-world room.
+  // A tracked object: attached with its proof (the room key), posed beside
+  // the known avatar; the page draws its scene mesh there.
+  const page2 = await browser.newPage();
+  page2.on("pageerror", (e) => pageErrors.push(`shared room: ${e.message}`));
+  await page2.setViewport({ width: 1024, height: 640, deviceScaleFactor: 1 });
+  await page2.goto(`${sharedBase}/#key=${key}`, { timeout: 15000 });
+  await page2.waitForFunction(() => window.__sweptccdView?.ready(), { timeout: 15000 });
+  const box = new lib.NodeObjectTracker({ url: sharedBase.replace(/^http/, "ws") + "/ws", key, objectId: "box" });
+  clients.push(box);
+  await box.connect();
+  const beside = [poses30[1].position[0][0] + 0.6, poses30[1].position[0][1], poses30[1].position[0][2]];
+  assert.ok(box.publishPose({ position: beside, orientation: [1, 0, 0, 0] }));
+  await page2.waitForFunction(() => __sweptccdView.objects().some((o) => o.object_id === "box" && o.visible), { timeout: 5000 });
+  await page2.evaluate(() => { __sweptccdView.showEnvironment(false); __sweptccdView.showOverlays(false); });
+  const f2 = await page2.evaluate(() => __sweptccdView.frames());
+  await page2.waitForFunction((f) => __sweptccdView.frames() > f + 2, { timeout: 10000 }, f2);
+  const obj = (await page2.evaluate(() => __sweptccdView.objects())).find((o) => o.object_id === "box");
+  assert.deepEqual(obj.position, beside);
+  const shot3 = await page2.screenshot({ type: "png" });
+  writeFileSync(path.join(work, "tracked_object.png"), shot3);
+  const img3 = decodePng(Buffer.from(shot3));
+  assert.ok(onCanvas(obj.pixel), `the box projects off the canvas: ${obj.pixel}`);
+  const boxPx = img3.pixel(obj.pixel[0], obj.pixel[1]);
+  assert.ok(!isBackground(boxPx), `the tracked object is not drawn at ${obj.pixel.map(Math.round)}: ${boxPx}`);
+  // A control: 60 px beside it, background.
+  const side = img3.pixel(Math.min(obj.pixel[0] + 60, img3.width - 1), obj.pixel[1]);
+  assert.ok(isBackground(side), `beside the box is not background: ${side}`);
+  log(`shared-world room: tracked object box drawn at pixel ${obj.pixel.slice(0, 2).map(Math.round)} (colour ${boxPx}), background beside it`);
+  box.close();
+  await page2.close();
+
   assert.deepEqual(pageErrors, [], "the page reported errors");
 } finally {
   for (const c of clients) c.close();

@@ -595,6 +595,8 @@ export interface ViewHook {
   showEnvironment(on: boolean): void;
   /** Hide or show the HTML panels and labels over the canvas. */
   showOverlays(on: boolean): void;
+  /** Tracked objects: id, scene mesh, drawn or not (no pose yet), position and its pixel. */
+  objects(): { object_id: string; scene_index: number; visible: boolean; position: Vec3; pixel: [number, number, boolean] }[];
   /** Points the camera at the avatars (false: none posed yet). */
   fitToAvatars(): boolean;
   /** Poses received and poses applied to the instanced meshes. */
@@ -623,6 +625,12 @@ const hook: ViewHook = {
   contacts: () => allContacts.map((c) => ({ ...c, pixel: project(c.point) })),
   holdMarkers: (on) => { holdMarkers = on; },
   fitToAvatars: () => fitToAvatars(),
+  objects: () =>
+    [...objectIds.entries()].map(([id, index]) => {
+      const mesh = objectMeshes.get(index);
+      const p: Vec3 = mesh ? [mesh.position.x, mesh.position.y, mesh.position.z] : [0, 0, 0];
+      return { object_id: id, scene_index: index, visible: !!mesh?.visible, position: p, pixel: project(p) };
+    }),
   showEnvironment: (on) => { envGroup.visible = on; },
   showOverlays: (on) => {
     for (const el of [statusEl, document.getElementById("clients")!, stripEl, labelsEl]) el.style.visibility = on ? "" : "hidden";
