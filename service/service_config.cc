@@ -292,7 +292,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
               {"listen", "cert", "key", "allow_origins", "view_dir", "max_connections",
                "max_connections_per_address", "handshake_timeout_ms", "idle_timeout_ms",
                "max_message_bytes", "message_rate_hz", "message_burst", "send_queue_messages",
-               "send_queue_bytes", "max_objects_per_connection", "max_scene_triangles"},
+               "send_queue_bytes", "max_objects_per_connection", "max_scene_triangles",
+               "socket_send_buffer_bytes"},
               where);
     WsDoorOptions& o = c.websocket;
     const std::string in = where + ".";
@@ -330,6 +331,10 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
     if (w["max_objects_per_connection"]) {
       o.max_objects_per_connection =
           Get<int>(w["max_objects_per_connection"], in + "max_objects_per_connection");
+    }
+    if (w["socket_send_buffer_bytes"]) {
+      o.socket_send_buffer_bytes =
+          Get<int>(w["socket_send_buffer_bytes"], in + "socket_send_buffer_bytes");
     }
     if (w["max_scene_triangles"]) {
       o.max_scene_triangles = Get<int>(w["max_scene_triangles"], in + "max_scene_triangles");

@@ -935,6 +935,7 @@ void WsDoor::Impl::OnAccept(tcp::socket socket) {
   ++per_address[address];
   auto slot = std::unique_ptr<ConnSlot>(new ConnSlot{this, address});
   socket.set_option(tcp::no_delay(true), ec);
+  socket.set_option(net::socket_base::send_buffer_size(options.socket_send_buffer_bytes), ec);
   PlainStream stream(std::move(socket));
   stream.expires_after(std::chrono::milliseconds(options.handshake_timeout_ms));
   if (tls) {

@@ -59,6 +59,9 @@ std::string ValidateWsDoorOptions(const WsDoorOptions& o) {
   if (o.send_queue_messages < 1 || o.send_queue_bytes < 1024) {
     return "websocket: send_queue_messages must be >= 1 and send_queue_bytes >= 1024";
   }
+  if (o.socket_send_buffer_bytes < 4096) {
+    return "websocket.socket_send_buffer_bytes must be >= 4096";
+  }
   if (o.max_objects_per_connection < 0 || o.max_scene_triangles < 1) {
     return "websocket: max_objects_per_connection must be >= 0 and max_scene_triangles >= 1";
   }

@@ -30,6 +30,9 @@ struct WsDoorOptions {
   size_t send_queue_bytes = 4 << 20;
   int max_objects_per_connection = 16;
   int max_scene_triangles = 200000;  // The display meshes together, at most.
+  /// The kernel's send buffer of each accepted socket (SO_SNDBUF), bytes:
+  /// bounds what a reader that stalls holds besides the send queue.
+  int socket_send_buffer_bytes = 256 * 1024;
 };
 
 /// "" when `options` is consistent (ports, positive caps, cert and key
