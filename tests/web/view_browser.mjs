@@ -14,6 +14,7 @@
 //      object attached and posed: the page draws its mesh where it was put.
 //   node view_browser.mjs BASE_URL KEY_FILE SKELETON POSES_30HZ EXPECTED POSES_90HZ WORK_DIR SHARED_BASE_URL
 import assert from "node:assert/strict";
+import { spawn } from "node:child_process";
 import { readFileSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import path from "node:path";
@@ -43,6 +44,7 @@ const browser = await puppeteer.launch({
          `--user-data-dir=${path.join(work, "chromium-profile")}`],
 });
 const clients = [];
+const children = [];
 try {
   const page = await browser.newPage();
   const pageErrors = [];
@@ -150,7 +152,16 @@ try {
     load.push(c);
   }
   await Promise.all(load.map((c) => c.connect()));
-  await page.waitForFunction(() => __sweptccdView.avatars().length === 17, { timeout: 10000 });
+  // An avatar through the LCM door, in the same room.
+  const lcm = spawn(process.env.SWEPTCCD_BIN, ["simulate-tracker", "--lcm-url", process.env.SWEPTCCD_LCM_URL, "--poses", poses30File,
+    "--skeleton", skeletonFile, "--join", "--key", keyFile, "--client", "lcmwalker", "--offset", "2.4", "0", "0", "--loop", "0",
+    "--rebase-utime", "--duration", "30"], { stdio: ["ignore", "ignore", "pipe"] });
+  let lcmErr = "";
+  lcm.stderr.on("data", (d) => { lcmErr += d; });
+  children.push(lcm);
+  await page.waitForFunction(() => __sweptccdView.avatars().some((a) => a.client_id === "lcmwalker" && a.door === "lcm" && a.midpoints.length > 0), { timeout: 10000 })
+    .catch((e) => { throw new Error(`no lcmwalker in the view (${e.message}); simulate-tracker: ${lcmErr.slice(0, 300)}`); });
+  await page.waitForFunction(() => __sweptccdView.avatars().length >= 17, { timeout: 10000 });
   const counts0 = await page.evaluate(() => __sweptccdView.counts());
   const seconds = Number(process.env.VIEW_LOAD_SECONDS || 6);
   const period = 1000 / 90;
@@ -186,7 +197,7 @@ try {
   const counts1 = await page.evaluate(() => __sweptccdView.counts());
   const sent = load.reduce((n, c) => n + c.sentPoses, 0);
   const sorted = [...fpsLog].sort((a, b) => a - b);
-  log(`16 avatars at 90 Hz for ${seconds} s (+1 still): ${sent} poses sent, page received ${counts1.poses_received - counts0.poses_received}` +
+  log(`16 avatars at 90 Hz for ${seconds} s (+1 still, +1 over LCM at 30 Hz): ${sent} poses sent, page received ${counts1.poses_received - counts0.poses_received}` +
       ` (latest-wins forwarding), applied ${counts1.poses_applied - counts0.poses_applied}; fps per second ${fpsLog.map((f) => f.toFixed(1)).join(" ")}` +
       ` (median ${sorted[Math.floor(sorted.length / 2)]?.toFixed(1)}, min ${sorted[0]?.toFixed(1)}; SwiftShader on this machine's CPUs, logged, not asserted); ${rejoins} re-joins`);
   assert.ok(counts1.poses_applied > counts0.poses_applied + 16, "the page applied no poses of the 16 avatars");
@@ -198,15 +209,15 @@ try {
   writeFileSync(path.join(work, "sixteen_avatars.png"), shot2);
   const img2 = decodePng(Buffer.from(shot2));
   // (known, silent since its two poses, may have been dropped by the silence timeout.)
-  const loaded = state2.filter((a) => a.id.startsWith("load"));
-  assert.equal(loaded.length, 16, "the room lost load avatars");
+  const loaded = state2.filter((a) => a.id.startsWith("load") || a.id === "lcmwalker");
+  assert.equal(loaded.length, 17, "the room lost streaming avatars");
   for (const a of loaded) {
     const on = a.px.filter(onCanvas);
     assert.ok(on.length >= 10, `${a.id}: ${on.length} capsule midpoints on the canvas`);
     const hit = on.filter((p) => !isBackground(img2.pixel(p[0], p[1]))).length;
     assert.ok(hit >= 0.8 * on.length, `${a.id}: only ${hit} of ${on.length} capsule midpoints drawn`);
   }
-  log(`all ${loaded.length} streaming avatars drawn in the screenshot`);
+  log(`all ${loaded.length} streaming avatars drawn in the screenshot (16 WebSocket, 1 LCM)`);
   // 3. A tracked object in the shared-world room.
   // A tracked object: attached with its proof (the room key), posed beside
   // the known avatar; the page draws its scene mesh there.
@@ -241,6 +252,7 @@ try {
 
   assert.deepEqual(pageErrors, [], "the page reported errors");
 } finally {
+  for (const c of children) c.kill("SIGTERM");
   for (const c of clients) c.close();
   await browser.close();
 }

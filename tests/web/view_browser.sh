@@ -60,7 +60,7 @@ daemon2=$!
 trap 'kill -KILL $daemon $daemon2 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" ready || { cat "$work/daemon.log" >&2; fail "no daemon"; }
 wait_for "$work/daemon2.log" ready || { cat "$work/daemon2.log" >&2; fail "no shared-world daemon"; }
-SWEPTCCD_JS_DIR=$js HOME=$work "$node" "$(dirname "$0")/view_browser.mjs" "http://127.0.0.1:$port" \
+SWEPTCCD_BIN=$sweptccd SWEPTCCD_LCM_URL=$SWEPTCCD_URL SWEPTCCD_JS_DIR=$js HOME=$work "$node" "$(dirname "$0")/view_browser.mjs" "http://127.0.0.1:$port" \
   "$work/room.key" "$work/skeleton.json" "$work/poses.jsonl" "$work/expected.jsonl" "$work/poses90.jsonl" "$work" \
   "http://127.0.0.1:$port2" \
   || { tail -20 "$work/daemon.log" "$work/daemon2.log" >&2; fail "view_browser.mjs (screenshots in $work)"; }

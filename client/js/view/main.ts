@@ -587,7 +587,7 @@ export interface ViewHook {
   /** A world point's canvas pixel (CSS px) and whether it is in front of the camera. */
   project(x: number, y: number, z: number): [number, number, boolean];
   /** Every avatar's id and the world midpoints of its capsules in its drawn pose (empty before a pose). */
-  avatars(): { client_id: string; color: string; midpoints: Vec3[] }[];
+  avatars(): { client_id: string; door: string; color: string; midpoints: Vec3[] }[];
   /** Contacts shown so far (oldest first, at most 1000), with their marker's pixel now. */
   contacts(): (ContactInfo & { pixel: [number, number, boolean] })[];
   /** Keep markers (no fading) for a screenshot; hide or show the environment meshes. */
@@ -620,7 +620,7 @@ const hook: ViewHook = {
         const e = linkEnds(a, i);
         if (e) midpoints.push([(e[0][0] + e[1][0]) / 2, (e[0][1] + e[1][1]) / 2, (e[0][2] + e[1][2]) / 2]);
       }
-      return { client_id: id, color: `#${a.color.getHexString()}`, midpoints };
+      return { client_id: id, door: a.door, color: `#${a.color.getHexString()}`, midpoints };
     }),
   contacts: () => allContacts.map((c) => ({ ...c, pixel: project(c.point) })),
   holdMarkers: (on) => { holdMarkers = on; },
