@@ -24,7 +24,7 @@ wait_for "$work/daemon.log" ready || { cat "$work/daemon.log" >&2; fail "no daem
 export SWEPTCCD_JS_DIR=$js
 url="ws://127.0.0.1:$port/ws"
 "$node" "$(dirname "$0")/js_client_e2e.mjs" "$url" "$work/room.key" "$work/skeleton.json" \
-  "$work/poses.jsonl" "$work/expected.jsonl" || { tail -20 "$work/daemon.log" >&2; fail "js_client_e2e.mjs"; }
+  "$work/poses.jsonl" "$work/expected.jsonl" || { tail -n 20 "$work/daemon.log" >&2; fail "js_client_e2e.mjs"; }
 # The Node example: joins, streams 40 poses at 60 Hz, prints contacts, leaves.
 "$node" "$js/examples/node_example.mjs" --url "$url" --key "$work/room.key" --id example \
   --skeleton "$work/skeleton.json" --poses "$work/poses.jsonl" --rate 60 --count 40 > "$work/example.out" \
@@ -32,7 +32,8 @@ url="ws://127.0.0.1:$port/ws"
 cat "$work/example.out"
 grep -q "^joined as example: session" "$work/example.out" || fail "the example did not join"
 grep -q "contact at s" "$work/example.out" || fail "the example printed no contact"
-grep -q "^left: 40 poses sent, 39 events" "$work/example.out" || fail "the example lost events"
+# (Pairs the daemon skips when behind are fine: the answers reach the last pose.)
+grep -q "^left: 40 poses sent, [0-9]* events answering up to seq 39," "$work/example.out" || fail "the example lost the last answer"
 kill -TERM $daemon
 wait $daemon || true
 echo "js_client_e2e: passed"

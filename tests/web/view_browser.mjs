@@ -201,7 +201,7 @@ try {
       ` (latest-wins forwarding), applied ${counts1.poses_applied - counts0.poses_applied}; fps per second ${fpsLog.map((f) => f.toFixed(1)).join(" ")}` +
       ` (median ${sorted[Math.floor(sorted.length / 2)]?.toFixed(1)}, min ${sorted[0]?.toFixed(1)}; SwiftShader on this machine's CPUs, logged, not asserted); ${rejoins} re-joins`);
   assert.ok(counts1.poses_applied > counts0.poses_applied + 16, "the page applied no poses of the 16 avatars");
-  await page.evaluate(() => { __sweptccdView.fitToAvatars(); __sweptccdView.showEnvironment(false); __sweptccdView.showOverlays(false); });
+  await page.evaluate(() => { __sweptccdView.freezePoses(true); __sweptccdView.fitToAvatars(); __sweptccdView.showEnvironment(false); __sweptccdView.showOverlays(false); });
   const f1 = await page.evaluate(() => __sweptccdView.frames());
   await page.waitForFunction((f) => __sweptccdView.frames() > f + 2, { timeout: 10000 }, f1);
   const state2 = await page.evaluate(() => __sweptccdView.avatars().map((a) => ({ id: a.client_id, px: a.midpoints.map((m) => __sweptccdView.project(...m)) })));

@@ -63,7 +63,7 @@ wait_for "$work/daemon2.log" ready || { cat "$work/daemon2.log" >&2; fail "no sh
 SWEPTCCD_BIN=$sweptccd SWEPTCCD_LCM_URL=$SWEPTCCD_URL SWEPTCCD_JS_DIR=$js HOME=$work "$node" "$(dirname "$0")/view_browser.mjs" "http://127.0.0.1:$port" \
   "$work/room.key" "$work/skeleton.json" "$work/poses.jsonl" "$work/expected.jsonl" "$work/poses90.jsonl" "$work" \
   "http://127.0.0.1:$port2" \
-  || { tail -20 "$work/daemon.log" "$work/daemon2.log" >&2; fail "view_browser.mjs (screenshots in $work)"; }
+  || { tail -n 20 "$work/daemon.log" "$work/daemon2.log" >&2; fail "view_browser.mjs (screenshots in $work)"; }
 kill -TERM $daemon $daemon2
 wait $daemon || true
 wait $daemon2 || true

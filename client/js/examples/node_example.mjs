@@ -43,9 +43,11 @@ const client = new NodeLiveClient({
 const names = client.skeleton.link_name;
 let events = 0;
 let contacts = 0;
+let lastSeq = -1; // seq1 of the latest answer (the daemon may skip pairs when behind: latest-wins)
 client.on("joined", ({ reply, rejoin }) => console.log(`${rejoin ? "re-joined" : "joined"} as ${reply.client_id}: session ${reply.session}`));
 client.on("contact", (e) => {
   events++;
+  lastSeq = e.seq1;
   if (e.result !== RESULT.CONTACT) return;
   contacts++;
   const w = e.contacts[0];
@@ -72,7 +74,7 @@ for (let k = 0; k < poses.length; k++) {
   await sleep(Math.max(0, start + due - Date.now()));
   client.publishPose({ utime: p.utime, position: p.position, orientation: p.orientation });
 }
-// The last pair's answer, then leave.
-for (let waited = 0; events < poses.length - 1 && waited < 3000; waited += 20) await sleep(20);
+// The last pose's answer, then leave.
+for (let waited = 0; lastSeq < poses.length - 1 && waited < 3000; waited += 20) await sleep(20);
 client.leave();
-console.log(`left: ${poses.length} poses sent, ${events} events, ${contacts} contacts`);
+console.log(`left: ${poses.length} poses sent, ${events} events answering up to seq ${lastSeq}, ${contacts} contacts`);

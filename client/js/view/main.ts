@@ -71,6 +71,8 @@ interface Avatar {
   links: number;
   color: THREE.Color;
   latest: TrackerPose | null;
+  /** The pose the instanced meshes show now. */
+  drawn: TrackerPose | null;
   dirty: boolean;
   door: string;
 }
@@ -113,6 +115,7 @@ function setRoom(room: Room): void {
       links: c.link_name!.length,
       color: new THREE.Color(PALETTE[i % PALETTE.length]),
       latest: prev?.latest ?? null,
+      drawn: null,
       dirty: true,
       door: typeof c.door === "string" ? c.door : "",
     });
@@ -149,20 +152,23 @@ const tmpS = new THREE.Vector3();
 const tmpM = new THREE.Matrix4();
 const zAxis = new THREE.Vector3(0, 0, 1);
 
-/** World ends of link i of avatar a in its latest pose. */
-function linkEnds(a: Avatar, i: number): [Vec3, Vec3] | null {
-  const p = a.latest;
+/** World ends of link i of avatar a in its latest pose (or the one drawn). */
+function linkEnds(a: Avatar, i: number, drawn = false): [Vec3, Vec3] | null {
+  const p = drawn ? a.drawn : a.latest;
   if (!p || p.position.length !== a.links) return null;
   const c = a.client;
   return [transformPoint(p.position[i], p.orientation[i], c.a![i]), transformPoint(p.position[i], p.orientation[i], c.b![i])];
 }
 
 let posesApplied = 0;
+let frozen = false;
 function applyPoses(): void {
+  if (frozen) return;
   let changed = false;
   for (const a of avatars.values()) {
     if (!a.dirty) continue;
     a.dirty = false;
+    a.drawn = a.latest;
     changed = true;
     posesApplied++;
     for (let i = 0; i < a.links; i++) {
@@ -249,7 +255,7 @@ function fitToAvatars(): boolean {
   const box = new THREE.Box3();
   for (const a of avatars.values()) {
     for (let i = 0; i < a.links; i++) {
-      const e = linkEnds(a, i);
+      const e = linkEnds(a, i, true);
       if (!e) continue;
       const r = a.client.radius![i];
       for (const p of e) {
@@ -586,7 +592,7 @@ export interface ViewHook {
   state(): string;
   /** A world point's canvas pixel (CSS px) and whether it is in front of the camera. */
   project(x: number, y: number, z: number): [number, number, boolean];
-  /** Every avatar's id and the world midpoints of its capsules in its drawn pose (empty before a pose). */
+  /** Every avatar's id and the world midpoints of its capsules in the pose drawn (empty before one). */
   avatars(): { client_id: string; door: string; color: string; midpoints: Vec3[] }[];
   /** Contacts shown so far (oldest first, at most 1000), with their marker's pixel now. */
   contacts(): (ContactInfo & { pixel: [number, number, boolean] })[];
@@ -599,6 +605,8 @@ export interface ViewHook {
   objects(): { object_id: string; scene_index: number; visible: boolean; position: Vec3; pixel: [number, number, boolean] }[];
   /** Points the camera at the avatars (false: none posed yet). */
   fitToAvatars(): boolean;
+  /** Stop (or go on) applying new poses: the avatars stand still for a screenshot. */
+  freezePoses(on: boolean): void;
   /** Poses received and poses applied to the instanced meshes. */
   counts(): { poses_received: number; poses_applied: number; avatars: number; markers: number };
   /** The background colour (RGB). */
@@ -617,7 +625,7 @@ const hook: ViewHook = {
     [...avatars.entries()].map(([id, a]) => {
       const midpoints: Vec3[] = [];
       for (let i = 0; i < a.links; i++) {
-        const e = linkEnds(a, i);
+        const e = linkEnds(a, i, true);
         if (e) midpoints.push([(e[0][0] + e[1][0]) / 2, (e[0][1] + e[1][1]) / 2, (e[0][2] + e[1][2]) / 2]);
       }
       return { client_id: id, door: a.door, color: `#${a.color.getHexString()}`, midpoints };
@@ -625,6 +633,7 @@ const hook: ViewHook = {
   contacts: () => allContacts.map((c) => ({ ...c, pixel: project(c.point) })),
   holdMarkers: (on) => { holdMarkers = on; },
   fitToAvatars: () => fitToAvatars(),
+  freezePoses: (on) => { frozen = on; },
   objects: () =>
     [...objectIds.entries()].map(([id, index]) => {
       const mesh = objectMeshes.get(index);
