@@ -101,7 +101,7 @@ test("skeletons become join arrays; bad ones are refused naming the link", () =>
 
 // A stand-in server on loopback: says hello with a fresh challenge, records
 // what it receives, and answers as `answer` says.
-async function standIn(answer) {
+async function standIn(answer, limits = { max_message_bytes: 262144 }) {
   const wss = new WebSocketServer({ host: "127.0.0.1", port: 0, handleProtocols: (p) => (p.has("sweptccd.v1") ? "sweptccd.v1" : false) });
   await new Promise((r) => wss.once("listening", r));
   const server = { received: [], sockets: [], challenges: [], wss, url: `ws://127.0.0.1:${wss.address().port}/ws` };
@@ -110,7 +110,7 @@ async function standIn(answer) {
     const challenge = (n++).toString(16).padStart(64, "a");
     server.sockets.push(sock);
     server.challenges.push(challenge);
-    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 7, security: "signed", challenge, server_utime: Date.now() * 1000, limits: { max_message_bytes: 262144 } }));
+    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 7, security: "signed", challenge, server_utime: Date.now() * 1000, limits }));
     sock.on("message", (data) => {
       const msg = JSON.parse(String(data));
       server.received.push({ conn: server.sockets.indexOf(sock), challenge, msg });
@@ -330,5 +330,43 @@ test("a tracked object attaches with its proof and streams object poses; a refus
   const cup = new lib.NodeObjectTracker({ url: server.url, key: KEY, objectId: "cup" });
   await assert.rejects(cup.connect(), (e) => e.code === "attach_refused" && /no tracked object/.test(e.message));
   assert.throws(() => lib.decodeServerMessage('{"type":"object_attach_reply","object_id":"x","ok":"yes"}'), /ok/);
+  await server.close();
+});
+
+test("keep-alive: a quiet connection pings every third of idle_timeout_ms; pong gives the round trip", async () => {
+  const server = await standIn((sock, msg) => {
+    if (msg.type === "subscribe") sock.send(JSON.stringify({ type: "room", clients: [], objects: [], environment: [] }));
+    if (msg.type === "ping") sock.send(JSON.stringify({ type: "pong", utime: msg.utime, server_utime: Date.now() * 1000 }));
+  }, { idle_timeout_ms: 300 });
+  const v = new lib.NodeViewer({ url: server.url, key: KEY });
+  const pongs = [];
+  v.on("pong", (p) => pongs.push(p));
+  await v.connect();
+  await until(() => pongs.length >= 2, 3000);
+  const pings = server.received.filter((r) => r.msg.type === "ping");
+  assert.ok(pings.length >= 2 && Number.isSafeInteger(pings[0].msg.utime));
+  assert.ok(pongs[0].roundTripMs >= 0 && pongs[0].roundTripMs < 1000);
+  v.close();
+  await server.close();
+});
+
+test("a session the service forgot (unknown_client) joins again on a new connection", async () => {
+  let forgotten = false;
+  const server = await standIn((sock, msg, conn) => {
+    if (msg.type === "join_request") accept(sock, msg, 200 + conn);
+    if (msg.type === "tracker_pose" && !forgotten) {
+      forgotten = true;
+      sock.send(JSON.stringify({ type: "rejection", utime: 1, client_id: "alice", seq: msg.seq, reason: "unknown_client", message: "no live client 'alice'", suppressed: 0 }));
+    }
+  });
+  const c = new lib.NodeLiveClient({ url: server.url, clientId: "alice", skeleton: SKELETON, key: KEY, backoffInitialMs: 20 });
+  const joined = [];
+  c.on("joined", (j) => joined.push(j));
+  await c.connect();
+  c.publishPose(POSE);
+  await until(() => joined.length === 2);
+  assert.equal(c.session, 201);
+  assert.equal(server.sockets.length, 2);
+  c.close();
   await server.close();
 });

@@ -43,6 +43,7 @@ const REQUIRED: Record<string, Record<string, "number" | "string" | "array" | "b
   object_pose: { object_id: "string", position: "array", orientation: "array" },
   error: { code: "string", message: "string" },
   object_attach_reply: { object_id: "string", ok: "boolean" },
+  pong: { utime: "number", server_utime: "number" },
 };
 
 /**

@@ -6,7 +6,7 @@
 import { DecodeError, decodeServerMessage, encodeClientMessage, escapeForDisplay } from "./codec.js";
 import { Emitter } from "./emitter.js";
 import { ProofKind, SubtleLike, makeProof, parseKey } from "./proof.js";
-import { DEFAULT_MAX_MESSAGE_BYTES, ErrorMessage, Hello, PROTOCOL_VERSION, SUBPROTOCOL, ServerMessage } from "./protocol.js";
+import { DEFAULT_MAX_MESSAGE_BYTES, ErrorMessage, Hello, PROTOCOL_VERSION, Pong, SUBPROTOCOL, ServerMessage } from "./protocol.js";
 
 /** What this library needs of a WebSocket (the browser's, or the `ws` package's). */
 export interface SocketLike {
@@ -59,6 +59,8 @@ export interface ConnectionEvents {
   /** A frame this library refused (it is dropped; the connection goes on). */
   protocolError: string;
   close: CloseInfo;
+  /** The answer to a keep-alive ping: its round trip and the server's clock. */
+  pong: { pong: Pong; roundTripMs: number };
 }
 
 /** A failure that reconnecting cannot fix (a refused join, a wrong key, a replaced id). */
@@ -87,6 +89,8 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
   private handshakeTimer: ReturnType<typeof setTimeout> | null = null;
   private stopped = false;
   private readyWaiters: { resolve: () => void; reject: (e: Error) => void }[] = [];
+  private keepAlive: ReturnType<typeof setInterval> | null = null;
+  private lastSentMs = 0;
   /** Connections opened (the first and every reconnect). */
   connects = 0;
 
@@ -163,6 +167,7 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
       return false;
     }
     s.send(text);
+    this.lastSentMs = Date.now();
     return true;
   }
 
@@ -267,6 +272,7 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
         return;
       }
       this.hello = msg;
+      this.startKeepAlive(msg);
       this.emit("hello", msg);
       this.armHandshakeTimer("no answer to the join/subscribe");
       this.onHello(msg).catch((e) => {
@@ -279,6 +285,10 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
       this.emit("protocolError", `${msg.type} before hello: ignored`);
       return;
     }
+    if (msg.type === "pong") {
+      this.emit("pong", { pong: msg, roundTripMs: msg.utime > 0 ? Date.now() - msg.utime / 1000 : NaN });
+      return;
+    }
     if (msg.type === "error") {
       this.emit("serverError", msg);
       if (FINAL_CODES.has(msg.code)) {
@@ -289,10 +299,31 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
     this.onMessage(msg);
   }
 
+  /**
+   * The server closes a connection that sends nothing for idle_timeout_ms
+   * (docs/WEBSOCKET.md section 3): a `ping` whenever nothing else was sent
+   * for a third of it (a viewer, a paused avatar).
+   */
+  private startKeepAlive(hello: Hello): void {
+    this.stopKeepAlive();
+    const idle = hello.limits?.idle_timeout_ms;
+    const periodMs = Math.max(100, (typeof idle === "number" && idle > 0 ? idle : 15000) / 3);
+    this.lastSentMs = Date.now();
+    this.keepAlive = setInterval(() => {
+      if (Date.now() - this.lastSentMs >= periodMs * 0.9) this.sendMessage({ type: "ping", utime: Date.now() * 1000 });
+    }, periodMs / 2);
+  }
+
+  private stopKeepAlive(): void {
+    if (this.keepAlive) clearInterval(this.keepAlive);
+    this.keepAlive = null;
+  }
+
   private dropped(code: number, reason: string): void {
     const s = this.socket;
     if (s) this.detach(s);
     this.socket = null;
+    this.stopKeepAlive();
     this.clearHandshakeTimer();
     this.onDrop();
     if (this.stopped) return;
@@ -333,6 +364,7 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
   }
 
   private clearTimers(): void {
+    this.stopKeepAlive();
     this.clearHandshakeTimer();
     if (this.timer) clearTimeout(this.timer);
     this.timer = null;

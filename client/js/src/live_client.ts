@@ -220,6 +220,11 @@ export class LiveClient extends Connection<LiveClientEvents> {
         return;
       case "rejection":
         this.emit("rejection", msg);
+        // The service dropped this session (silent for silence_timeout_ms):
+        // join again on a new connection (docs/WEBSOCKET.md section 3).
+        if (msg.client_id === this.clientId && (msg.reason === "unknown_client" || msg.reason === "stale_session") && this.joinedValue) {
+          this.restart(`the service forgot this session (${msg.reason}); joining again`);
+        }
         return;
       case "status":
         this.emit("status", msg);

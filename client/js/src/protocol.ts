@@ -293,6 +293,13 @@ export interface ObjectAttachReply {
   message: string;
 }
 
+/** The answer to a `ping` (docs/WEBSOCKET.md section 5). */
+export interface Pong {
+  type: "pong";
+  utime: number;
+  server_utime: number;
+}
+
 /** Every message a server sends that this library knows. */
 export type ServerMessage =
   | Hello
@@ -305,7 +312,8 @@ export type ServerMessage =
   | TrackerPose
   | ObjectPose
   | ErrorMessage
-  | ObjectAttachReply;
+  | ObjectAttachReply
+  | Pong;
 
 /** The message types a server may send (anything else is refused by decode). */
 export const SERVER_TYPES: ReadonlySet<string> = new Set([
@@ -320,4 +328,5 @@ export const SERVER_TYPES: ReadonlySet<string> = new Set([
   "object_pose",
   "error",
   "object_attach_reply",
+  "pong",
 ]);
