@@ -100,11 +100,23 @@ function ensureCapacity(links: number): void {
   }
 }
 
+const isNum = (x: unknown) => typeof x === "number" && Number.isFinite(x);
+const isVec = (v: unknown, n: number) => Array.isArray(v) && v.length === n && v.every(isNum);
+
+function wellFormedSkeleton(c: RoomClient): boolean {
+  if (!c || typeof c.client_id !== "string" || !Array.isArray(c.link_name)) return false;
+  const n = c.link_name.length;
+  return n >= 1 && n <= 256 && [c.parent, c.a, c.b, c.radius].every((x) => Array.isArray(x) && x.length === n) &&
+    c.a!.every((v) => isVec(v, 3)) && c.b!.every((v) => isVec(v, 3)) && c.radius!.every((r) => isNum(r) && r > 0);
+}
+
 function setRoom(room: Room): void {
   const old = avatars;
   const next = new Map<string, Avatar>();
   let slot = 0;
-  const usable = room.clients.filter((c) => Array.isArray(c.link_name) && Array.isArray(c.parent) && Array.isArray(c.a) && Array.isArray(c.b) && Array.isArray(c.radius));
+  // Hostile input: only well-formed skeletons are drawn (equal lengths, 1-256
+  // links, finite numbers, radius > 0).
+  const usable = (Array.isArray(room.clients) ? room.clients : []).filter(wellFormedSkeleton);
   const total = usable.reduce((n, c) => n + c.link_name!.length, 0);
   ensureCapacity(total);
   usable.forEach((c, i) => {
@@ -163,10 +175,11 @@ function linkEnds(a: Avatar, i: number, drawn = false): [Vec3, Vec3] | null {
 let posesApplied = 0;
 let frozen = false;
 function applyPoses(): void {
-  if (frozen) return;
   let changed = false;
   for (const a of avatars.values()) {
-    if (!a.dirty) continue;
+    // Frozen: avatars keep the pose drawn; one not drawn yet (new, or
+    // re-slotted by a room update) still gets its latest.
+    if (!a.dirty || (frozen && a.drawn)) continue;
     a.dirty = false;
     a.drawn = a.latest;
     changed = true;
@@ -294,7 +307,7 @@ const latestObjectPose = new Map<string, ObjectPose>();
 function applyObjectPoses(): void {
   for (const [id, p] of latestObjectPose) {
     const mesh = objectMeshes.get(objectIds.get(id) ?? -1);
-    if (!mesh) continue;
+    if (!mesh || !isVec(p.position, 3) || !isVec(p.orientation, 4)) continue;
     mesh.visible = true;
     mesh.position.fromArray(p.position);
     const [w, x, y, z] = p.orientation;
@@ -361,6 +374,7 @@ function removeMarker(i: number): void {
 function onContact(e: ContactEvent): void {
   if (e.result !== 1 || !Array.isArray(e.contacts) || e.contacts.length === 0) return;
   const w = e.contacts[0];
+  if (!w || !isVec(w.point_env, 3)) return;
   const env = sceneInfo.envNames[w.object] ?? `object ${w.object}`;
   addContact({
     kind: "environment",
@@ -373,9 +387,10 @@ function onContact(e: ContactEvent): void {
 }
 
 function onShared(s: SharedContact): void {
-  for (const entry of s.entries ?? []) {
+  for (const entry of Array.isArray(s.entries) ? s.entries : []) {
     if (entry.result !== 1 || !Array.isArray(entry.contacts) || entry.contacts.length === 0) continue;
     const w = entry.contacts[0];
+    if (!w || !isVec(w.point_link, 3) || !isVec(w.point_other, 3)) continue;
     const other = entry.entity_kind === 0 ? `${entry.entity}.${linkName(entry.entity, w.other_link)}` : entry.entity;
     const p: Vec3 = [(w.point_link[0] + w.point_other[0]) / 2, (w.point_link[1] + w.point_other[1]) / 2, (w.point_link[2] + w.point_other[2]) / 2];
     addContact({
@@ -467,6 +482,7 @@ let fps = 0;
 let fpsFrames = 0;
 let fpsSince = performance.now();
 function frame(now: number): void {
+  requestAnimationFrame(frame); // first: a bad message must not stop the loop
   requestPoses();
   resize();
   applyPoses();
@@ -482,7 +498,6 @@ function frame(now: number): void {
     fpsSince = now;
     updateStatusLine();
   }
-  requestAnimationFrame(frame);
 }
 
 // ---- the connection (in a worker: view/socket_worker.ts) ----
@@ -510,6 +525,7 @@ function keyFromPage(): string | undefined {
 function onPose(p: TrackerPose): void {
   const a = avatars.get(p.client_id);
   if (!a || !Array.isArray(p.position) || p.position.length !== a.links || !Array.isArray(p.orientation) || p.orientation.length !== a.links) return;
+  if (!p.position.every((v) => isVec(v, 3)) || !p.orientation.every((q) => isVec(q, 4))) return;
   a.latest = p; // applied at the next frame
   a.dirty = true;
 }
