@@ -91,4 +91,29 @@ upgrade() {
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
+# TLS (wss://, https://) on every address: a self-signed certificate; the
+# scene over HTTPS, the upgrade with the door's own https origin; plain HTTP
+# on the TLS port gets no answer.
+tls=18768
+openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=127.0.0.1 \
+  -keyout "$work/door.key" -out "$work/door.crt" 2> /dev/null
+"$service" --config "$work/sweptccd.yaml" --ws-listen 0.0.0.0:$tls --ws-cert "$work/door.crt" \
+  --ws-key "$work/door.key" 2> "$work/daemon_tls.log" &
+daemon=$!
+wait_for "$work/daemon_tls.log" "websocket door on wss://0.0.0.0:$tls"
+curl -sfk "https://127.0.0.1:$tls/scene.json" | grep -q '"kind":"object"'
+curl -sf --cacert "$work/door.crt" "https://127.0.0.1:$tls/" | grep -q view
+base="https://127.0.0.1:$tls"
+[ "$(upgrade -k -H 'Sec-WebSocket-Protocol: sweptccd.v1' -H "Origin: https://127.0.0.1:$tls")" = 101 ]
+[ "$(upgrade -k -H 'Sec-WebSocket-Protocol: sweptccd.v1' -H "Origin: http://127.0.0.1:$tls")" = 403 ]
+! curl -s --max-time 3 "http://127.0.0.1:$tls/scene.json" | grep -q kind
+# A key that does not match is refused at start, one line.
+openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=x -keyout "$work/other.key" \
+  -out "$work/other.crt" 2> /dev/null
+kill -TERM $daemon
+wait $daemon
+status=0
+"$service" --config "$work/sweptccd.yaml" --ws-listen 0.0.0.0:$tls --ws-cert "$work/door.crt" \
+  --ws-key "$work/other.key" 2> "$work/bad_tls.log" || status=$?
+[ "$status" = 2 ] && [ "$(wc -l < "$work/bad_tls.log")" = 1 ] && grep -q -- "--ws-key" "$work/bad_tls.log"
 echo "e2e_websocket: passed"
