@@ -9,11 +9,14 @@
 # seeing a WebSocket client) are among them. Then the door's HTTP side: the
 # scene, 404s for traversal, the refusals of the handshake; and the daemon
 # refuses plain ws:// on a non-loopback address in signed mode (one line).
-#   e2e_websocket.sh SWEPTCCD SERVICE SHARED_WORLD_TOOL SOURCE_DIR WORK_DIR
+# Then reconnection (docs/WEBSOCKET.md section 9): the same client instance
+# on a new connection takes its id over, and the C++ client rides a daemon
+# restart (reconnect with backoff, join again, answered again).
+#   e2e_websocket.sh SWEPTCCD SERVICE SHARED_WORLD_TOOL SOURCE_DIR WORK_DIR WS_ATTACK_TOOL
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
 enter_private_netns "$@"
-sweptccd=$1 service=$2 tool=$3 work=$5
+sweptccd=$1 service=$2 tool=$3 work=$5 wstool=$6
 rm -rf "$work"
 mkdir -p "$work/view"
 setup_loopback_multicast
@@ -88,9 +91,24 @@ upgrade() {
 [ "$(upgrade -H 'Sec-WebSocket-Protocol: sweptccd.v1' -H 'Origin: https://evil.example')" = 403 ]
 [ "$(upgrade -H 'Sec-WebSocket-Protocol: sweptccd.v1' -H 'Origin: https://app.example')" = 101 ]
 [ "$(upgrade -H 'Sec-WebSocket-Protocol: x, sweptccd.v1' -H "Origin: http://127.0.0.1:$port")" = 101 ]
+# The same client instance again on a new connection: replaced.
+"$wstool" replace $port "$work/room.key" | tee "$work/replace.out"
+grep -q "^ok replace:" "$work/replace.out"
+# The C++ client across a daemon restart.
+"$wstool" reconnect $port "$work/room.key" "$work/arm.json" > "$work/reconnect.out" &
+client=$!
+wait_for "$work/reconnect.out" "joined instance"
+sleep 0.5
 kill -TERM $daemon
 wait $daemon
 grep -q stopped "$work/daemon.log"
+"$service" --config "$work/sweptccd.yaml" 2> "$work/daemon2.log" &
+daemon=$!
+wait $client || { cat "$work/reconnect.out"; exit 1; }
+cat "$work/reconnect.out"
+[ "$(grep -c "joined instance" "$work/reconnect.out")" -ge 2 ]
+kill -TERM $daemon
+wait $daemon
 # TLS (wss://, https://) on every address: a self-signed certificate; the
 # scene over HTTPS, the upgrade with the door's own https origin; plain HTTP
 # on the TLS port gets no answer.

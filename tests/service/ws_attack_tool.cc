@@ -17,6 +17,11 @@
 //   frames): closed by the door (slow_reader) within seconds.
 // Prints one line per attack ("ok NAME: ..." or "FAIL NAME: ..."); exit 0
 // when all hold.
+//
+//   ws_attack_tool replace PORT ROOM_KEY_FILE
+//   ws_attack_tool reconnect PORT ROOM_KEY_FILE SKELETON
+// Not attacks: a reconnection taking its id over (`replaced`), and the C++
+// client across a daemon restart (docs/WEBSOCKET.md section 9).
 
 #include <poll.h>
 #include <sys/socket.h>
@@ -28,13 +33,16 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "msgs/signing.h"
 #include "service/ws/proof.h"
+#include "sweptccd_client/ws_client.h"
 
 namespace {
 
@@ -287,9 +295,115 @@ void NeverReads() {
              (closed ? "closed by the door after " + std::to_string(s) + " s" : "still open"));
 }
 
+std::string JoinText(const std::string& id, int64_t nonce, const std::string& challenge,
+                     const sweptccd::MacKey& key) {
+  const std::string proof =
+      sweptccd::ws::ComputeProof(key, sweptccd::ws::ProofKind::kJoin, challenge, id);
+  const auto now = std::chrono::duration_cast<std::chrono::microseconds>(
+                       std::chrono::system_clock::now().time_since_epoch())
+                       .count();
+  return R"({"type":"join_request","utime":)" + std::to_string(now) + R"(,"client_id":")" + id +
+         R"(","nonce":)" + std::to_string(nonce) +
+         R"(,"motion":0,"eps_s":0,"delta_m":0,"link_name":["a"],"parent":[-1],)"
+         R"("a":[[0,0,0]],"b":[[0,0.1,0]],"radius":[0.05],"proof":")" +
+         proof + "\"}";
+}
+
+// A second connection of the same client instance (same id and nonce, a
+// valid proof) takes the id over: the first gets `replaced` and is closed,
+// the second a greater session. Another nonce meanwhile: id_in_use.
+int Replace(const sweptccd::MacKey& key) {
+  net::io_context ioc;
+  std::string c1, c2, c3;
+  auto first = Open(ioc, "127.0.0.9", &c1);
+  first->write(net::buffer(JoinText("rita", 42, c1, key)));
+  const std::string r1 = ReadUntil(*first, "join_reply", "", 5000);
+  const auto j1 = nlohmann::json::parse(r1.empty() ? "{}" : r1);
+  auto other = Open(ioc, "127.0.0.9", &c3);
+  other->write(net::buffer(JoinText("rita", 43, c3, key)));
+  const std::string r3 = ReadUntil(*other, "join_reply", "", 5000);
+  auto second = Open(ioc, "127.0.0.9", &c2);
+  second->write(net::buffer(JoinText("rita", 42, c2, key)));
+  const std::string r2 = ReadUntil(*second, "join_reply", "", 5000);
+  const auto j2 = nlohmann::json::parse(r2.empty() ? "{}" : r2);
+  const bool replaced = !ReadUntil(*first, "error", "replaced", 3000).empty();
+  const bool ok = j1.value("reason", -1) == 0 && j2.value("reason", -1) == 0 &&
+                  j2.value("session", int64_t{0}) > j1.value("session", int64_t{0}) && replaced &&
+                  r3.find("\"reason_name\":\"id_in_use\"") != std::string::npos;
+  Report(ok, "replace",
+         "the same id and nonce again: " +
+             std::string(replaced ? "old one replaced" : "old one kept") + ", sessions " +
+             std::to_string(j1.value("session", int64_t{0})) + " -> " +
+             std::to_string(j2.value("session", int64_t{0})) +
+             "; another nonce: " + (r3.find("id_in_use") != std::string::npos ? "id_in_use" : r3));
+  return g_failures.load() == 0 ? 0 : 1;
+}
+
+// WsLiveClient across a daemon restart: joined, poses answered; the script
+// restarts the daemon; the client reconnects with backoff, joins again (a
+// new instance) and its poses are answered again. Prints progress lines the
+// script waits for.
+int Reconnect(const sweptccd::MacKey& key, const std::string& skeleton_path) {
+  using namespace sweptccd;
+  WsLiveClient::Options o;
+  o.port = static_cast<uint16_t>(g_port);
+  o.client_id = "ria";
+  o.room_key = key;
+  o.skeleton = LoadSkeletonFile(skeleton_path);
+  WsLiveClient client(o);
+  std::mutex mutex;
+  std::set<int64_t> instances;
+  int64_t events = 0, events_after = 0;
+  client.OnJoinReply([&](const join_reply_t& r) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (r.reason == 0) instances.insert(r.instance);
+    std::printf("reconnect: joined instance %lld session %lld\n",
+                static_cast<long long>(r.instance), static_cast<long long>(r.session));
+    std::fflush(stdout);
+  });
+  client.OnContact([&](const contact_event_t&) {
+    std::lock_guard<std::mutex> lock(mutex);
+    ++events;
+    if (instances.size() >= 2) ++events_after;
+  });
+  if (!client.Join().ok()) {
+    Report(false, "reconnect", "first join failed");
+    return 1;
+  }
+  const auto t0 = Clock::now();
+  int64_t seq = 0;
+  while (Clock::now() - t0 < std::chrono::seconds(20)) {
+    tracker_pose_t p{};
+    p.utime = 1000000 + seq * 20000;
+    p.seq = seq++;
+    for (int l = 0; l < o.skeleton->num_links(); ++l) {
+      p.position.push_back({0, 1, 0.3 * l});
+      p.orientation.push_back({1, 0, 0, 0});
+    }
+    client.PublishPose(p);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::lock_guard<std::mutex> lock(mutex);
+    if (instances.size() >= 2 && events_after >= 10) break;
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  Report(instances.size() >= 2 && events_after >= 10 && client.reconnects() >= 1, "reconnect",
+         std::to_string(instances.size()) + " daemon instances joined, " +
+             std::to_string(client.reconnects()) + " reconnects, " + std::to_string(events_after) +
+             " events after the restart");
+  return g_failures.load() == 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 4 && std::string(argv[1]) == "replace") {
+    g_port = std::stoi(argv[2]);
+    return Replace(sweptccd::LoadKeyFile(argv[3]));
+  }
+  if (argc >= 5 && std::string(argv[1]) == "reconnect") {
+    g_port = std::stoi(argv[2]);
+    return Reconnect(sweptccd::LoadKeyFile(argv[3]), argv[4]);
+  }
   if (argc != 6) {
     std::fprintf(stderr,
                  "usage: ws_attack_tool PORT ROOM_KEY PER_ADDRESS HANDSHAKE_MS MAX_MESSAGE\n");
