@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <unordered_map>
@@ -120,7 +121,9 @@ Scene BuildScene(const Environment& environment, const std::vector<SceneObject>&
     const int env_count = environment.num_objects();
     if (static_cast<int>(i) < env_count) {
       m.kind = "environment";
-      m.name = environment.object(static_cast<int>(i)).name;
+      // The file name only: a browser has no business with server paths.
+      m.name =
+          std::filesystem::path(environment.object(static_cast<int>(i)).name).filename().string();
     } else {
       m.kind = "object";
       m.object_id = objects[i - static_cast<size_t>(env_count)].object_id;

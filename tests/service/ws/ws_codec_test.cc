@@ -629,7 +629,7 @@ TEST(WsScene, WeldsAndDecimatesUnderTheCap) {
     }
   }
   Environment env;
-  env.AddMesh(mesh, "grid.obj");
+  env.AddMesh(mesh, "/srv/scenes/grid.obj");
   const Scene full = BuildScene(env, {}, 100000);
   ASSERT_EQ(full.meshes.size(), 1u);
   EXPECT_EQ(full.meshes[0].triangles, 3200u);
@@ -649,6 +649,7 @@ TEST(WsScene, WeldsAndDecimatesUnderTheCap) {
   const nlohmann::json j = nlohmann::json::parse(small.json);
   EXPECT_EQ(j["max_triangles"], 500);
   EXPECT_EQ(j["meshes"][0]["kind"], "environment");
+  EXPECT_EQ(j["meshes"][0]["name"], "grid.obj");  // No server path.
   EXPECT_EQ(j["meshes"][0]["url"], "/scene/0.bin");
   EXPECT_EQ(j["meshes"][0]["source_triangles"], 3200);
 }
