@@ -63,6 +63,8 @@ for name in flood slowloris oversized oversized_fragmented fragmented malformed 
   grep -q "^ok $name:" "$work/attack.out"
 done
 grep -q "closing with slow_reader" "$work/daemon.log"
+# Both oversized messages (whole and fragmented) closed by the door for size.
+[ "$(grep -c "message over 65536 bytes: closed (1009)" "$work/daemon.log")" -ge 2 ]
 grep -q "join of 'mallory' with a wrong proof" "$work/daemon.log"
 kill -TERM $daemon
 wait $daemon

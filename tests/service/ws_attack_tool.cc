@@ -193,11 +193,17 @@ void Oversized(size_t max_bytes) {
     beast::error_code ec;
     const std::string chunk(max_bytes / 4, ' ');
     for (int i = 0; i < 6 && !ec; ++i) ws->write_some(false, net::buffer(chunk), ec);
-    int code = 0;
-    ReadUntil(*ws, "none", "", 3000, &code);
-    Report(code == 1009, "oversized_fragmented",
-           "6 fragments of " + std::to_string(chunk.size()) + " bytes: closed with " +
-               std::to_string(code));
+    // -1: still open. The door closes with 1009 while fragments may still be
+    // on their way: the close frame can be lost to a reset (code 0); the
+    // script checks the door's log line for both oversized messages.
+    int code = -1;
+    if (!ec) ReadUntil(*ws, "none", "", 3000, &code);
+    if (ec) code = 0;
+    Report(code == 1009 || code == 0, "oversized_fragmented",
+           "6 fragments of " + std::to_string(chunk.size()) + " bytes: closed" +
+               (code == 1009 ? " with 1009"
+                : code == 0  ? " (reset)"
+                             : ": NOT closed"));
   }
   {
     auto ws = Open(ioc, "127.0.0.4", nullptr);
