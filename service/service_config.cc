@@ -269,6 +269,65 @@ ObjectSpec ParseObject(const YAML::Node& e, const std::string& where, const std:
 
 }  // namespace
 
+// The WebSocket door (docs/WEBSOCKET.md "Configuration"): websocket.*.
+void ParseWebsocket(const YAML::Node& w, const std::string& at, const std::string& base_dir,
+                    ServiceConfig* config) {
+  ServiceConfig& c = *config;
+  const std::string where = at + "websocket";
+  if (!w.IsMap()) throw InputError(where + ": expected a mapping");
+  CheckKeys(w,
+            {"listen", "cert", "key", "allow_origins", "view_dir", "max_connections",
+             "max_connections_per_address", "handshake_timeout_ms", "idle_timeout_ms",
+             "max_message_bytes", "message_rate_hz", "message_burst", "send_queue_messages",
+             "send_queue_bytes", "max_objects_per_connection", "max_scene_triangles",
+             "socket_send_buffer_bytes"},
+            where);
+  WsDoorOptions& o = c.websocket;
+  const std::string in = where + ".";
+  if (w["listen"]) o.listen = Get<std::string>(w["listen"], in + "listen");
+  if (w["cert"]) o.cert_path = Resolve(base_dir, Get<std::string>(w["cert"], in + "cert"));
+  if (w["key"]) o.key_path = Resolve(base_dir, Get<std::string>(w["key"], in + "key"));
+  if (w["allow_origins"]) o.allow_origins = StringList(w["allow_origins"], in + "allow_origins");
+  if (w["view_dir"]) {
+    o.view_dir = Resolve(base_dir, Get<std::string>(w["view_dir"], in + "view_dir"));
+  }
+  if (w["max_connections"])
+    o.max_connections = Get<int>(w["max_connections"], in + "max_connections");
+  if (w["max_connections_per_address"]) {
+    o.max_connections_per_address =
+        Get<int>(w["max_connections_per_address"], in + "max_connections_per_address");
+  }
+  if (w["handshake_timeout_ms"]) {
+    o.handshake_timeout_ms = Get<int64_t>(w["handshake_timeout_ms"], in + "handshake_timeout_ms");
+  }
+  if (w["idle_timeout_ms"]) {
+    o.idle_timeout_ms = Get<int64_t>(w["idle_timeout_ms"], in + "idle_timeout_ms");
+  }
+  if (w["max_message_bytes"]) {
+    o.max_message_bytes = Get<size_t>(w["max_message_bytes"], in + "max_message_bytes");
+  }
+  if (w["message_rate_hz"])
+    o.message_rate_hz = Get<double>(w["message_rate_hz"], in + "message_rate_hz");
+  if (w["message_burst"]) o.message_burst = Get<int>(w["message_burst"], in + "message_burst");
+  if (w["send_queue_messages"]) {
+    o.send_queue_messages = Get<size_t>(w["send_queue_messages"], in + "send_queue_messages");
+  }
+  if (w["send_queue_bytes"]) {
+    o.send_queue_bytes = Get<size_t>(w["send_queue_bytes"], in + "send_queue_bytes");
+  }
+  if (w["max_objects_per_connection"]) {
+    o.max_objects_per_connection =
+        Get<int>(w["max_objects_per_connection"], in + "max_objects_per_connection");
+  }
+  if (w["socket_send_buffer_bytes"]) {
+    o.socket_send_buffer_bytes =
+        Get<int>(w["socket_send_buffer_bytes"], in + "socket_send_buffer_bytes");
+  }
+  if (w["max_scene_triangles"]) {
+    o.max_scene_triangles = Get<int>(w["max_scene_triangles"], in + "max_scene_triangles");
+  }
+}
+
 ServiceConfig ParseServiceConfig(const std::string& text, const std::string& source,
                                  const std::string& base_dir) {
   YAML::Node root;
@@ -286,7 +345,8 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
        "backend",          "gpu_device",         "require_hardware", "workers",
        "status_period_s",  "log_level",          "clients",          "security",
        "max_mesh_bytes",   "max_links",          "max_pose_rate_hz", "max_object_pose_rate_hz",
-       "max_live_clients", "silence_timeout_ms", "shared_world",     "objects"},
+       "max_live_clients", "silence_timeout_ms", "shared_world",     "objects",
+       "websocket"},
       source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
@@ -313,6 +373,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
           ParseObject(objects[i], at + "objects[" + std::to_string(i) + "]", base_dir));
     }
   }
+  if (const YAML::Node w = root["websocket"]) ParseWebsocket(w, at, base_dir, &c);
   return c;
 }
 
@@ -353,6 +414,9 @@ void ValidateServiceConfig(const ServiceConfig& c) {
     }
     if (!ids.insert(s.id).second)
       throw InputError("configuration: duplicate client id '" + s.id + "'");
+  }
+  if (const std::string problem = ValidateWsDoorOptions(c.websocket); !problem.empty()) {
+    throw InputError("configuration: " + problem);
   }
   for (const ObjectSpec& o : c.objects) {
     if (!IsValidClientId(o.id)) {
