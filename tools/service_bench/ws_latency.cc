@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/percentile.h"
 #include "sweptccd_client/live_client.h"
 #include "sweptccd_client/ws_client.h"
 
@@ -42,12 +43,6 @@ struct Samples {
   }
 };
 
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t i = std::min(v.size() - 1, static_cast<size_t>(p * static_cast<double>(v.size())));
-  return v[i];
-}
 
 }  // namespace
 
