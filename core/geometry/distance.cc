@@ -225,10 +225,9 @@ bool InsideTriangle(const Eigen::Vector3d& q, const Eigen::Vector3d& n, const Ei
 Eigen::Vector3d ProjectOntoPlane(const Eigen::Vector3d& p, const Eigen::Vector3d& n,
                                  const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                                  const Eigen::Vector3d& c) {
-  const Eigen::Vector3d& base =
-      (p - a).squaredNorm() <= (p - b).squaredNorm()
-          ? ((p - a).squaredNorm() <= (p - c).squaredNorm() ? a : c)
-          : ((p - b).squaredNorm() <= (p - c).squaredNorm() ? b : c);
+  const Eigen::Vector3d& base = (p - a).squaredNorm() <= (p - b).squaredNorm()
+                                    ? ((p - a).squaredNorm() <= (p - c).squaredNorm() ? a : c)
+                                    : ((p - b).squaredNorm() <= (p - c).squaredNorm() ? b : c);
   return p - n * n.dot(p - base);
 }
 
@@ -331,8 +330,8 @@ bool UnitAxis(const Eigen::Vector3d& v, Eigen::Vector3d* unit) {
 // the segment passes an edge, whose nearest points neither the plane nor
 // the edge normals separate.
 bool ApartAcrossAnEdge(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1,
-                       const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                       const Eigen::Vector3d& c, double apart) {
+                       const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                       double apart) {
   const Eigen::Vector3d d = s1 - s0;
   const Eigen::Vector3d e[3] = {b - a, c - b, a - c};
   for (const Eigen::Vector3d& edge : e) {
@@ -369,6 +368,35 @@ bool ApartFromNearestVertex(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1
 }  // namespace
 
 namespace {
+
+// SegmentTriangleSteps' end tests with a radius, for a proper triangle with
+// StableUnitNormal n: whether an end of the segment is within radius of the
+// triangle (its face or its edges). Stops at the first that is.
+bool EndsWithin(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& n,
+                const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                double radius) {
+  // The ends' projections, kept for their face tests below (the same
+  // bits as ClosestPointOnProperTriangle's).
+  Eigen::Vector3d q[2];
+  bool inside[2];
+  const Eigen::Vector3d* ends[2] = {&s0, &s1};
+  for (int k = 0; k < 2; ++k) {
+    q[k] = ProjectOntoPlane(*ends[k], n, a, b, c);
+    inside[k] = InsideTriangle(q[k], n, a, b, c);
+    if (inside[k] && std::sqrt((*ends[k] - q[k]).squaredNorm()) <= radius) return true;
+  }
+  // Only whether the least distance is at most radius matters: the
+  // square root is nondecreasing, so it is, exactly when one of the
+  // distances considered is. Stop at the first.
+  for (int k = 0; k < 2; ++k) {
+    const Eigen::Vector3d& p = *ends[k];
+    const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
+    const Eigen::Vector3d& face =
+        inside[k] && (q[k] - p).squaredNorm() <= (edge - p).squaredNorm() ? q[k] : edge;
+    if (std::sqrt((p - face).squaredNorm()) <= radius) return true;
+  }
+  return false;
+}
 
 // SegmentTriangleDistance's steps. With `radius` (not null) only *within
 // matters: whether the distance is at most *radius. It may then be decided
@@ -440,37 +468,15 @@ SegmentTriangleResult SegmentTriangleSteps(const Eigen::Vector3d& s0, const Eige
     if (radius != nullptr) {
       // Refusals, each only where the distance exceeds radius by more than
       // the margin, so none can change what the steps below decide.
-      if (refusals && (BeyondAnEdge(s0, s1, n, a, b, c, apart) ||
-                       ApartAcrossAnEdge(s0, s1, a, b, c, apart) ||
-                       ApartFromNearestVertex(s0, s1, a, b, c, apart))) {
+      if (refusals &&
+          (BeyondAnEdge(s0, s1, n, a, b, c, apart) || ApartAcrossAnEdge(s0, s1, a, b, c, apart) ||
+           ApartFromNearestVertex(s0, s1, a, b, c, apart))) {
         *within = false;
         return best;
       }
-      // The ends' projections, kept for their face tests below (the same
-      // bits as ClosestPointOnProperTriangle's).
-      Eigen::Vector3d q[2];
-      bool inside[2];
-      const Eigen::Vector3d* ends[2] = {&s0, &s1};
-      for (int k = 0; k < 2; ++k) {
-        q[k] = ProjectOntoPlane(*ends[k], n, a, b, c);
-        inside[k] = InsideTriangle(q[k], n, a, b, c);
-        if (inside[k] && std::sqrt((*ends[k] - q[k]).squaredNorm()) <= *radius) {
-          *within = true;
-          return best;
-        }
-      }
-      // Only whether the least distance is at most radius matters: the
-      // square root is nondecreasing, so it is, exactly when one of the
-      // distances considered is. Stop at the first.
-      for (int k = 0; k < 2; ++k) {
-        const Eigen::Vector3d& p = *ends[k];
-        const Eigen::Vector3d edge = ClosestPointOnEdges(p, a, b, c);
-        const Eigen::Vector3d& face =
-            inside[k] && (q[k] - p).squaredNorm() <= (edge - p).squaredNorm() ? q[k] : edge;
-        if (std::sqrt((p - face).squaredNorm()) <= *radius) {
-          *within = true;
-          return best;
-        }
+      if (EndsWithin(s0, s1, n, a, b, c, *radius)) {
+        *within = true;
+        return best;
       }
     } else {
       // Segment endpoints against the face (ClosestPointOnTriangle: the

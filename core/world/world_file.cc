@@ -137,7 +137,10 @@ int64_t ReadObjectPoseFile(const std::string& path, const std::string& what,
   return unusable;
 }
 
-LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
+namespace {
+
+// The world file's JSON, checked to be an object.
+json ParseWorldDocument(const std::string& path) {
   const std::string text = ReadFileBounded(path, kMaxJsonFileBytes, "world file",
                                            "a world file is at most a few MiB of JSON");
   if (const std::string nul = NulByteProblem(text); !nul.empty()) {
@@ -151,15 +154,27 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
   }
   if (!doc.is_object())
     throw InputError(path + ": expected a JSON object with \"avatars\", \"objects\", \"env\"");
-  const fs::path dir = fs::path(path).parent_path();
+  return doc;
+}
+
+// The arrays of a world file and the ids of its entities, checked before any
+// other file is read: malformed or duplicate ids are refused first.
+struct WorldEntries {
+  json avatars, objects, env;
+  std::vector<std::string> avatar_ids, object_ids;
+  std::vector<std::string> env_paths, env_written;  // Resolved, and as written.
+};
+
+WorldEntries CheckEntries(const json& doc, const std::string& path) {
   auto array_of = [&](const char* key) {
     if (!doc.contains(key) || doc[key].is_null()) return json::array();
     if (!doc[key].is_array()) throw InputError(path + ": \"" + key + "\" must be an array");
     return doc[key];
   };
-  const json avatars = array_of("avatars"), objects = array_of("objects"), env = array_of("env");
-
-  // Ids first: malformed or duplicate ids are refused before any file is read.
+  WorldEntries w;
+  w.avatars = array_of("avatars");
+  w.objects = array_of("objects");
+  w.env = array_of("env");
   std::map<std::string, std::string> seen;  // id -> where
   auto check_id = [&](const json& entry, const std::string& where) {
     if (!entry.is_object()) throw InputError(path + ": " + where + " must be an object");
@@ -175,137 +190,173 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
     }
     return id;
   };
-  std::vector<std::string> avatar_ids, object_ids;
-  for (size_t i = 0; i < avatars.size(); ++i)
-    avatar_ids.push_back(check_id(avatars[i], "avatars[" + std::to_string(i) + "]"));
-  for (size_t i = 0; i < objects.size(); ++i)
-    object_ids.push_back(check_id(objects[i], "objects[" + std::to_string(i) + "]"));
+  for (size_t i = 0; i < w.avatars.size(); ++i)
+    w.avatar_ids.push_back(check_id(w.avatars[i], "avatars[" + std::to_string(i) + "]"));
+  for (size_t i = 0; i < w.objects.size(); ++i)
+    w.object_ids.push_back(check_id(w.objects[i], "objects[" + std::to_string(i) + "]"));
+  return w;
+}
 
-  LoadedWorld out;
-  std::vector<std::string> env_paths, env_written;
-  for (size_t i = 0; i < env.size(); ++i) {
-    if (!env[i].is_string())
+// The static environment: env[i] resolved against the world file's folder.
+void LoadEnv(const std::string& path, const fs::path& dir, const WorldLoadOptions& options,
+             WorldEntries* w, LoadedWorld* out) {
+  for (size_t i = 0; i < w->env.size(); ++i) {
+    if (!w->env[i].is_string())
       throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
-    env_written.push_back(env[i].get<std::string>());
-    env_paths.push_back(Resolve(dir, env_written.back()));
-    out.files.emplace_back("env[" + std::to_string(i) + "]", env_paths.back());
+    w->env_written.push_back(w->env[i].get<std::string>());
+    w->env_paths.push_back(Resolve(dir, w->env_written.back()));
+    out->files.emplace_back("env[" + std::to_string(i) + "]", w->env_paths.back());
   }
-  out.env = Environment::LoadFiles(env_paths, options.mesh);
+  out->env = Environment::LoadFiles(w->env_paths, options.mesh);
+}
 
-  for (size_t i = 0; i < avatars.size(); ++i) {
-    const json& e = avatars[i];
-    const std::string where =
-        path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
-    AvatarEntity a;
-    a.id = avatar_ids[i];
-    const std::string role = where.substr(path.size() + 2);  // "avatars[i] ('id')".
-    const std::string skeleton_path = Resolve(dir, StringField(e, "skeleton", where));
-    out.files.emplace_back(role + " skeleton", skeleton_path);
-    a.skeleton = LoadSkeletonFile(skeleton_path, options.max_links);
-    const std::string motion = StringField(e, "motion", where, /*required=*/false);
-    if (!motion.empty()) {
-      const std::optional<MotionModel> m = ParseMotionModel(motion);
-      if (!m)
-        throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
-      a.motion = *m;
+AvatarEntity LoadAvatar(const json& e, const std::string& id, const std::string& where,
+                        const std::string& role, const fs::path& dir,
+                        const WorldLoadOptions& options, LoadedWorld* out) {
+  AvatarEntity a;
+  a.id = id;
+  const std::string skeleton_path = Resolve(dir, StringField(e, "skeleton", where));
+  out->files.emplace_back(role + " skeleton", skeleton_path);
+  a.skeleton = LoadSkeletonFile(skeleton_path, options.max_links);
+  const std::string motion = StringField(e, "motion", where, /*required=*/false);
+  if (!motion.empty()) {
+    const std::optional<MotionModel> m = ParseMotionModel(motion);
+    if (!m)
+      throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
+    a.motion = *m;
+  }
+  const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+  out->files.emplace_back(role + " poses", poses_path);
+  ReadAvatarPoses(poses_path, &a);
+  return a;
+}
+
+ObjectEntity LoadObject(const json& e, const std::string& id, const std::string& where,
+                        const std::string& role, const fs::path& dir,
+                        const WorldLoadOptions& options, LoadedWorld* out) {
+  ObjectEntity o;
+  o.id = id;
+  const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
+  out->files.emplace_back(role + " mesh", mesh_path);
+  auto mesh = std::make_shared<Environment>();
+  mesh->AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
+  o.mesh = std::move(mesh);
+  const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+  out->files.emplace_back(role + " poses", poses_path);
+  ReadObjectPoses(poses_path, &o);
+  return o;
+}
+
+// An ignore rule's "object": an index, a path as in "env", or "*" (-1);
+// refused when it names none.
+int ResolveEnvObject(const json& o, const WorldEntries& w, int num_objects,
+                     const std::string& where) {
+  int object = -2;
+  if (o.is_number_integer() || o.is_number_unsigned()) {
+    const int64_t v = o.get<int64_t>();
+    if (v >= 0 && v < num_objects) object = static_cast<int>(v);
+  } else if (o.is_string()) {
+    const std::string name = o.get<std::string>();
+    if (name == "*") object = -1;
+    for (size_t m = 0; m < w.env_written.size() && object == -2; ++m) {
+      if (name == w.env_written[m] || name == w.env_paths[m]) object = static_cast<int>(m);
     }
-    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
-    out.files.emplace_back(role + " poses", poses_path);
-    ReadAvatarPoses(poses_path, &a);
-    out.world.avatars.push_back(std::move(a));
   }
-  for (size_t i = 0; i < objects.size(); ++i) {
-    const json& e = objects[i];
-    const std::string where =
-        path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
-    ObjectEntity o;
-    o.id = object_ids[i];
-    const std::string role = where.substr(path.size() + 2);  // "objects[i] ('id')".
-    const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
-    out.files.emplace_back(role + " mesh", mesh_path);
-    auto mesh = std::make_shared<Environment>();
-    mesh->AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
-    o.mesh = std::move(mesh);
-    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
-    out.files.emplace_back(role + " poses", poses_path);
-    ReadObjectPoses(poses_path, &o);
-    out.world.objects.push_back(std::move(o));
+  if (object == -2) {
+    throw InputError(where + ": unknown environment object " + o.dump() +
+                     " (give an index, a path as in \"env\", or \"*\")");
   }
+  return object;
+}
 
-  // Filters, once every skeleton is known.
-  out.world.rules.resize(avatars.size());
-  for (size_t i = 0; i < avatars.size(); ++i) {
-    const Skeleton& skeleton = out.world.avatars[i].skeleton;
-    CollisionFilter filter(skeleton.num_links(), out.env.num_objects());
-    const json& e = avatars[i];
-    if (e.contains("ignore") && !e["ignore"].is_null()) {
-      if (!e["ignore"].is_array())
-        throw InputError(path + ": avatars[" + std::to_string(i) +
-                         "]: \"ignore\" must be an array");
-      const json& rules = e["ignore"];
-      for (size_t k = 0; k < rules.size(); ++k) {
-        const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] +
-                                  "') ignore[" + std::to_string(k) + "]";
-        const json& r = rules[k];
-        if (!r.is_object() || !r.contains("link") ||
-            (r.contains("object") == r.contains("entity"))) {
-          throw InputError(
-              where +
-              ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
-        }
-        const int link = ResolveLinkKey(r["link"], skeleton, where, "link");
-        if (r.contains("object")) {
-          const json& o = r["object"];
-          int object = -2;
-          if (o.is_number_integer() || o.is_number_unsigned()) {
-            const int64_t v = o.get<int64_t>();
-            if (v >= 0 && v < out.env.num_objects()) object = static_cast<int>(v);
-          } else if (o.is_string()) {
-            const std::string name = o.get<std::string>();
-            if (name == "*") object = -1;
-            for (size_t m = 0; m < env_written.size() && object == -2; ++m) {
-              if (name == env_written[m] || name == env_paths[m]) object = static_cast<int>(m);
-            }
-          }
-          if (object == -2) {
-            throw InputError(where + ": unknown environment object " + o.dump() +
-                             " (give an index, a path as in \"env\", or \"*\")");
-          }
-          filter.Ignore(link < 0 ? LinkIndex() : LinkIndex(link),
-                        object < 0 ? ObjectIndex() : ObjectIndex(object));
-          continue;
-        }
-        if (!r["entity"].is_string()) throw InputError(where + ": \"entity\" must be an id");
-        EntityRule rule;
-        rule.link = link;
-        rule.entity = r["entity"].get<std::string>();
-        if (r.contains("other_link")) {
-          int other = -1;
-          for (size_t b = 0; b < avatar_ids.size(); ++b) {
-            if (avatar_ids[b] == rule.entity) other = static_cast<int>(b);
-          }
-          for (const std::string& id : object_ids) {
-            if (id == rule.entity)
-              throw InputError(where + ": \"other_link\" given for object '" + id +
-                               "' (objects have no links)");
-          }
-          if (other >= 0) {
-            rule.other_link = ResolveLinkKey(r["other_link"], out.world.avatars[other].skeleton,
-                                             where, "other_link");
-          } else if (r["other_link"].is_number_integer() && r["other_link"].get<int64_t>() >= 0) {
-            rule.other_link =
-                static_cast<int>(std::min<int64_t>(r["other_link"].get<int64_t>(), 1 << 30));
-          } else if (!(r["other_link"].is_string())) {
-            throw InputError(where + ": \"other_link\" must be a link name, an index or \"*\"");
-          } else if (r["other_link"].get<std::string>() != "*") {
-            rule.entity.clear();  // Names a link of an entity that never appears: never applies.
-          }
-        }
-        if (!rule.entity.empty()) out.world.rules[i].push_back(rule);
+// An ignore rule towards another entity ({"link", "entity"[, "other_link"]});
+// its entity is cleared when it can never apply.
+EntityRule ParseEntityRule(const json& r, int link, const WorldEntries& w,
+                           const std::vector<AvatarEntity>& avatars, const std::string& where) {
+  if (!r["entity"].is_string()) throw InputError(where + ": \"entity\" must be an id");
+  EntityRule rule;
+  rule.link = link;
+  rule.entity = r["entity"].get<std::string>();
+  if (!r.contains("other_link")) return rule;
+  int other = -1;
+  for (size_t b = 0; b < w.avatar_ids.size(); ++b) {
+    if (w.avatar_ids[b] == rule.entity) other = static_cast<int>(b);
+  }
+  for (const std::string& id : w.object_ids) {
+    if (id == rule.entity)
+      throw InputError(where + ": \"other_link\" given for object '" + id +
+                       "' (objects have no links)");
+  }
+  const json& m = r["other_link"];
+  if (other >= 0) {
+    rule.other_link = ResolveLinkKey(m, avatars[other].skeleton, where, "other_link");
+  } else if (m.is_number_integer() && m.get<int64_t>() >= 0) {
+    rule.other_link = static_cast<int>(std::min<int64_t>(m.get<int64_t>(), 1 << 30));
+  } else if (!(m.is_string())) {
+    throw InputError(where + ": \"other_link\" must be a link name, an index or \"*\"");
+  } else if (m.get<std::string>() != "*") {
+    rule.entity.clear();  // Names a link of an entity that never appears: never applies.
+  }
+  return rule;
+}
+
+// Avatar i's "ignore" rules, once every skeleton is known: its filter against
+// the static environment, and its rules towards other entities.
+void ParseAvatarRules(size_t i, const std::string& path, const WorldEntries& w, LoadedWorld* out) {
+  const Skeleton& skeleton = out->world.avatars[i].skeleton;
+  CollisionFilter filter(skeleton.num_links(), out->env.num_objects());
+  const json& e = w.avatars[i];
+  if (e.contains("ignore") && !e["ignore"].is_null()) {
+    if (!e["ignore"].is_array())
+      throw InputError(path + ": avatars[" + std::to_string(i) + "]: \"ignore\" must be an array");
+    const json& rules = e["ignore"];
+    for (size_t k = 0; k < rules.size(); ++k) {
+      const std::string where = path + ": avatars[" + std::to_string(i) + "] ('" + w.avatar_ids[i] +
+                                "') ignore[" + std::to_string(k) + "]";
+      const json& r = rules[k];
+      if (!r.is_object() || !r.contains("link") || (r.contains("object") == r.contains("entity"))) {
+        throw InputError(
+            where +
+            ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
       }
+      const int link = ResolveLinkKey(r["link"], skeleton, where, "link");
+      if (r.contains("object")) {
+        const int object = ResolveEnvObject(r["object"], w, out->env.num_objects(), where);
+        filter.Ignore(link < 0 ? LinkIndex() : LinkIndex(link),
+                      object < 0 ? ObjectIndex() : ObjectIndex(object));
+        continue;
+      }
+      EntityRule rule = ParseEntityRule(r, link, w, out->world.avatars, where);
+      if (!rule.entity.empty()) out->world.rules[i].push_back(std::move(rule));
     }
-    out.env_filters.push_back(std::move(filter));
   }
+  out->env_filters.push_back(std::move(filter));
+}
+
+}  // namespace
+
+LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
+  const json doc = ParseWorldDocument(path);
+  const fs::path dir = fs::path(path).parent_path();
+  WorldEntries w = CheckEntries(doc, path);
+  LoadedWorld out;
+  LoadEnv(path, dir, options, &w, &out);
+  for (size_t i = 0; i < w.avatars.size(); ++i) {
+    const std::string where =
+        path + ": avatars[" + std::to_string(i) + "] ('" + w.avatar_ids[i] + "')";
+    const std::string role = where.substr(path.size() + 2);  // "avatars[i] ('id')".
+    out.world.avatars.push_back(
+        LoadAvatar(w.avatars[i], w.avatar_ids[i], where, role, dir, options, &out));
+  }
+  for (size_t i = 0; i < w.objects.size(); ++i) {
+    const std::string where =
+        path + ": objects[" + std::to_string(i) + "] ('" + w.object_ids[i] + "')";
+    const std::string role = where.substr(path.size() + 2);  // "objects[i] ('id')".
+    out.world.objects.push_back(
+        LoadObject(w.objects[i], w.object_ids[i], where, role, dir, options, &out));
+  }
+  out.world.rules.resize(w.avatars.size());
+  for (size_t i = 0; i < w.avatars.size(); ++i) ParseAvatarRules(i, path, w, &out);
   return out;
 }
 
