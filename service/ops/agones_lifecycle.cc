@@ -50,7 +50,10 @@ void AgonesLifecycle::Run() {
   spdlog::info("agones: Ready");
   const auto period = std::chrono::duration<double>(options_.health_period_s);
   bool wedged_logged = false, shutdown_sent = false;
-  auto empty_since = Clock::now();  // Ready with no one in the room yet.
+  // When the room was first seen empty (sampled every period, so the room
+  // has been empty at least since then): Ready with no one in it yet.
+  bool empty = true;
+  Clock::time_point empty_since = Clock::now();
   while (SleepFor(period)) {
     const int64_t silent_ns = NowNs() - last_beat_ns_.load(std::memory_order_relaxed);
     if (silent_ns < std::chrono::nanoseconds(kStallLimit).count()) {
@@ -62,8 +65,13 @@ void AgonesLifecycle::Run() {
       wedged_logged = true;
     }
     const auto now = Clock::now();
-    if (live_clients_() > 0) empty_since = now;
-    if (!shutdown_sent && options_.empty_shutdown_s > 0 &&
+    if (live_clients_() > 0) {
+      empty = false;
+    } else if (!empty) {
+      empty = true;
+      empty_since = now;
+    }
+    if (!shutdown_sent && options_.empty_shutdown_s > 0 && empty &&
         now - empty_since >= std::chrono::duration<double>(options_.empty_shutdown_s)) {
       spdlog::info("agones: the room has been empty for {} s (agones.empty_shutdown_s): Shutdown",
                    options_.empty_shutdown_s);

@@ -27,12 +27,13 @@ SystemdNotifier::SystemdNotifier() {
 
 void SystemdNotifier::Ready(const char* status_text) {
   Notify(std::string("READY=1\nSTATUS=") + status_text);
+  ready_ = true;
 }
 
 void SystemdNotifier::Stopping() { Notify("STOPPING=1"); }
 
 void SystemdNotifier::MaybeWatchdog(std::chrono::steady_clock::time_point now) {
-  if (!watchdog_enabled() || now < next_watchdog_) return;
+  if (!watchdog_enabled() || !ready_ || now < next_watchdog_) return;
   Notify("WATCHDOG=1");
   next_watchdog_ = now + watchdog_period_;
 }

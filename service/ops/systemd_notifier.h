@@ -5,6 +5,7 @@
 // Type=notify with WatchdogSec=). Without NOTIFY_SOCKET (not under systemd,
 // or a test) every call does nothing.
 
+#include <atomic>
 #include <chrono>
 
 namespace sweptccd {
@@ -17,13 +18,15 @@ class SystemdNotifier {
   void Ready(const char* status_text);
   void Stopping();
   /// WATCHDOG=1 when half the watchdog interval passed since the last one;
-  /// nothing without a watchdog. Call from the loop whose life it vouches for.
+  /// nothing without a watchdog, nor before Ready() (READY=1 comes first). Call from the loop whose
+  /// life it vouches for.
   void MaybeWatchdog(std::chrono::steady_clock::time_point now);
   /// Whether systemd asked for watchdog pings, and how often at least.
   bool watchdog_enabled() const { return watchdog_period_.count() > 0; }
 
  private:
   std::chrono::microseconds watchdog_period_{0};  // Half of WATCHDOG_USEC.
+  std::atomic<bool> ready_{false};
   std::chrono::steady_clock::time_point next_watchdog_{};
 };
 

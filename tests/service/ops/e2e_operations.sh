@@ -59,7 +59,7 @@ wedge=$work/wedge
 NOTIFY_SOCKET=$work/notify.sock WATCHDOG_USEC=400000 AGONES_SDK_HTTP_PORT=9358 \
   SWEPTCCD_TEST_WEDGE_FILE=$wedge "$service" --config room.yaml --log-level info 2> daemon.log & daemon=$!
 pids+=($daemon)
-count() { grep -c "$2" "$1" || true; }
+count() { grep -c "$2" "$1" 2> /dev/null || true; }
 for _ in $(seq 200); do [ "$(count notify.log READY=1)" = 1 ] && [ "$(count agones.log '"/ready"')" -ge 1 ] && break; sleep 0.05; done
 [ "$(head -1 notify.log | cut -d' ' -f2)" = READY=1 ] || fail "first notification: $(head -1 notify.log)"
 [ "$(head -1 agones.log | "$py" -c 'import json,sys; print(json.load(sys.stdin)["path"])')" = /ready ] ||
@@ -146,12 +146,13 @@ import json, sys
 calls = [json.loads(l) for l in open(sys.argv[1])]
 hold = dict(l.split() for l in open(sys.argv[2]))
 ready = next(c["wall"] for c in calls if c["path"] == "/ready")
-joined, left = float(hold["joined"]), float(hold["left"])
+joined, leaving, left = (float(hold[k]) for k in ("joined", "leaving", "left"))
 shut = [c["wall"] for c in calls if c["path"] == "/shutdown"]
 assert joined - ready < 1.5, ("joined too late to test", ready, joined)
-assert left - ready > 2.5, ("left too early to test", ready, left)
+assert leaving - ready > 2.5, ("left too early to test", ready, leaving)
 assert len(shut) == 1, shut
-assert shut[0] >= left + 2.0 - 0.05 and shut[0] < left + 2.0 + 1.5, (left, shut)
+# The daemon saw the leave between `leaving` and `left` (the close came after).
+assert shut[0] >= leaving + 2.0 and shut[0] < left + 2.0 + 1.5, (leaving, left, shut)
 PY
 kill -TERM "$daemon"
 wait "$daemon" || fail "second daemon exit status $?"

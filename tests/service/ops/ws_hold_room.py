@@ -2,7 +2,8 @@
 """Test helper: one live client in a room through the WebSocket door
 (docs/WEBSOCKET.md, unsigned mode), held for a while: joins as CLIENT_ID,
 prints "joined WALL_SECONDS", keeps the connection (pings) for SECONDS,
-sends leave, prints "left WALL_SECONDS" once the server closed. Exits 1 on a
+prints "leaving WALL_SECONDS", sends leave, prints "left WALL_SECONDS" once
+the server closed. Exits 1 on a
 refused join or a protocol error.
    ws_hold_room.py URL CLIENT_ID SECONDS"""
 import asyncio
@@ -38,6 +39,7 @@ async def main():
                 await asyncio.wait_for(ws.recv(), min(0.5, max(0.01, end - time.monotonic())))
             except asyncio.TimeoutError:
                 pass
+        print("leaving %.4f" % time.time(), flush=True)
         await ws.send(json.dumps({"type": "leave", "utime": int(time.time() * 1e6),
                                   "client_id": client_id, "session": m["session"]}))
         try:
