@@ -8,6 +8,8 @@
 #  - Agones (--agones): the SDK sidecar stand-in (agones_sdk_standin.py)
 #    records Ready first, Health while the loop runs, none while it is wedged
 #    or after the daemon ended, Shutdown once, after the empty-room time;
+#    a second run: a live client joined through the WebSocket door
+#    (ws_hold_room.py) postpones Shutdown until empty_shutdown_s after it left;
 #  - /metrics on --metrics-listen parses strictly (prom_parse.py) and counts
 #    the room; other paths are 404.
 #   e2e_operations.sh SERVICE SOURCE_DIR WORK_DIR
