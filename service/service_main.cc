@@ -41,6 +41,11 @@ int main(int argc, char** argv) {
     Daemon daemon(config);  // The scene loaded, the backend calibrated.
     Operations ops(config.ops, agones_url, daemon.service());
     daemon.SetLoopTick([&ops] { ops.Tick(); });
+    // The loop (which calls ops) ends before ops is destroyed, whatever throws.
+    struct StopDaemonFirst {
+      Daemon* daemon;
+      ~StopDaemonFirst() { daemon->Stop(); }
+    } stop_daemon_first{&daemon};
     daemon.Start();
     ops.Ready();  // systemd READY=1, Agones Ready, /metrics served.
     stop.Wait();
