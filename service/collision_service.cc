@@ -553,6 +553,7 @@ void CollisionService::WorkerLoop() {
 
     lock.lock();
     client.latencies_us.push_back(latency_us);
+    latency_histogram_.ObserveMicros(latency_us);
     while (static_cast<int>(client.latencies_us.size()) > options_.latency_window) {
       client.latencies_us.pop_front();
     }
@@ -601,6 +602,11 @@ void CollisionService::Stop() {
   }
   workers_.clear();
   idle_cv_.notify_all();
+}
+
+LatencyHistogram CollisionService::latency_histogram() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return latency_histogram_;
 }
 
 status_t CollisionService::Status() const {

@@ -26,6 +26,7 @@
 #include "core/scene/environment.h"
 #include "msgs/signing.h"
 #include "service/client_session.h"
+#include "service/ops/latency_histogram.h"
 #include "service/publisher.h"
 #include "service/shared_world.h"
 #include "service/token_bucket.h"
@@ -215,6 +216,9 @@ class CollisionService {
   status_t Status() const;
   /// Publishes Status() through the publisher.
   void PublishStatus();
+  /// Receive-to-publish latency of every pair answered since start, all
+  /// clients (the room's Prometheus histogram, service/ops/).
+  LatencyHistogram latency_histogram() const;
 
   /// Shared-world entries published (in shared_published_messages()
   /// messages), and (pair, entity) entries waiting.
@@ -328,6 +332,7 @@ class CollisionService {
   int64_t ignored_after_stop_ = 0;
   int64_t rejected_unattributed_ = 0;
   RejectionThrottle rejection_throttle_;  // Under mutex_.
+  LatencyHistogram latency_histogram_;    // Under mutex_.
   int64_t rejection_log_window_start_us_ = 0;
   int rejection_logs_in_window_ = 0;
   int64_t rejection_logs_suppressed_ = 0;

@@ -269,6 +269,29 @@ ObjectSpec ParseObject(const YAML::Node& e, const std::string& where, const std:
 
 }  // namespace
 
+// Operations (docs/DEPLOY.md): room, metrics.*, agones.*.
+void ParseOperations(const YAML::Node& root, const std::string& at, ServiceConfig* config) {
+  ServiceConfig& c = *config;
+  if (root["room"]) c.ops.room = Get<std::string>(root["room"], at + "room");
+  if (const YAML::Node m = root["metrics"]) {
+    if (!m.IsMap()) throw InputError(at + "metrics: expected a mapping");
+    CheckKeys(m, {"listen"}, at + "metrics");
+    if (m["listen"]) c.ops.metrics.listen = Get<std::string>(m["listen"], at + "metrics.listen");
+  }
+  if (const YAML::Node a = root["agones"]) {
+    if (!a.IsMap()) throw InputError(at + "agones: expected a mapping");
+    CheckKeys(a, {"enabled", "health_period_s", "empty_shutdown_s"}, at + "agones");
+    AgonesOptions& o = c.ops.agones;
+    if (a["enabled"]) o.enabled = Get<bool>(a["enabled"], at + "agones.enabled");
+    if (a["health_period_s"]) {
+      o.health_period_s = Get<double>(a["health_period_s"], at + "agones.health_period_s");
+    }
+    if (a["empty_shutdown_s"]) {
+      o.empty_shutdown_s = Get<double>(a["empty_shutdown_s"], at + "agones.empty_shutdown_s");
+    }
+  }
+}
+
 // The WebSocket door (docs/WEBSOCKET.md "Configuration"): websocket.*.
 void ParseWebsocket(const YAML::Node& w, const std::string& at, const std::string& base_dir,
                     ServiceConfig* config) {
@@ -339,15 +362,19 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   ServiceConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
-  CheckKeys(
-      root,
-      {"lcm_url",          "channels",           "environment",      "query",
-       "backend",          "gpu_device",         "require_hardware", "workers",
-       "status_period_s",  "log_level",          "clients",          "security",
-       "max_mesh_bytes",   "max_links",          "max_pose_rate_hz", "max_object_pose_rate_hz",
-       "max_live_clients", "silence_timeout_ms", "shared_world",     "objects",
-       "websocket"},
-      source);
+  CheckKeys(root, {"lcm_url",          "channels",
+                   "environment",      "query",
+                   "backend",          "gpu_device",
+                   "require_hardware", "workers",
+                   "status_period_s",  "log_level",
+                   "clients",          "security",
+                   "max_mesh_bytes",   "max_links",
+                   "max_pose_rate_hz", "max_object_pose_rate_hz",
+                   "max_live_clients", "silence_timeout_ms",
+                   "shared_world",     "objects",
+                   "websocket",        "room",
+                   "metrics",          "agones"},
+            source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
   if (const YAML::Node ch = root["channels"]) ParseChannels(ch, at, &c.channels);
@@ -373,6 +400,7 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
           ParseObject(objects[i], at + "objects[" + std::to_string(i) + "]", base_dir));
     }
   }
+  ParseOperations(root, at, &c);
   if (const YAML::Node w = root["websocket"]) ParseWebsocket(w, at, base_dir, &c);
   return c;
 }
@@ -436,6 +464,9 @@ void ValidateServiceConfig(const ServiceConfig& c) {
       throw InputError("configuration: object '" + o.id +
                        "' has no key; give objects[].key or set security.room_key");
     }
+  }
+  if (const std::string problem = ValidateOpsOptions(c.ops); !problem.empty()) {
+    throw InputError("configuration: " + problem);
   }
   if (!c.shared_world && !c.objects.empty()) {
     throw InputError("configuration: objects need shared_world: true");

@@ -11,6 +11,7 @@
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
+#include "service/ops/ops_options.h"
 #include "service/ws/door_options.h"
 
 namespace sweptccd {
@@ -84,6 +85,9 @@ struct ServiceConfig {
   SecurityConfig security;
   /// The WebSocket door (docs/WEBSOCKET.md), off unless websocket.listen.
   WsDoorOptions websocket;
+  /// The room's name, metrics and Agones (docs/DEPLOY.md): keys `room`,
+  /// `metrics:`, `agones:`.
+  OpsOptions ops;
 };
 
 /// Reads a YAML configuration. Relative paths are taken relative to the

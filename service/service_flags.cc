@@ -108,6 +108,14 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--ws-max-connections-per-address", f->ws_max_connections_per_address,
                   "Connections at most from one source address")
       ->check(CLI::Range(1, 65536));
+  app->add_option("--room", f->room, "The room's name: the room label of every metric");
+  app->add_option("--metrics-listen", f->metrics_listen,
+                  "Loopback HOST:PORT of the Prometheus endpoint (GET /metrics); off when not "
+                  "given");
+  app->add_flag("--agones", f->agones,
+                "Run as an Agones GameServer through the SDK sidecar (AGONES_SDK_HTTP_PORT)");
+  app->add_option("--agones-empty-shutdown", f->agones_empty_shutdown_s,
+                  "Seconds without a live client before Agones Shutdown; 0: never");
 }
 
 void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
@@ -141,6 +149,12 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
       throw InputError("--client-key '" + flag + "': expected ID=FILE");
     }
     config->security.client_keys[flag.substr(0, eq)] = flag.substr(eq + 1);
+  }
+  SetIfGiven(flags.room, &config->ops.room);
+  SetIfGiven(flags.metrics_listen, &config->ops.metrics.listen);
+  if (flags.agones) config->ops.agones.enabled = true;
+  if (flags.agones_empty_shutdown_s >= 0) {
+    config->ops.agones.empty_shutdown_s = flags.agones_empty_shutdown_s;
   }
   WsDoorOptions& ws = config->websocket;
   SetIfGiven(flags.ws_listen, &ws.listen);

@@ -39,6 +39,10 @@ struct ServiceFlags {
   std::string ws_listen, ws_cert, ws_key, ws_view_dir;
   std::vector<std::string> ws_allow_origins;  // Appended to websocket.allow_origins.
   int ws_max_connections = -1, ws_max_connections_per_address = -1;
+  // Operations (docs/DEPLOY.md); empty / false: not given.
+  std::string room, metrics_listen;
+  bool agones = false;
+  double agones_empty_shutdown_s = -1;
 };
 
 /// Declares every flag of sweptccd-service on `app`, storing into `flags`

@@ -8,11 +8,13 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <string>
 
 #include "core/errors.h"
 #include "msgs/text.h"
 #include "service/daemon/daemon.h"
 #include "service/daemon/stop_signal.h"
+#include "service/ops/operations.h"
 #include "service/service_flags.h"
 
 int main(int argc, char** argv) {
@@ -34,9 +36,20 @@ int main(int argc, char** argv) {
 
   try {
     const StopSignal stop;  // Before any thread starts.
-    Daemon daemon(BuildServiceConfig(flags));
+    const ServiceConfig config = BuildServiceConfig(flags);
+    const std::string agones_url = Operations::AgonesUrl(config.ops);  // Before the scene.
+    Daemon daemon(config);  // The scene loaded, the backend calibrated.
+    Operations ops(config.ops, agones_url, daemon.service());
+    daemon.SetLoopTick([&ops] { ops.Tick(); });
+    // The loop (which calls ops) ends before ops is destroyed, whatever throws.
+    struct StopDaemonFirst {
+      Daemon* daemon;
+      ~StopDaemonFirst() { daemon->Stop(); }
+    } stop_daemon_first{&daemon};
     daemon.Start();
+    ops.Ready();  // systemd READY=1, Agones Ready, /metrics served.
     stop.Wait();
+    ops.Stopping();
     daemon.Stop();
     return 0;
   } catch (const InputError& e) {

@@ -492,6 +492,7 @@ struct Daemon::Impl {
   std::unique_ptr<LiveRegistry> live;  // Stopped before the service.
   std::unique_ptr<WsDoor> door;        // Null without websocket.listen; destroyed first.
   int control[2] = {-1, -1};
+  std::function<void()> tick;  // SetLoopTick's; empty: none.
   std::thread loop;
 
   std::mutex mutex;
@@ -628,7 +629,10 @@ void Daemon::Impl::Loop() {
   const auto expiry_period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::milliseconds(std::max<int64_t>(1, config.silence_timeout_ms / 8)));
   auto next_expiry = Clock::now() + expiry_period;
+  // With a tick, the loop wakes at least this often.
+  constexpr auto kTickPeriod = std::chrono::milliseconds(250);
   for (;;) {
+    if (tick) tick();
     const auto now = Clock::now();
     if (now >= next_expiry) {
       for (const std::string& id : service->ExpireSilent(now)) {
@@ -643,7 +647,8 @@ void Daemon::Impl::Loop() {
       if (next_status < now) next_status = now + period;
       continue;
     }
-    const auto next = std::min(next_status, next_expiry);
+    auto next = std::min(next_status, next_expiry);
+    if (tick) next = std::min<Clock::time_point>(next, now + kTickPeriod);
     const int timeout_ms = static_cast<int>(
         std::chrono::duration_cast<std::chrono::milliseconds>(next - now).count() + 1);
     pollfd fds[2] = {{lcm->getFileno(), POLLIN, 0}, {control[0], POLLIN, 0}};
@@ -678,6 +683,11 @@ void Daemon::Impl::Barrier() {
 Daemon::Daemon(const ServiceConfig& config) : impl_(std::make_unique<Impl>(config)) {}
 
 Daemon::~Daemon() { Stop(); }
+
+void Daemon::SetLoopTick(std::function<void()> tick) {
+  SWEPTCCD_CHECK(!impl_->loop.joinable());
+  impl_->tick = std::move(tick);
+}
 
 void Daemon::Start() {
   std::lock_guard<std::mutex> stop_lock(impl_->stop_mutex);

@@ -7,6 +7,7 @@
 // builds a Daemon, Start()s it and waits for a stop signal; tests build one on
 // memq:// and use WaitUntilIdle instead of sleeps.
 
+#include <functional>
 #include <memory>
 
 #include "service/service_config.h"
@@ -34,6 +35,10 @@ class Daemon {
 
   Daemon(const Daemon&) = delete;
   Daemon& operator=(const Daemon&) = delete;
+
+  /// A function the loop calls on its own thread at least every 250 ms
+  /// (service/ops/operations.h: watchdog and Health beats). Before Start().
+  void SetLoopTick(std::function<void()> tick);
 
   /// Starts the loop thread: it handles LCM messages as they arrive and
   /// publishes a status every status_period_s. Call once.

@@ -1,0 +1,104 @@
+#!/usr/bin/env python3
+"""A stand-in for the Agones SDK sidecar's REST API (the grpc-gateway of
+sdk.proto: agones.dev/site/docs/guides/client-sdks/rest/), for tests: it
+answers what the sidecar answers and appends every call, one JSON line each
+({"t": seconds since start, "wall": Unix seconds, "method", "path",
+"body"}), to LOG.
+
+  agones_sdk_standin.py HOST PORT LOG
+
+POST /ready /health /shutdown /allocate take a JSON object (Content-Type
+application/json) and answer {}; /reserve takes {"seconds": N}; GET
+/gameserver answers a GameServer; PUT /metadata/label and
+/metadata/annotation take {"key", "value"}. Anything else: 404; a body that
+is not JSON or a wrong content type: 400 (then the test sees the call too,
+with "bad": true).
+"""
+import json
+import sys
+import threading
+import time
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+HOST, PORT, LOG = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+START = time.monotonic()
+LOCK = threading.Lock()
+STATE = {"state": "Scheduled", "labels": {}, "annotations": {}}
+
+POSTS = {"/ready": "Ready", "/health": None, "/shutdown": "Shutdown", "/allocate": "Allocated",
+         "/reserve": "Reserved"}
+
+
+def record(entry):
+    entry["t"] = round(time.monotonic() - START, 4)
+    entry["wall"] = time.time()
+    with LOCK, open(LOG, "a") as f:
+        f.write(json.dumps(entry) + "\n")
+
+
+def gameserver():
+    return {"object_meta": {"name": "sweptccd-test", "namespace": "default",
+                            "labels": STATE["labels"], "annotations": STATE["annotations"]},
+            "status": {"state": STATE["state"], "address": "127.0.0.1",
+                       "ports": [{"name": "websocket", "port": 7000}]}}
+
+
+class Handler(BaseHTTPRequestHandler):
+    protocol_version = "HTTP/1.1"
+
+    def log_message(self, *args):
+        pass
+
+    def answer(self, code, obj):
+        data = json.dumps(obj).encode()
+        self.send_response(code)
+        self.send_header("Content-Type", "application/json")
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        self.wfile.write(data)
+
+    def body(self):
+        n = int(self.headers.get("Content-Length", "0"))
+        if n > 65536:
+            return None, "too long"
+        raw = self.rfile.read(n)
+        if self.headers.get("Content-Type", "").split(";")[0].strip() != "application/json":
+            return None, "content type"
+        try:
+            obj = json.loads(raw)
+        except ValueError:
+            return None, "not JSON"
+        return (obj, None) if isinstance(obj, dict) else (None, "not an object")
+
+    def do_POST(self):
+        obj, bad = self.body()
+        record({"method": "POST", "path": self.path, "body": obj, "bad": bad is not None})
+        if bad:
+            return self.answer(400, {"error": bad})
+        if self.path not in POSTS:
+            return self.answer(404, {"error": "not found"})
+        if POSTS[self.path]:
+            STATE["state"] = POSTS[self.path]
+        self.answer(200, {})
+
+    def do_PUT(self):
+        obj, bad = self.body()
+        record({"method": "PUT", "path": self.path, "body": obj, "bad": bad is not None})
+        if bad or not {"key", "value"} <= set(obj or {}):
+            return self.answer(400, {"error": bad or "key and value"})
+        kind = {"/metadata/label": "labels", "/metadata/annotation": "annotations"}.get(self.path)
+        if not kind:
+            return self.answer(404, {"error": "not found"})
+        STATE[kind]["agones.dev/sdk-" + obj["key"]] = obj["value"]
+        self.answer(200, {})
+
+    def do_GET(self):
+        record({"method": "GET", "path": self.path, "body": None, "bad": False})
+        if self.path == "/gameserver":
+            return self.answer(200, gameserver())
+        if self.path == "/watch/gameserver":
+            return self.answer(200, {"result": gameserver()})
+        self.answer(404, {"error": "not found"})
+
+
+ThreadingHTTPServer((HOST, PORT), Handler).serve_forever()
