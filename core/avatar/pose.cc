@@ -203,11 +203,6 @@ uint64_t DefaultMaxPoseLineBytes(int num_links) {
   return 4096 + links * 7 * 64;
 }
 
-namespace {
-
-// Reads one line (to '\n' or the end) through the stream buffer, keeping at
-// most max_bytes of it in *line. Returns false at the end of the stream with
-// nothing read. *too_long: the line had more bytes; *blank: only whitespace.
 bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
                      bool* blank) {
   line->clear();
@@ -240,8 +235,6 @@ bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bo
     }
   }
 }
-
-}  // namespace
 
 PoseLineReader::PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes)
     : in_(in),

@@ -89,6 +89,13 @@ std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_link
 /// 4 KiB for the rest. `num_links` < 0 (unknown) counts kDefaultMaxLinks.
 uint64_t DefaultMaxPoseLineBytes(int num_links);
 
+/// Reads one line (to '\n' or the end) through the stream buffer, keeping at
+/// most max_bytes of it in *line. Returns false at the end of the stream with
+/// nothing read (a read error sets badbit). *too_long: the line had more
+/// bytes; *blank: only whitespace. Shared by every JSON Lines reader.
+bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
+                     bool* blank);
+
 /// One counted (non-blank) line of a pose stream.
 struct PoseLine {
   int64_t line_number = 0;   // 1-based, blank lines included.
