@@ -333,6 +333,28 @@ bool LiveClient::PublishPose(tracker_pose_t pose) {
   return connection_->Publish(options_.channels.pose, EncodeSigned(pose, key));
 }
 
+std::string LiveClient::PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame,
+                                          int64_t seq) {
+  const int num_links = joints.skeleton().num_links();
+  if (options_.skeleton && options_.skeleton->num_links() != num_links) {
+    return "the joint set's skeleton has " + std::to_string(num_links) +
+           " links, this client joined with " + std::to_string(options_.skeleton->num_links());
+  }
+  Pose pose;
+  if (std::string problem = joints.Convert(frame, &pose); !problem.empty()) return problem;
+  tracker_pose_t m;
+  m.utime = pose.utime;
+  m.seq = seq;
+  m.num_links = num_links;
+  for (const LinkPose& l : pose.links) {
+    m.position.push_back({l.p.x(), l.p.y(), l.p.z()});
+    m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
+  }
+  if (!joined()) return "not joined (no session)";
+  if (!PublishPose(std::move(m))) return "not published (not joined, or LCM refused)";
+  return "";
+}
+
 void LiveClient::Leave() {
   leave_t l;
   std::optional<MacKey> key;
