@@ -80,7 +80,8 @@ struct JointSkeletonOptions {
 /// frame a = (0, 0, 0) and b = (0, length, 0).
 class JointSkeleton {
  public:
-  /// Throws InputError: a height out of range, --hands none on a hand-only
+  /// `set` must outlive the result (FindJointSet's sets live for the whole
+  /// program). Throws InputError: a height out of range, --hands none on a hand-only
   /// set, a calibration frame of the wrong size or with an invalid joint a
   /// link needs.
   static JointSkeleton Build(const JointSet& set, const JointSkeletonOptions& options);
