@@ -1,4 +1,4 @@
-// The client library in a few lines (README, "Live clients"): join a
+// The client library in a few lines (docs/USAGE.md, "Live clients"): join a
 // sweptccd-service daemon with a skeleton, publish poses, print the contact
 // events and rejections it answers, leave.
 //   sweptccd_client_example LCM_URL CLIENT_ID SKELETON.json [ROOM_KEY_FILE]
@@ -11,6 +11,7 @@
 #include "core/errors.h"
 #include "msgs/text.h"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 int main(int argc, char** argv) {
   using namespace sweptccd;
@@ -42,12 +43,12 @@ int main(int argc, char** argv) {
     const int n = options.skeleton->num_links();
     const int64_t t0 = joined.session;  // Any increasing utimes; the session is a fine start.
     for (int k = 0; k < 40; ++k) {
-      tracker_pose_t pose;
-      pose.utime = t0 + k * 11'111;  // 90 Hz.
+      Pose p;                     // Every link frame at the same place, unrotated.
+      p.utime = t0 + k * 11'111;  // 90 Hz.
+      p.links.assign(
+          n, LinkPose{Eigen::Vector3d(0.0, 1.0 - 0.05 * k, 0.0), Eigen::Quaterniond::Identity()});
+      tracker_pose_t pose = TrackerPoseOf(p);
       pose.seq = k;
-      pose.num_links = n;
-      pose.position.assign(n, {0.0, 1.0 - 0.05 * k, 0.0});
-      pose.orientation.assign(n, {1.0, 0.0, 0.0, 0.0});
       client.PublishPose(pose);
       std::this_thread::sleep_for(std::chrono::microseconds(11'111));
     }

@@ -1,4 +1,5 @@
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -342,14 +343,8 @@ std::string LiveClient::PublishJointFrame(const JointSkeleton& joints, const Joi
   }
   Pose pose;
   if (std::string problem = joints.Convert(frame, &pose); !problem.empty()) return problem;
-  tracker_pose_t m;
-  m.utime = pose.utime;
+  tracker_pose_t m = TrackerPoseOf(pose);
   m.seq = seq;
-  m.num_links = num_links;
-  for (const LinkPose& l : pose.links) {
-    m.position.push_back({l.p.x(), l.p.y(), l.p.z()});
-    m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
-  }
   if (!joined()) return "not joined (no session)";
   if (!PublishPose(std::move(m))) return "not published (not joined, or LCM refused)";
   return "";

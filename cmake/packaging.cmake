@@ -101,9 +101,10 @@ function(sweptccd_export_library target)
 endfunction()
 
 # --- The exported libraries: one line each, in link order. -----------------
-# core/errors.h (InputError, what the signing functions throw) and the
-# bounded file reader.
-sweptccd_export_library(sweptccd_errors HEADERS core/errors.h core/bounded_file.h)
+# core/errors.h (InputError, what the signing functions throw), the
+# bounded file reader and the typed indices (core/avatar/link_key.h).
+sweptccd_export_library(sweptccd_errors HEADERS core/errors.h core/bounded_file.h
+                                                core/typed_index.h)
 # The message library: checked decoding, signing and keys, the id rule and
 # escaping, channel names; its generated headers are installed below.
 sweptccd_export_library(sweptccd_msgs HEADERS msgs)
@@ -230,7 +231,7 @@ install(CODE "
 install(FILES ${PROJECT_SOURCE_DIR}/deploy/sweptccd.yaml
               ${PROJECT_SOURCE_DIR}/deploy/sweptccd-service-gpu.conf
         DESTINATION ${SWEPTCCD_INSTALL_DOCDIR}/examples COMPONENT runtime)
-install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
+install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/USAGE.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
               ${PROJECT_SOURCE_DIR}/docs/SECURITY.md
         DESTINATION ${SWEPTCCD_INSTALL_DOCDIR} COMPONENT runtime)
 # The Java classes of the message types (msgs/CMakeLists.txt), for lcm-spy.

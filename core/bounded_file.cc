@@ -1,5 +1,7 @@
 #include "core/bounded_file.h"
 
+#include <cctype>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <system_error>
@@ -34,6 +36,39 @@ std::string ReadFileBounded(const std::string& path, uint64_t max_bytes, const s
   }
   if (in.bad()) throw InputError(path + ": error while reading the " + what);
   return text;
+}
+
+bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
+                     bool* blank) {
+  line->clear();
+  *too_long = false;
+  *blank = true;
+  std::streambuf* buf = in.rdbuf();
+  bool any = false;
+  for (;;) {
+    int c;
+    try {
+      c = buf->sbumpc();
+    } catch (const std::exception&) {
+      // A read error (e.g. EISDIR: a folder opens, but cannot be read):
+      // libstdc++'s filebuf throws where istream's own reads would set
+      // badbit. Set it as they would; the reader stops and says bad().
+      in.setstate(std::ios::badbit);
+      return false;
+    }
+    if (c == std::char_traits<char>::eof()) {
+      in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
+      return any;
+    }
+    any = true;
+    if (c == '\n') return true;
+    if (*blank && !std::isspace(c)) *blank = false;
+    if (line->size() < max_bytes) {
+      line->push_back(static_cast<char>(c));
+    } else {
+      *too_long = true;
+    }
+  }
 }
 
 }  // namespace sweptccd

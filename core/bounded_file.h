@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <fstream>
+#include <istream>
 #include <string>
 
 namespace sweptccd {
@@ -26,5 +27,14 @@ std::ifstream OpenInputFile(const std::string& path, const std::string& what);
 /// Thread-safe.
 std::string ReadFileBounded(const std::string& path, uint64_t max_bytes, const std::string& what,
                             const std::string& fix);
+
+/// Reads one line (to '\n' or the end of the stream) through the stream
+/// buffer, keeping at most `max_bytes` of it in *line (without the newline):
+/// a longer line is read to its end without being kept, and *too_long says
+/// so. *blank: the line held only whitespace. Returns false at the end of
+/// the stream with nothing read; a read error sets badbit and returns false.
+/// The one line rule of the pose and object pose readers.
+bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
+                     bool* blank);
 
 }  // namespace sweptccd

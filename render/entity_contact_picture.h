@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
-#include "core/world/entity_ccd.h"
+#include "core/world/entity_query.h"
 #include "core/world/world.h"
 #include "render/raster_image.h"
 #include "render/scene_renderer.h"

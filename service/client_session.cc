@@ -17,20 +17,21 @@ std::string Num(double v) {
   return buf;
 }
 
-// A rejection naming the value, the place and the fix.
-Rejection ToRejection(const PoseProblem& problem) {
-  const std::string link = "link " + std::to_string(problem.link) + ": ";
-  const std::string component = "[" + std::to_string(problem.component) + "] is " +
-                                Num(problem.value);
+}  // namespace
+
+Rejection PoseRejection(const PoseProblem& problem, const std::string& where) {
+  const std::string& link = where;
+  const std::string component =
+      "[" + std::to_string(problem.component) + "] is " + Num(problem.value);
   switch (problem.kind) {
     case PoseProblem::Kind::kNonFinite:
       return Rejection{rejection_code::kNonFinite,
                        link + (problem.in_orientation ? "orientation" : "position") + component +
                            "; send finite numbers"};
     case PoseProblem::Kind::kPositionOutOfRange:
-      return Rejection{rejection_code::kPositionOutOfRange,
-                       link + "position" + component + " m, beyond 1e9 m; send metres in the " +
-                           "world frame"};
+      return Rejection{
+          rejection_code::kPositionOutOfRange,
+          link + "position" + component + " m, beyond 1e9 m; send metres in the " + "world frame"};
     case PoseProblem::Kind::kZeroQuaternion:
       return Rejection{rejection_code::kZeroQuaternion,
                        link + "quaternion norm " + Num(problem.value) +
@@ -40,6 +41,19 @@ Rejection ToRejection(const PoseProblem& problem) {
   }
   return Rejection{rejection_code::kWrongLinkCount,
                    "got " + Num(problem.value) + " link poses; send one pose per skeleton link"};
+}
+
+uint64_t UtimeJump(int64_t last, int64_t utime) {
+  SWEPTCCD_CHECK(utime > last);
+  // utime > last, so the difference fits in uint64 (wrapping is defined).
+  return static_cast<uint64_t>(utime) - static_cast<uint64_t>(last);
+}
+
+namespace {
+
+// An avatar's pose problem, placed at its link.
+Rejection ToRejection(const PoseProblem& problem) {
+  return PoseRejection(problem, "link " + std::to_string(problem.link) + ": ");
 }
 
 }  // namespace
@@ -89,10 +103,11 @@ ClientSession::ClientSession(std::string client_id, int num_links, int64_t max_u
 std::optional<Rejection> ClientSession::CheckOrder(const tracker_pose_t& msg) const {
   if (!last_ || msg.session > session_) return std::nullopt;  // A new stream.
   if (msg.session < session_) {
-    return Rejection{rejection_code::kStaleSession,
-                     "session " + std::to_string(msg.session) + " is older than the current " +
-                         std::to_string(session_) +
-                         "; a restarted tracker takes a greater session (e.g. its start time in us)"};
+    return Rejection{
+        rejection_code::kStaleSession,
+        "session " + std::to_string(msg.session) + " is older than the current " +
+            std::to_string(session_) +
+            "; a restarted tracker takes a greater session (e.g. its start time in us)"};
   }
   if (msg.seq <= last_->seq) {
     return Rejection{rejection_code::kNonIncreasingSeq,
@@ -106,8 +121,7 @@ std::optional<Rejection> ClientSession::CheckOrder(const tracker_pose_t& msg) co
                          std::to_string(last_->pose.utime) +
                          " of the last accepted pose; stamp samples strictly increasing"};
   }
-  // msg.utime > last utime, so the difference fits in uint64.
-  const uint64_t jump = static_cast<uint64_t>(msg.utime) - static_cast<uint64_t>(last_->pose.utime);
+  const uint64_t jump = UtimeJump(last_->pose.utime, msg.utime);
   if (jump > static_cast<uint64_t>(max_utime_jump_us_)) {
     return Rejection{rejection_code::kUtimeJump,
                      "utime " + std::to_string(msg.utime) + " is " + std::to_string(jump) +
@@ -136,8 +150,7 @@ std::optional<Rejection> ClientSession::OnPose(const tracker_pose_t& msg, int64_
   ++poses_accepted_;
   if (last_) {
     // msg.seq > last_->seq here; the difference fits in uint64 (saturated below).
-    const uint64_t missing =
-        static_cast<uint64_t>(msg.seq) - static_cast<uint64_t>(last_->seq) - 1;
+    const uint64_t missing = static_cast<uint64_t>(msg.seq) - static_cast<uint64_t>(last_->seq) - 1;
     const uint64_t room = static_cast<uint64_t>(INT64_MAX - seq_gaps_);
     seq_gaps_ += static_cast<int64_t>(std::min(missing, room));
     if (pending_ && pending_->session == session_) {

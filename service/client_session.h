@@ -24,13 +24,14 @@ inline constexpr char kUnknownClient[] = "unknown_client";
 inline constexpr char kNonIncreasingSeq[] = "non_increasing_seq";
 inline constexpr char kNonIncreasingUtime[] = "non_increasing_utime";
 inline constexpr char kDecodeError[] = "decode_error";
-inline constexpr char kBadClientId[] = "bad_client_id";    // Breaks the id rule (SPEC section 8).
-inline constexpr char kBadSignature[] = "bad_signature";    // mac missing, wrong, or no key.
-inline constexpr char kStaleSession[] = "stale_session";    // session below the client's current.
-inline constexpr char kUtimeJump[] = "utime_jump";          // utime beyond the horizon.
-inline constexpr char kRateLimited[] = "rate_limited";      // Over the client's input rate.
-inline constexpr char kUnknownObject[] = "unknown_object";  // object_pose_t of no configured object.
-}
+inline constexpr char kBadClientId[] = "bad_client_id";   // Breaks the id rule (SPEC section 8).
+inline constexpr char kBadSignature[] = "bad_signature";  // mac missing, wrong, or no key.
+inline constexpr char kStaleSession[] = "stale_session";  // session below the client's current.
+inline constexpr char kUtimeJump[] = "utime_jump";        // utime beyond the horizon.
+inline constexpr char kRateLimited[] = "rate_limited";    // Over the client's input rate.
+inline constexpr char kUnknownObject[] =
+    "unknown_object";  // object_pose_t of no configured object.
+}  // namespace rejection_code
 
 /// Default horizon of the utime_jump rule: 10 s.
 inline constexpr int64_t kDefaultMaxUtimeJumpUs = 10'000'000;  // namespace rejection_code
@@ -41,6 +42,18 @@ struct Rejection {
   std::string reason;
   std::string message;
 };
+
+/// The rejection of a pose problem (FindPoseProblem, or an object's
+/// FindRigidProblem): its code, and a message naming the value, the place
+/// (`where`, e.g. "link 2: " or "object 'box' seq 7: ") and the fix. The
+/// one wording of avatar and object poses.
+Rejection PoseRejection(const PoseProblem& problem, const std::string& where);
+
+/// How far `utime` is after `last` (precondition: utime > last), in
+/// unsigned 64-bit arithmetic, where the difference of any two int64 fits
+/// (signed, a hostile pair overflows). The one utime_jump rule of avatars
+/// and objects: a jump beyond max_utime_jump_us is refused.
+uint64_t UtimeJump(int64_t last, int64_t utime);
 
 /// Checks one tracker message against a skeleton of `num_links` links (SPEC
 /// section 2 plus the message's own consistency): link count, finite numbers,
@@ -54,7 +67,7 @@ using SteadyClock = std::chrono::steady_clock;
 
 /// A pair of accepted poses handed to a worker.
 struct PosePair {
-  int64_t pair = 0;  // Index among this client's handed-out pairs (0, 1, ...).
+  int64_t pair = 0;     // Index among this client's handed-out pairs (0, 1, ...).
   int64_t session = 0;  // The stream both poses belong to.
   int64_t seq0 = 0, seq1 = 0;
   Pose pose0, pose1;

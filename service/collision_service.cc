@@ -9,10 +9,10 @@
 #include <utility>
 
 #include "core/errors.h"
-#include "msgs/text.h"
+#include "core/percentile.h"
 #include "core/query/result_json.h"
+#include "msgs/text.h"
 #include "service/contact_event.h"
-#include "service/percentile.h"
 
 namespace sweptccd {
 
@@ -59,8 +59,9 @@ void CheckRateOptions(const ServiceOptions& o) {
   }
   if (!(o.rejection_rate_hz > 0 && o.rejection_rate_hz <= 1e6) || o.rejection_burst < 1 ||
       o.rejection_max_keys < 1) {
-    throw InputError("collision service: rejection_rate_hz, rejection_burst and "
-                     "rejection_max_keys must be > 0");
+    throw InputError(
+        "collision service: rejection_rate_hz, rejection_burst and "
+        "rejection_max_keys must be > 0");
   }
 }
 
@@ -77,12 +78,14 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
   if (!environment_) throw InputError("collision service: no environment");
   if (!publisher_) throw InputError("collision service: no publisher");
   if (clients.empty() && options_.max_live_clients < 1) {
-    throw InputError("collision service: no clients registered and live joins are off; add at "
-                     "least one, or allow max_live_clients");
+    throw InputError(
+        "collision service: no clients registered and live joins are off; add at "
+        "least one, or allow max_live_clients");
   }
   if (options_.max_live_clients < 0 || options_.silence_timeout_ms < 1) {
-    throw InputError("collision service: max_live_clients must be >= 0 and silence_timeout_ms "
-                     ">= 1");
+    throw InputError(
+        "collision service: max_live_clients must be >= 0 and silence_timeout_ms "
+        ">= 1");
   }
   if (options_.num_workers < 1) {
     throw InputError("collision service: num_workers is " + std::to_string(options_.num_workers) +
@@ -150,9 +153,9 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
         throw InputError("collision service: object '" + o.object_id + "' needs exactly one mesh");
       }
       shared_->AddObject(o.object_id, o.mesh, now);
-      object_inputs_.emplace(
-          o.object_id,
-          ObjectInput{TokenBucket(options_.max_object_pose_rate_hz, options_.object_pose_burst), 0});
+      object_inputs_.emplace(o.object_id, ObjectInput{TokenBucket(options_.max_object_pose_rate_hz,
+                                                                  options_.object_pose_burst),
+                                                      0});
     }
   }
   instance_ = NowUtime();
@@ -172,6 +175,7 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   std::optional<Rejection> rejection;
   bool attributed = false;
   bool queued = false;  // A pair became ready: a worker is woken after the lock.
+  bool taken = false;   // Accepted (forwarded to viewers).
   {
     std::lock_guard<std::mutex> lock(mutex_);
     if (stopping_) {
@@ -182,9 +186,10 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
     auto it = client_index_.end();
     if (!IsValidClientId(pose.client_id)) {
       ++rejected_unattributed_;
-      rejection = Rejection{rejection_code::kBadClientId,
-                            "client_id '" + EscapeForDisplay(pose.client_id) +
-                                "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"};
+      rejection =
+          Rejection{rejection_code::kBadClientId,
+                    "client_id '" + EscapeForDisplay(pose.client_id) +
+                        "' breaks the id rule; send 1-64 characters from A-Z a-z 0-9 _ . -"};
     } else if ((it = client_index_.find(pose.client_id)) == client_index_.end()) {
       ++rejected_unattributed_;
       rejection = Rejection{rejection_code::kUnknownClient,
@@ -193,7 +198,9 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
                                 "or join it (SWEPTCCD_JOIN)"};
     } else {
       attributed = true;
+      const int64_t shed_before = it->second->rate_limited;
       rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
+      taken = !rejection && it->second->rate_limited == shed_before;
       if (it->second->live) it->second->last_heard = receive_time;
     }
     queued = ready_.size() > ready_before;
@@ -201,17 +208,17 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
   // Notified after the lock is released: the woken worker takes the mutex at
   // once instead of waking into a lock this thread still holds.
   if (queued) work_cv_.notify_one();
+  if (taken) SafePublish([&] { publisher_->ForwardPose(pose); }, "forwarded pose");
   if (rejection) {
     // An id that breaks the rule is not echoed in rejection_t.client_id.
-    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection,
-           attributed);
+    Reject(IsValidClientId(pose.client_id) ? pose.client_id : "", pose.seq, *rejection, attributed);
   }
 }
 
 std::optional<Rejection> CollisionService::AdmitLocked(const std::shared_ptr<Client>& index,
-                                                      const tracker_pose_t& pose,
-                                                      int64_t receive_utime,
-                                                      SteadyClock::time_point receive_time) {
+                                                       const tracker_pose_t& pose,
+                                                       int64_t receive_utime,
+                                                       SteadyClock::time_point receive_time) {
   Client& client = *index;
   if (!client.pose_bucket.TryTake(receive_utime)) {
     ++client.rate_limited;
@@ -338,8 +345,9 @@ void CollisionService::OnObjectPose(const object_pose_t& pose) {
       ++input->second.rate_limited;
       ++object_poses_rate_limited_;
       rejection = Rejection{rejection_code::kRateLimited,
-                            "object '" + pose.object_id + "' sends faster than "
-                            "max_object_pose_rate_hz " +
+                            "object '" + pose.object_id +
+                                "' sends faster than "
+                                "max_object_pose_rate_hz " +
                                 std::to_string(options_.max_object_pose_rate_hz) +
                                 "; pose shed unread; lower the tracker's rate"};
     } else {
@@ -353,6 +361,8 @@ void CollisionService::OnObjectPose(const object_pose_t& pose) {
   }
   if (rejection) {
     Reject(IsValidClientId(pose.object_id) ? pose.object_id : "", pose.seq, *rejection, attributed);
+  } else {
+    SafePublish([&] { publisher_->ForwardObjectPose(pose); }, "forwarded object pose");
   }
 }
 
@@ -379,16 +389,16 @@ void CollisionService::OnUndecodable(const std::string& channel, const std::stri
     }
     ++rejected_unattributed_;
   }
-  Reject("", -1,
-         Rejection{rejection_code::kDecodeError,
-                   "message on channel " + channel + " could not be decoded as " +
-                       std::string(type) + " (" + problem + "); publish " + type +
-                       " built from this service's msgs/"},
-         /*attributed=*/false);
+  Reject(
+      "", -1,
+      Rejection{rejection_code::kDecodeError,
+                "message on channel " + channel + " could not be decoded as " + std::string(type) +
+                    " (" + problem + "); publish " + type + " built from this service's msgs/"},
+      /*attributed=*/false);
 }
 
-void CollisionService::Reject(const std::string& client_id, int64_t seq,
-                              const Rejection& rejection, bool attributed) {
+void CollisionService::Reject(const std::string& client_id, int64_t seq, const Rejection& rejection,
+                              bool attributed) {
   const int64_t now_us = NowUtime();
   int64_t held_back = 0;
   {
@@ -479,7 +489,8 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
     MarkContactEventInvalid("query failed with an unknown exception", &ev);
   }
   if (ev.result == contact_event_t::RESULT_INVALID) {
-    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair, EscapeForDisplay(ev.error, 1024));
+    spdlog::error("client '{}' pair {}: {}", ev.client_id, ev.pair,
+                  EscapeForDisplay(ev.error, 1024));
   }
   ev.compute_us = MicrosBetween(start, SteadyClock::now());
   return ev;
@@ -661,7 +672,23 @@ bool CollisionService::LiveKey(const std::string& client_id, std::optional<MacKe
   return true;
 }
 
+std::vector<RoomClient> CollisionService::RoomClients() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<RoomClient> out;
+  out.reserve(clients_.size());
+  for (const auto& c : clients_) {
+    out.push_back({c->config.client_id, c->live, c->config.skeleton, c->config.motion});
+  }
+  return out;
+}
+
+int64_t CollisionService::room_version() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return room_version_;
+}
+
 void CollisionService::RemoveLocked(const std::shared_ptr<Client>& client) {
+  ++room_version_;
   client->removed = true;
   if (shared_) {
     std::vector<SharedJob> due;
@@ -679,12 +706,15 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   // Cheap checks first, so a refused join never builds an engine.
   auto check = [&]() -> bool {
     if (stopping_) {
-      out = {join_reply_t::REASON_BUSY, "the daemon is stopping; join again when it is back", 0, {}};
+      out = {
+          join_reply_t::REASON_BUSY, "the daemon is stopping; join again when it is back", 0, {}};
       return false;
     }
     if (configured_ids_.count(id)) {
       out = {join_reply_t::REASON_ID_IN_USE,
-             "client id '" + id + "' is a configured client of this daemon; pick another id", 0, {}};
+             "client id '" + id + "' is a configured client of this daemon; pick another id",
+             0,
+             {}};
       return false;
     }
     if (shared_ && shared_->Has(id) && !client_index_.count(id)) {
@@ -704,7 +734,8 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
                "client id '" + id + "' is in use by another live session (session " +
                    std::to_string(c.assigned_session) + "); pick another id, or wait " +
                    std::to_string(options_.silence_timeout_ms) + " ms after its last pose",
-               0, {}};
+               0,
+               {}};
       }
       return false;
     }
@@ -715,9 +746,11 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
              options_.max_live_clients == 0
                  ? std::string("this daemon takes no live clients (max_live_clients: 0); "
                                "configure the client instead")
-                 : std::to_string(live) + " live clients already, the limit max_live_clients; "
+                 : std::to_string(live) +
+                       " live clients already, the limit max_live_clients; "
                        "try later or raise it",
-             0, {}};
+             0,
+             {}};
       return false;
     }
     return true;
@@ -743,6 +776,7 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   last_session_ = client->assigned_session;
   clients_.push_back(client);
   client_index_[id] = client;
+  ++room_version_;
   if (shared_) {
     shared_->AddAvatar(id, client->config.skeleton, client->config.motion, SteadyClock::now(),
                        AnswerOptionsOf(client->config));
@@ -757,8 +791,7 @@ bool CollisionService::LeaveLive(const std::string& client_id, int64_t session) 
   std::shared_ptr<Client> leaving;
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = client_index_.find(client_id);
-  if (it == client_index_.end() || !it->second->live ||
-      it->second->assigned_session != session) {
+  if (it == client_index_.end() || !it->second->live || it->second->assigned_session != session) {
     return false;
   }
   leaving = it->second;

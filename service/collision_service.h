@@ -4,31 +4,31 @@
 // SPEC query and publishing contact events. Transport-free: poses come in
 // through OnPose, everything goes out through an injected Publisher.
 
+#include <array>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
-#include <array>
 #include <list>
 #include <map>
-#include <tuple>
-#include <optional>
-#include <set>
 #include <memory>
 #include <mutex>
+#include <optional>
+#include <set>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
+#include "core/avatar/skeleton.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
-#include "core/avatar/skeleton.h"
+#include "msgs/signing.h"
 #include "service/client_session.h"
 #include "service/publisher.h"
 #include "service/shared_world.h"
 #include "service/token_bucket.h"
-#include "msgs/signing.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/join_reply_t.hpp"
 #include "sweptccd/object_pose_t.hpp"
@@ -54,8 +54,8 @@ struct ClientConfig {
 
 /// A tracked object (SPEC section 8): configured, never joined.
 struct TrackedObjectConfig {
-  std::string object_id;                     // Id rule; unique across clients and objects.
-  std::shared_ptr<const Environment> mesh;   // One object, in the object's frame.
+  std::string object_id;                    // Id rule; unique across clients and objects.
+  std::shared_ptr<const Environment> mesh;  // One object, in the object's frame.
 };
 
 /// A live client's join (docs/SERVICE.md, "Live clients"), built off the
@@ -69,9 +69,17 @@ struct LiveJoinRequest {
 /// The answer to a join: reason is a join_reply_t::REASON_* code.
 struct LiveJoinOutcome {
   int8_t reason = join_reply_t::REASON_ACCEPTED;
-  std::string message;  // One line; empty when accepted.
-  int64_t session = 0;  // Accepted: the session the client must send.
+  std::string message;        // One line; empty when accepted.
+  int64_t session = 0;        // Accepted: the session the client must send.
   std::optional<MacKey> key;  // Accepted in signed mode: the session key.
+};
+
+/// One client of the room as viewers see it (the WebSocket door's `room`).
+struct RoomClient {
+  std::string client_id;
+  bool live = false;  // Joined (else configured).
+  std::shared_ptr<const Skeleton> skeleton;
+  MotionModel motion = MotionModel::kArticulated;
 };
 
 struct ServiceOptions {
@@ -83,7 +91,7 @@ struct ServiceOptions {
   /// ...unless this is set: asked at every status (the GPU backend reports
   /// "cpu (gpu failed: ...)" once its context is lost). May be empty.
   std::function<std::string()> backend_state;
-  std::string renderer;         // Reported in status_t (GPU renderer string).
+  std::string renderer;  // Reported in status_t (GPU renderer string).
   /// Called once for each client's engine before queries start (the daemon
   /// attaches the GPU backend here); may be empty.
   std::function<void(CcdEngine*)> prepare_engine;
@@ -137,9 +145,9 @@ class CollisionService {
  public:
   /// Starts the workers. Throws InputError for bad configuration (no clients
   /// while max_live_clients is 0,
-  /// a client_id breaking the id rule (1-64 of [A-Za-z0-9_.-]), a duplicate, null skeleton, num_workers < 1, invalid
-  /// query options, latency_window < 1). `environment` and `publisher` must
-  /// outlive the service.
+  /// a client_id breaking the id rule (1-64 of [A-Za-z0-9_.-]), a duplicate, null skeleton,
+  /// num_workers < 1, invalid query options, latency_window < 1). `environment` and `publisher`
+  /// must outlive the service.
   CollisionService(std::shared_ptr<const Environment> environment,
                    std::vector<ClientConfig> clients, ServiceOptions options, Publisher* publisher);
   /// Stop()s.
@@ -196,6 +204,10 @@ class CollisionService {
   /// Whether `client_id` is a configured client.
   bool IsConfigured(const std::string& client_id) const;
   int live_clients() const;
+  /// Every client now (configured first, then live ones in join order).
+  std::vector<RoomClient> RoomClients() const;
+  /// Changes whenever a client joins, leaves or is dropped.
+  int64_t room_version() const;
   /// This service's instance (status_t.instance): its start time, us.
   int64_t instance() const { return instance_; }
 
@@ -224,12 +236,12 @@ class CollisionService {
  private:
   struct Client {
     ClientConfig config;
-    bool live = false;                // Joined over LCM (else configured).
-    bool removed = false;             // Left or expired (workers skip it).
-    int64_t assigned_session = 0;     // Live: the only session accepted.
-    int64_t nonce = 0;                // Live: the join's nonce and key.
+    bool live = false;             // Joined over LCM (else configured).
+    bool removed = false;          // Left or expired (workers skip it).
+    int64_t assigned_session = 0;  // Live: the only session accepted.
+    int64_t nonce = 0;             // Live: the join's nonce and key.
     std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
-    std::optional<MacKey> key;        // Live, signed mode: the session key.
+    std::optional<MacKey> key;           // Live, signed mode: the session key.
     SteadyClock::time_point last_heard;  // Live: the join or the latest pose.
     std::unique_ptr<CcdEngine> engine;
     ClientSession session;
@@ -271,8 +283,8 @@ class CollisionService {
   // Under mutex_: the rejection (if any) of a pose of the registered client
   // `index`, rate limit first; queues the client when a pair became ready.
   std::optional<Rejection> AdmitLocked(const std::shared_ptr<Client>& client,
-                                       const tracker_pose_t& pose,
-                                       int64_t receive_utime, SteadyClock::time_point receive_time);
+                                       const tracker_pose_t& pose, int64_t receive_utime,
+                                       SteadyClock::time_point receive_time);
   void LogRejection(const std::string& client_id, int64_t seq, const Rejection& rejection,
                     int64_t now_us);
   void SafePublish(const std::function<void()>& publish, const char* what);
@@ -286,29 +298,30 @@ class CollisionService {
   std::set<std::string> configured_ids_;  // Immutable after construction.
 
   mutable std::mutex mutex_;
-  std::condition_variable work_cv_;  // Workers wait for ready clients.
-  std::condition_variable idle_cv_;  // WaitUntilIdle waits for quiescence.
+  std::condition_variable work_cv_;            // Workers wait for ready clients.
+  std::condition_variable idle_cv_;            // WaitUntilIdle waits for quiescence.
   std::deque<std::shared_ptr<Client>> ready_;  // Clients with a pending pair, none in flight.
   std::unique_ptr<SharedWorld> shared_;        // Null when options_.shared_world is off.
   std::list<SharedBatch> shared_ready_;        // Due shared entries by pair, oldest first.
   std::map<PairKey, std::list<SharedBatch>::iterator> shared_open_;  // Not full, not taken.
-  size_t shared_ready_entries_ = 0;            // Entries in shared_ready_.
+  size_t shared_ready_entries_ = 0;                                  // Entries in shared_ready_.
   world::EntityQueryOptions entity_options_;
-  int64_t shared_published_ = 0;               // Entries.
-  int64_t shared_messages_ = 0;                // shared_contact_t published.
-  int64_t shared_by_timeout_ = 0;              // Entries published ended_by_timeout.
+  int64_t shared_published_ = 0;   // Entries.
+  int64_t shared_messages_ = 0;    // shared_contact_t published.
+  int64_t shared_by_timeout_ = 0;  // Entries published ended_by_timeout.
   int64_t shared_dropped_ = 0;
   struct ObjectInput {
     TokenBucket bucket;
     int64_t rate_limited = 0;
   };
   std::map<std::string, ObjectInput> object_inputs_;  // Configured objects (fixed keys).
-  int64_t object_poses_received_ = 0;     // Decoded and verified, including refused ones.
-  int64_t object_poses_rejected_ = 0;     // Refused (not counting rate_limited).
+  int64_t object_poses_received_ = 0;  // Decoded and verified, including refused ones.
+  int64_t object_poses_rejected_ = 0;  // Refused (not counting rate_limited).
   int64_t object_poses_rate_limited_ = 0;
-  int64_t last_session_ = 0;     // Sessions handed out are strictly increasing.
+  int64_t room_version_ = 0;  // Bumped by every join and removal.
+  int64_t last_session_ = 0;  // Sessions handed out are strictly increasing.
   int64_t live_joined_ = 0, live_left_ = 0, live_expired_ = 0;
-  int64_t instance_ = 0;         // status_t.instance.
+  int64_t instance_ = 0;  // status_t.instance.
   int in_flight_ = 0;
   bool stopping_ = false;
   int64_t publish_errors_ = 0;

@@ -3,9 +3,11 @@
 // it; tests capture.
 
 #include "sweptccd/contact_event_t.hpp"
+#include "sweptccd/object_pose_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/status_t.hpp"
+#include "sweptccd/tracker_pose_t.hpp"
 
 namespace sweptccd {
 
@@ -25,6 +27,13 @@ class Publisher {
   /// "Shared world"), from worker threads, after that pair's contact event.
   /// Default: dropped (a publisher that does not serve the shared world).
   virtual void PublishSharedContact(const shared_contact_t& /*event*/) {}
+  /// A pose the service took (accepted: not rejected, not shed by a rate
+  /// limit), on the thread that called OnPose, after its lock: for viewers
+  /// (the WebSocket door forwards it, latest-wins). Must not block. Default:
+  /// dropped.
+  virtual void ForwardPose(const tracker_pose_t& /*pose*/) {}
+  /// Likewise a tracked object's pose the service took.
+  virtual void ForwardObjectPose(const object_pose_t& /*pose*/) {}
 };
 
 }  // namespace sweptccd

@@ -11,6 +11,7 @@
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "service/lcm_transport.h"
+#include "service/ws/door_options.h"
 
 namespace sweptccd {
 
@@ -28,8 +29,8 @@ struct ClientSpec {
   std::string id;
   std::string skeleton_path;
   MotionModel motion = MotionModel::kArticulated;
-  std::string filter_path;                // Optional collision filter JSON.
-  std::vector<std::string> ignore_rules;  // LINK:OBJECT, as `sweptccd query --ignore`.
+  std::string filter_path;                      // Optional collision filter JSON.
+  std::vector<std::string> ignore_rules;        // LINK:OBJECT, as `sweptccd query --ignore`.
   std::vector<EntityRuleSpec> ignore_entities;  // The shared world's filters.
 };
 
@@ -47,7 +48,7 @@ struct SecurityConfig {
   std::string room_key;         // Key file: clients without their own key, and the service.
   std::string service_key;      // Key file that signs what the service publishes; default room_key.
   std::map<std::string, std::string> client_keys;  // Client id -> key file.
-  double max_utime_jump_s = 10;  // utime_jump horizon, seconds, > 0.
+  double max_utime_jump_s = 10;                    // utime_jump horizon, seconds, > 0.
 };
 
 struct ServiceConfig {
@@ -56,15 +57,16 @@ struct ServiceConfig {
   std::vector<std::string> environment;  // Mesh files, in object order.
   QueryOptions query;
   gpu::BackendKind backend = gpu::BackendKind::kAuto;
-  int gpu_device = -1;           // EGL device index; -1: the first that works.
+  int gpu_device = -1;            // EGL device index; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
   double status_period_s = 1.0;
-  double max_pose_rate_hz = 240;  // Input rate limit per client, Hz, in (0, 1e6].
+  double max_pose_rate_hz = 240;         // Input rate limit per client, Hz, in (0, 1e6].
   double max_object_pose_rate_hz = 240;  // Input rate limit per tracked object, Hz, (0, 1e6].
   std::string log_level = "info";
-  uint64_t max_mesh_bytes = kDefaultMaxMeshBytes;  // Cap on each mesh file, before and after gunzip.
-  int max_links = kDefaultMaxLinks;                // Cap on each client's skeleton.
+  uint64_t max_mesh_bytes =
+      kDefaultMaxMeshBytes;          // Cap on each mesh file, before and after gunzip.
+  int max_links = kDefaultMaxLinks;  // Cap on each client's skeleton.
   /// Live clients (joined over LCM, docs/SERVICE.md "Live clients") at most at
   /// once; 0 refuses every join.
   int max_live_clients = 32;
@@ -80,6 +82,8 @@ struct ServiceConfig {
   bool shared_world = false;
   std::vector<ObjectSpec> objects;
   SecurityConfig security;
+  /// The WebSocket door (docs/WEBSOCKET.md), off unless websocket.listen.
+  WsDoorOptions websocket;
 };
 
 /// Reads a YAML configuration. Relative paths are taken relative to the

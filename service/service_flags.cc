@@ -94,6 +94,20 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--service-key", f->service_key,
                   "Key file that signs what the service publishes");
   app->add_option("--client-key", f->client_key_flags, "ID=FILE: a client's own key file; repeat");
+  app->add_option("--ws-listen", f->ws_listen,
+                  "HOST:PORT of the WebSocket door (docs/WEBSOCKET.md); off when not given");
+  app->add_option("--ws-cert", f->ws_cert, "PEM certificate chain of the door (wss://)");
+  app->add_option("--ws-key", f->ws_key, "PEM private key of --ws-cert");
+  app->add_option("--ws-allow-origin", f->ws_allow_origins,
+                  "A browser Origin allowed at the door besides its own; repeat");
+  app->add_option("--ws-view-dir", f->ws_view_dir,
+                  "Folder of the live view's files served at the door's root");
+  app->add_option("--ws-max-connections", f->ws_max_connections,
+                  "WebSocket/HTTP connections at most at once")
+      ->check(CLI::Range(1, 65536));
+  app->add_option("--ws-max-connections-per-address", f->ws_max_connections_per_address,
+                  "Connections at most from one source address")
+      ->check(CLI::Range(1, 65536));
 }
 
 void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
@@ -127,6 +141,16 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
       throw InputError("--client-key '" + flag + "': expected ID=FILE");
     }
     config->security.client_keys[flag.substr(0, eq)] = flag.substr(eq + 1);
+  }
+  WsDoorOptions& ws = config->websocket;
+  SetIfGiven(flags.ws_listen, &ws.listen);
+  SetIfGiven(flags.ws_cert, &ws.cert_path);
+  SetIfGiven(flags.ws_key, &ws.key_path);
+  SetIfGiven(flags.ws_view_dir, &ws.view_dir);
+  for (const std::string& o : flags.ws_allow_origins) ws.allow_origins.push_back(o);
+  if (flags.ws_max_connections > 0) ws.max_connections = flags.ws_max_connections;
+  if (flags.ws_max_connections_per_address > 0) {
+    ws.max_connections_per_address = flags.ws_max_connections_per_address;
   }
 }
 

@@ -27,14 +27,18 @@ struct ServiceFlags {
   double eps_s = -1, delta_m = -1, status_period_s = -1, max_pose_rate_hz = -1;
   double max_object_pose_rate_hz = -1;
   int workers = 0;
-  int max_live_clients = -1;           // -1: not given.
-  int64_t silence_timeout_ms = -1;     // -1: not given.
-  std::string backend;  // cpu, gpu or auto.
-  int gpu_device = -2;  // -2: not given (-1 is a valid value).
+  int max_live_clients = -1;        // -1: not given.
+  int64_t silence_timeout_ms = -1;  // -1: not given.
+  std::string backend;              // cpu, gpu or auto.
+  int gpu_device = -2;              // -2: not given (-1 is a valid value).
   bool require_hardware = false;
   std::string log_level;
   std::string security_mode, room_key, service_key;
   std::vector<std::string> client_key_flags;  // ID=FILE.
+  // The WebSocket door (docs/WEBSOCKET.md); empty / -1: not given.
+  std::string ws_listen, ws_cert, ws_key, ws_view_dir;
+  std::vector<std::string> ws_allow_origins;  // Appended to websocket.allow_origins.
+  int ws_max_connections = -1, ws_max_connections_per_address = -1;
 };
 
 /// Declares every flag of sweptccd-service on `app`, storing into `flags`

@@ -8,6 +8,8 @@
 #include "core/errors.h"
 #include "core/query/ccd_query.h"
 #include "core/query/result_json.h"
+#include "core/world/entity_broad_phase.h"
+#include "core/world/window_split.h"
 
 namespace sweptccd {
 
@@ -22,12 +24,14 @@ void Put3(const Eigen::Vector3d& v, double out[3]) {
   for (int k = 0; k < 3; ++k) out[k] = v[k];
 }
 
-entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
+// The wire form of the records of core/world/entity_query.h (the numbers
+// `sweptccd world` prints, by MakeEntityRecord).
+entity_contact_t ContactOf(const world::EntityContactRecord& c) {
   entity_contact_t out;
   out.link = c.link;
   out.other_link = c.other_link;
   out.triangle = c.triangle;
-  out.s = std::clamp(c.tau / dur, 0.0, 1.0);
+  out.s = c.s;
   Put3(c.point_link, out.point_link);
   Put3(c.point_other, out.point_other);
   Put3(c.normal, out.normal);
@@ -35,26 +39,23 @@ entity_contact_t ContactOf(const world::OtherContact& c, double dur) {
   return out;
 }
 
-// The bracket fields an entry and a per-link bracket share, as printed.
+// The bracket fields an entry and a per-link bracket share.
 template <typename Msg>
-void PutBracket(const world::OtherBracket& b, const SharedJob& job, Msg* out) {
-  const world::PrintedBracket p =
-      world::PrintBracket(b, job.pose0.utime, job.pose1.utime, job.t_from, job.t_to);
+void PutBracket(const world::EntityBracketRecord& p, Msg* out) {
   out->s_lo = p.s_lo;
   out->s_hi = p.s_hi;
   out->t_lo = p.t_lo;
   out->t_hi = p.t_hi;
-  out->initially_colliding = b.initially_colliding;
-  out->undecided = b.undecided;
+  out->initially_colliding = p.initially_colliding;
+  out->undecided = p.undecided;
 }
 
-entity_link_bracket_t LinkBracketOf(const world::OtherBracket& b, const SharedJob& job,
-                                    double dur) {
+entity_link_bracket_t LinkBracketOf(const world::EntityBracketRecord& p) {
   entity_link_bracket_t out{};
-  out.link = b.link;
-  PutBracket(b, job, &out);
-  out.has_witness = b.has_witness;
-  if (b.has_witness) out.witness = ContactOf(b.witness, dur);
+  out.link = p.link;
+  PutBracket(p, &out);
+  out.has_witness = p.has_witness;
+  if (p.has_witness) out.witness = ContactOf(p.witness);
   return out;
 }
 
@@ -62,14 +63,41 @@ entity_link_bracket_t LinkBracketOf(const world::OtherBracket& b, const SharedJo
 shared_entry_t EntryOf(const SharedJob& job) {
   shared_entry_t m{};
   m.entity = job.entity;
-  m.entity_kind =
-      job.entity_is_object ? shared_entry_t::KIND_OBJECT : shared_entry_t::KIND_AVATAR;
+  m.entity_kind = job.entity_is_object ? shared_entry_t::KIND_OBJECT : shared_entry_t::KIND_AVATAR;
   m.t_from = job.t_from;
   m.t_to = job.t_to;
   m.result = shared_entry_t::RESULT_FREE;
   m.waited_us = job.waited_us;
   m.ended_by_timeout = job.ended_by_timeout;
   return m;
+}
+
+const std::vector<world::EntityRule>& RulesOf(const std::shared_ptr<const AvatarAnswerOptions>& o) {
+  static const std::vector<world::EntityRule> none;
+  return o ? o->rules : none;
+}
+
+// The entity query over the job's slice (the window re-based on it).
+world::OtherAnswer AnswerJob(const SharedJob& job, const world::EntityQueryOptions& options) {
+  const int64_t u0 = job.pose0.utime, u1 = job.pose1.utime;
+  std::optional<PairMotion> own;
+  const PairMotion& motion = job.pair_motion
+                                 ? *job.pair_motion
+                                 : own.emplace(*job.skeleton_a, job.pose0, job.pose1, job.motion_a);
+  MotionMemo memo(motion);
+  const world::PairSide a{world::FilterSide{job.client_id, RulesOf(job.own_a)}, *job.skeleton_a, u0,
+                          u1, &memo};
+  if (job.entity_is_object) {
+    const world::ObjectWindow o{job.entity, *job.mesh_e, job.object_samples};
+    const world::EntryWindow w = world::WindowOver(u0, job.t_from, job.t_to, o.samples.size(),
+                                                   [&](size_t k) { return o.samples[k].utime; });
+    return world::AnswerAgainstObject(a, o, w, options);
+  }
+  const world::AvatarWindow b{world::FilterSide{job.entity, RulesOf(job.own_e)}, *job.skeleton_e,
+                              job.motion_e, job.avatar_samples};
+  const world::EntryWindow w = world::WindowOver(u0, job.t_from, job.t_to, b.samples.size(),
+                                                 [&](size_t k) { return b.samples[k].utime; });
+  return world::AnswerAgainstAvatar(a, b, w, options);
 }
 
 }  // namespace
@@ -91,56 +119,17 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
     return m;
   }
   try {
-    // A two-entity world: A (its pair) and E (the slice of its history the
-    // window uses). Index 0 is A; E is avatar 1 or object 0.
-    world::World w;
-    world::AvatarEntity a;
-    a.id = job.client_id;
-    a.skeleton = *job.skeleton_a;
-    a.motion = job.motion_a;
-    a.used = {job.pose0, job.pose1};
-    w.avatars.push_back(std::move(a));
-    std::vector<int64_t> times;
-    if (job.entity_is_object) {
-      world::ObjectEntity o;
-      o.id = job.entity;
-      o.mesh = job.mesh_e;
-      o.used = job.object_samples;
-      for (const world::RigidSample& x : o.used) times.push_back(x.utime);
-      w.objects.push_back(std::move(o));
-    } else {
-      world::AvatarEntity e;
-      e.id = job.entity;
-      e.skeleton = *job.skeleton_e;
-      e.motion = job.motion_e;
-      e.used = job.avatar_samples;
-      for (const Pose& p : e.used) times.push_back(p.utime);
-      w.avatars.push_back(std::move(e));
-    }
-    w.rules.assign(w.avatars.size(), {});
-    if (job.own_a) w.rules[0] = job.own_a->rules;
-    if (job.own_e && !job.entity_is_object) w.rules[1] = job.own_e->rules;
-    const int64_t u0 = job.pose0.utime, u1 = job.pose1.utime;
-    const std::vector<world::Piece> pieces = world::SplitWindow(u0, job.t_from, job.t_to, times);
-    const PairMotion motion(w.avatars[0].skeleton, job.pose0, job.pose1, job.motion_a);
-    const std::unique_ptr<world::OtherTarget> target =
-        job.entity_is_object
-            ? world::MakeObjectTarget(w, 0, 0, world::WindowScale(w.objects[0], pieces))
-            : world::MakeAvatarTarget(w, 0, 1, world::WindowScale(w.avatars[1], pieces));
-    const world::OtherAnswer ans =
-        world::AnswerOther(w.avatars[0].skeleton, motion, u0, u1, pieces, *target, options);
-    const double dur = static_cast<double>(u1 - u0);
-    if (ans.contact) {
-      const world::OtherBracket& b = ans.bracket;
+    const world::EntityRecord r =
+        world::MakeEntityRecord(job.entity, job.entity_is_object, job.pose0.utime, job.pose1.utime,
+                                job.t_from, job.t_to, AnswerJob(job, options), options.per_link);
+    if (r.contact) {
       m.result = shared_entry_t::RESULT_CONTACT;
-      PutBracket(b, job, &m);
-      if (b.has_witness) m.contacts.push_back(ContactOf(b.witness, dur));
+      PutBracket(r.bracket, &m);
+      for (const world::EntityContactRecord& c : r.contacts) m.contacts.push_back(ContactOf(c));
       m.num_contacts = static_cast<int32_t>(m.contacts.size());
     }
-    if (options.per_link) {
-      for (const world::OtherBracket& b : ans.links) m.links.push_back(LinkBracketOf(b, job, dur));
-      m.num_links = static_cast<int32_t>(m.links.size());
-    }
+    for (const world::EntityBracketRecord& b : r.links) m.links.push_back(LinkBracketOf(b));
+    m.num_links = static_cast<int32_t>(m.links.size());
   } catch (const std::exception& e) {
     m = EntryOf(job);
     m.result = shared_entry_t::RESULT_INVALID;
@@ -226,19 +215,26 @@ int64_t SharedWorld::history_size(const std::string& id) const {
   return it == entities_.end() ? 0 : static_cast<int64_t>(it->second.size());
 }
 
-Aabb SharedWorld::IntervalBox(const Entity& e, size_t k0, size_t k1) {
+Aabb SharedWorld::IntervalBox(const Entity& e, size_t k0, size_t k1,
+                              std::shared_ptr<const PairMotion>* motion) {
   if (e.is_object) {
     return world::ObjectMotionBox(e.object_samples[k0], e.object_samples[k1], e.radius,
                                   e.mesh_scale);
   }
-  return world::AvatarMotionBox(
-      *e.skeleton, PairMotion(*e.skeleton, e.avatar_samples[k0], e.avatar_samples[k1], e.motion));
+  auto m = std::make_shared<const PairMotion>(*e.skeleton, e.avatar_samples[k0],
+                                              e.avatar_samples[k1], e.motion);
+  const Aabb box = world::AvatarMotionBox(*e.skeleton, *m);
+  if (motion != nullptr) *motion = std::move(m);
+  return box;
 }
 
 void SharedWorld::Append(Entity* e, Time now) {
-  // The new sample closes an interval: its box, on the receiving thread,
-  // once, rather than once per entry that uses it.
-  if (e->size() >= 2) e->boxes.push_back(IntervalBox(*e, e->size() - 2, e->size() - 1));
+  // The new sample closes an interval: its box (and an avatar's motion,
+  // for the pair it closes), on the receiving thread, once, rather than
+  // once per entry that uses it.
+  if (e->size() >= 2) {
+    e->boxes.push_back(IntervalBox(*e, e->size() - 2, e->size() - 1, &e->last_motion));
+  }
   e->last_heard = now;
   e->last_sample_time = now;
   while (static_cast<int>(e->size()) > options_.max_history) {
@@ -263,6 +259,7 @@ void SharedWorld::OnAvatarSample(const std::string& id, int64_t session, const P
         id, [](const Entry&) { return true; }, /*cut=*/true, now, due);
     e.avatar_samples.clear();
     e.boxes.clear();
+    e.last_motion.reset();
     e.evicted = false;
   }
   e.has_stream = true;
@@ -289,16 +286,13 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
   double v[7];
   for (int k = 0; k < 3; ++k) v[k] = msg.position[k];
   for (int k = 0; k < 4; ++k) v[3 + k] = msg.orientation[k];
-  world::RigidSample x;
-  const std::string problem = world::MakeRigidSample(msg.utime, v, &x);
-  if (!problem.empty()) {
-    const char* code = problem.find("finite") != std::string::npos ? rejection_code::kNonFinite
-                       : problem.find("position") != std::string::npos
-                           ? rejection_code::kPositionOutOfRange
-                           : rejection_code::kZeroQuaternion;
-    return Rejection{code, "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) + ": " +
-                               problem + "; send a finite pose with a unit quaternion"};
+  // The rule and the wording of an avatar's link pose (one link).
+  if (const std::optional<PoseProblem> problem = world::FindRigidProblem(v)) {
+    return PoseRejection(*problem,
+                         "object '" + msg.object_id + "' seq " + std::to_string(msg.seq) + ": ");
   }
+  world::RigidSample x;
+  SWEPTCCD_CHECK(world::MakeRigidSample(msg.utime, v, &x).empty());
   const bool new_stream = !e.has_stream || msg.session > e.session;
   if (!new_stream) {
     if (msg.session < e.session) {
@@ -313,14 +307,17 @@ std::optional<Rejection> SharedWorld::OnObjectPose(const object_pose_t& msg,
                            " is not greater than " + std::to_string(e.last_seq) +
                            "; number samples strictly increasingly"};
     }
-    const int64_t last = e.object_samples.empty() ? msg.utime - 1 : e.object_samples.back().utime;
+    // A stream's history is never empty: a new stream starts with its sample.
+    SWEPTCCD_CHECK(!e.object_samples.empty());
+    const int64_t last = e.object_samples.back().utime;
     if (msg.utime <= last) {
       return Rejection{rejection_code::kNonIncreasingUtime,
                        "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
                            " is not after " + std::to_string(last) +
                            "; stamp samples strictly increasingly"};
     }
-    if (msg.utime - last > max_utime_jump_us) {
+    // The avatar's rule (UtimeJump: no signed overflow for hostile utimes).
+    if (UtimeJump(last, msg.utime) > static_cast<uint64_t>(max_utime_jump_us)) {
       return Rejection{rejection_code::kUtimeJump,
                        "object '" + msg.object_id + "' utime " + std::to_string(msg.utime) +
                            " is more than max_utime_jump_s after " + std::to_string(last) +
@@ -360,57 +357,21 @@ bool SharedWorld::Covered(const Entity& e, const Entry& entry) {
   return newest == u1 && std::max(entry.pair->pose0.utime, e.utime(0)) < u1;
 }
 
-bool SharedWorld::Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,
-                       int64_t t_to) {
-  const size_t n = e.size();
-  if (n == 1) return box_a.Overlaps(IntervalBox(e, 0, 0));
-  // The intervals of SplitWindow's pieces, walked in place over the deque
-  // (no times vector, no pieces) by the same rule: from `first`, skipping a
-  // boundary instant of a longer window; one piece for an instant window.
-  for (size_t k = first; k + 1 < n && e.utime(k) <= t_to; ++k) {
-    const int64_t lo = std::max(t_from, e.utime(k));
-    const int64_t hi = std::min(t_to, e.utime(k + 1));
-    if (lo > hi) continue;
-    if (lo == hi && t_from < t_to) continue;
-    if (box_a.Overlaps(e.boxes[k])) return true;
-    if (t_from == t_to) break;
-  }
-  return false;
-}
-
 bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time now,
                           SharedJob* job) const {
   const size_t n = e.size();
-  if (n == 0) return false;
   const int64_t u0 = entry.pair->pose0.utime, u1 = entry.pair->pose1.utime;
-  const int64_t t_from = std::max(u0, e.utime(0));
-  const int64_t t_to = std::min(u1, e.utime(n - 1));
-  if (t_from > t_to) return false;  // No overlap: no entry (as offline).
-  // f: the last sample at or before t_from; l: the first at or after t_to
-  // (else the last). Binary searches: this runs per entry on the service's
-  // lock, and a history holds up to max_history samples.
-  const auto count_before = [&](int64_t t, bool or_at) {  // Samples before t (or at).
-    size_t lo = 0, hi = n;
-    while (lo < hi) {
-      const size_t mid = lo + (hi - lo) / 2;
-      if (e.utime(mid) < t || (or_at && e.utime(mid) == t)) {
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    return lo;
-  };
-  size_t f = count_before(t_from, true) - 1;  // utime(0) <= t_from: at least one.
-  size_t l = std::max(f, std::min(count_before(t_to, false), n - 1));
-  if (n >= 2) {
-    // SplitWindow's pieces use samples k and k+1 (k clamped to n - 2).
-    if (f == n - 1) --f;
-    if (l == f) ++l;
-  }
-  // f is SplitWindow's first interval. Pieces over the slice from f are E's
-  // intervals f + k, whose boxes are those of the whole history.
-  job->cleared_by_box = options_.broad_phase && !Near(e, entry.pair->box_a, f, t_from, t_to);
+  // The window rule of `sweptccd world` (window_split.h) over the kept
+  // samples; its pieces over the slice [first, last] are E's intervals
+  // first + k, whose boxes are those of the whole history.
+  const std::optional<world::EntryWindow> window =
+      world::WindowOf(u0, u1, n, [&](size_t k) { return e.utime(k); });
+  if (!window) return false;  // No overlap: no entry (as offline).
+  const int64_t t_from = window->t_from, t_to = window->t_to;
+  job->cleared_by_box =
+      options_.broad_phase && !world::EntryNear(entry.pair->box_a, window->pieces, [&](size_t k) {
+        return n == 1 ? IntervalBox(e, 0, 0) : e.boxes[k];
+      });
   job->client_id = entry.a;
   job->pair = entry.pair->pair;
   job->seq0 = entry.pair->seq0;
@@ -418,6 +379,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->receive_utime = entry.pair->receive_utime;
   job->skeleton_a = entry.skeleton_a;
   job->motion_a = entry.motion_a;
+  job->pair_motion = entry.pair->motion;
   job->own_a = entry.own_a;
   job->own_e = e.own;  // Null for an object.
   if (job->cleared_by_box) {
@@ -435,7 +397,7 @@ bool SharedWorld::MakeJob(const Entity& e, const Entry& entry, bool cut, Time no
   job->mesh_e = e.mesh;
   job->avatar_samples.clear();
   job->object_samples.clear();
-  for (size_t k = f; k <= l && !job->cleared_by_box; ++k) {
+  for (size_t k = window->first; k <= window->last && !job->cleared_by_box; ++k) {
     if (e.is_object) {
       job->object_samples.push_back(e.object_samples[k]);
     } else {
@@ -492,13 +454,17 @@ void SharedWorld::AddPair(const std::string& id, const PosePair& pair, Time now,
   // (Searched from the newest sample: the pair is at or near the end.)
   size_t k = a.size();
   while (k > 0 && a.utime(k - 1) > pair.pose0.utime) --k;
-  if (k > 0 && k < a.size() && SamePose(a.avatar_samples[k - 1], pair.pose0) &&
-      SamePose(a.avatar_samples[k], pair.pose1)) {
-    shared->box_a = a.boxes[k - 1];
-  } else {
-    shared->box_a = world::AvatarMotionBox(
-        *a.skeleton, PairMotion(*a.skeleton, pair.pose0, pair.pose1, a.motion));
+  // A's motion likewise: the one made with the box of A's last interval
+  // when the pair is that interval, else made here; once for all entries.
+  const bool in_history = k > 0 && k < a.size() && SamePose(a.avatar_samples[k - 1], pair.pose0) &&
+                          SamePose(a.avatar_samples[k], pair.pose1);
+  if (in_history && k + 1 == a.size()) shared->motion = a.last_motion;
+  if (!shared->motion) {
+    shared->motion =
+        std::make_shared<const PairMotion>(*a.skeleton, pair.pose0, pair.pose1, a.motion);
   }
+  shared->box_a =
+      in_history ? a.boxes[k - 1] : world::AvatarMotionBox(*a.skeleton, *shared->motion);
   for (const std::string& other : order_) {
     if (other == id) continue;
     Entry entry;

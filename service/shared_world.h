@@ -15,9 +15,10 @@
 // Equality with `sweptccd world`: an entry answered because the entity
 // covered the window (a sample at or after the pair's utime1; after it for a
 // window of one instant, Covered) is given
-// exactly the samples the offline answer uses (WindowScale, SplitWindow over
-// the same slice), so it is bit-equal to the offline entry on the same
-// samples. Entries ended by the timeout, or whose window starts before the
+// exactly the samples the offline answer uses and is answered by the same
+// code: the window rule (core/world/window_split.h), the broad phase
+// (EntryNear), the entity query and its record (core/world/entity_query.h),
+// so it is bit-equal to the offline entry on the same samples. Entries ended by the timeout, or whose window starts before the
 // entity's oldest kept sample (history cut), say ended_by_timeout.
 
 #include <cstdint>
@@ -32,7 +33,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/scene/environment.h"
-#include "core/world/entity_ccd.h"
+#include "core/world/entity_query.h"
 #include "core/world/world.h"
 #include "service/client_session.h"
 #include "sweptccd/object_pose_t.hpp"
@@ -70,6 +71,9 @@ struct SharedJob {
   int64_t receive_utime = 0;  // When A's pose seq1 was received (service clock).
   std::shared_ptr<const Skeleton> skeleton_a;
   MotionModel motion_a = MotionModel::kArticulated;
+  /// A's motion over the pair, built once for all the pair's entries (null
+  /// in a job made outside SharedWorld: then built by AnswerSharedJob).
+  std::shared_ptr<const PairMotion> pair_motion;
   /// A's and E's (an avatar's) own options: A's tolerances answer the
   /// entry, and a filter rule of either applies to the pair of links
   /// (SPEC 8 "Filters"). Null: none (the service's tolerances, no rule).
@@ -79,10 +83,10 @@ struct SharedJob {
   bool entity_is_object = false;
   std::shared_ptr<const Skeleton> skeleton_e;  // E an avatar.
   MotionModel motion_e = MotionModel::kArticulated;
-  std::vector<Pose> avatar_samples;  // E an avatar: the slice.
-  std::shared_ptr<const Environment> mesh_e;  // E an object: its mesh (one object).
+  std::vector<Pose> avatar_samples;                // E an avatar: the slice.
+  std::shared_ptr<const Environment> mesh_e;       // E an object: its mesh (one object).
   std::vector<world::RigidSample> object_samples;  // E an object: the slice.
-  int64_t t_from = 0, t_to = 0;  // The window, utimes.
+  int64_t t_from = 0, t_to = 0;                    // The window, utimes.
   int64_t waited_us = 0;
   bool ended_by_timeout = false;
   /// When it became due (MakeJob): shared_entry_t.queue_us runs from here.
@@ -94,8 +98,8 @@ struct SharedJob {
   bool cleared_by_box = false;
 };
 
-/// Answers one due entry (AnswerOther of core/world over the job's slice,
-/// WindowScale for its slack): one entry of a shared_contact_t, with
+/// Answers one due entry through the entity query of `sweptccd world`
+/// (core/world/entity_query.h, over the job's slice): one entry of a shared_contact_t, with
 /// per-link brackets when options.per_link. A's tolerances (job.own_a)
 /// replace options' where set: A's record is answered to A's
 /// tolerances, as its environment part is. Pure and deterministic (but for
@@ -107,7 +111,6 @@ shared_entry_t AnswerSharedJob(const SharedJob& job, const world::EntityQueryOpt
 /// The message that carries the entries of `job`'s pair: the pair's fields
 /// set, no entries yet, utime and mac unset. Any thread.
 shared_contact_t SharedMessageOf(const SharedJob& job);
-
 
 class SharedWorld {
  public:
@@ -148,8 +151,7 @@ class SharedWorld {
   /// A's pair, as handed to a worker for its environment part: one entry per
   /// other registered entity; those already covered (or silent) go to *due at
   /// once, the rest wait. `receive_time`: A's pose seq1 was received.
-  void AddPair(const std::string& id, const PosePair& pair, Time now,
-               std::vector<SharedJob>* due);
+  void AddPair(const std::string& id, const PosePair& pair, Time now, std::vector<SharedJob>* due);
 
   /// Cuts every entry whose entity was silent, or that itself waited, for
   /// silence_timeout_us before `now`. The service calls it on the daemon's
@@ -171,7 +173,8 @@ class SharedWorld {
 
  private:
   struct SharedPair : PosePair {
-    Aabb box_a;  // A over the pair (AvatarMotionBox).
+    Aabb box_a;                                // A over the pair (AvatarMotionBox).
+    std::shared_ptr<const PairMotion> motion;  // A's over the pair, for every entry.
   };
   struct Entry {
     std::string a;  // The avatar whose pair it is.
@@ -199,10 +202,13 @@ class SharedWorld {
     // k+1 arrives so that an entry costs box tests only; one fewer than
     // the samples, evicted and cleared with them.
     std::deque<Aabb> boxes;
+    // An avatar: its motion over its last two samples (made with their
+    // box), which the pair they close answers every entry with.
+    std::shared_ptr<const PairMotion> last_motion;
     double radius = 0, mesh_scale = 0;  // An object: ObjectRadius, its BVH's scale.
-    bool evicted = false;  // The history dropped older samples of this stream.
-    Time last_heard;       // Registration, then every used sample.
-    Time last_sample_time;  // Receipt of the newest sample.
+    bool evicted = false;               // The history dropped older samples of this stream.
+    Time last_heard;                    // Registration, then every used sample.
+    Time last_sample_time;              // Receipt of the newest sample.
     // The entries waiting for this entity's samples, oldest first: a sample
     // looks at its own entity's entries only, not at every pending entry.
     std::deque<Entry> pending;
@@ -211,13 +217,10 @@ class SharedWorld {
       return is_object ? object_samples[k].utime : avatar_samples[k].utime;
     }
   };
-  // E's box over its samples k0 -> k1 (k1 == k0 for a one-sample entity).
-  static Aabb IntervalBox(const Entity& e, size_t k0, size_t k1);
-  // Whether E's box of some interval the window [t_from, t_to] uses (the
-  // pieces of SplitWindow over E's samples, the first at `first`) overlaps
-  // A's box.
-  static bool Near(const Entity& e, const Aabb& box_a, size_t first, int64_t t_from,
-                   int64_t t_to);
+  // E's box over its samples k0 -> k1 (k1 == k0 for a one-sample entity);
+  // an avatar's motion over them in *motion when given.
+  static Aabb IntervalBox(const Entity& e, size_t k0, size_t k1,
+                          std::shared_ptr<const PairMotion>* motion = nullptr);
 
   // Whether entry's window is settled by E's samples now (covered).
   static bool Covered(const Entity& e, const Entry& entry);

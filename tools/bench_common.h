@@ -1,12 +1,13 @@
 #pragma once
 // Shared by the benchmark commands (`sweptccd bench`, `sweptccd
-// world-bench`): the thread CPU clock, the percentile rule of every table,
+// world-bench`): the thread CPU clock, the percentile rule of every table (core/percentile.h),
 // data files by plain name and how a clip is stood on a scene's floor.
 
 #include <Eigen/Core>
 #include <string>
 #include <vector>
 
+#include "core/percentile.h"
 #include "mocap/mocap_import.h"
 
 namespace sweptccd::bench {
@@ -14,14 +15,10 @@ namespace sweptccd::bench {
 /// This thread's CPU time in seconds (CLOCK_THREAD_CPUTIME_ID).
 double ThreadCpuSeconds();
 
-/// Median, p99, max and mean of a sample; no value is dropped.
-struct Stats {
-  double median = 0, p99 = 0, max = 0, mean = 0;
-};
-
-/// The table rule: median = v[n / 2], p99 = v[min(n - 1, floor(0.99 n))]
-/// of the sorted values. All zero for an empty sample.
-Stats Summarise(std::vector<double> v);
+/// Median, p99, max and mean of a sample by the one percentile rule
+/// (core/percentile.h); no value is dropped.
+using Stats = ::sweptccd::Summary;
+using ::sweptccd::Summarise;
 
 /// A data file by its plain name: as named when present, else its gzip
 /// (data/ ships NAME.gz; a larger folder may hold either).

@@ -30,7 +30,7 @@ jobs=${JOBS:-2}
 
 # Every parser of outside input.
 parsers=(fuzz_skeleton fuzz_pose fuzz_joint_frame fuzz_filter fuzz_config fuzz_world
-         fuzz_mesh_obj fuzz_mesh_ply fuzz_mesh_stl)
+         fuzz_mesh_obj fuzz_mesh_ply fuzz_mesh_stl fuzz_websocket)
 # The LCM message types that cross the wire, each decoded as the daemon and
 # the tools decode it: msgs/'s DecodeChecked<T> with the default WireLimits,
 # and the raw datagram through VerifyEncoded (tests/fuzz/decode_fuzzer.cc).
@@ -48,7 +48,12 @@ build_targets=("${parsers[@]}" "${decoders[@]}")
 if [ $# -gt 0 ]; then targets=("$@") build_targets=("$@"); fi
 
 launcher=()
-if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache); fi
+# ccache with paths taken relative to the checkout, so a clone in another
+# folder (CI's) reuses what an earlier build of the same sources compiled.
+if command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
+fi
 CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DSWEPTCCD_FUZZ=ON -DSWEPTCCD_FUZZ_PLAIN="$plain_flag" -DSWEPTCCD_BUILD_TESTS=OFF \
   "${launcher[@]}" >/dev/null

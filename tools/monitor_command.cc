@@ -21,11 +21,11 @@
 
 #include "core/avatar/skeleton.h"
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
 #include "service/daemon/stop_signal.h"
-#include "service/percentile.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"

@@ -13,11 +13,12 @@
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/gpu/backend.h"
+#include "core/query/query_scene.h"
 #include "core/query/result_json.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
 #include "msgs/text.h"
-#include "tools/output_paths.h"
+#include "tools/command_common.h"
 
 namespace sweptccd {
 
@@ -25,47 +26,32 @@ int RunQueryCommand(const QueryCommandOptions& options) {
   try {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd query: " + problem);
-    if (options.env_paths.empty()) throw InputError("sweptccd query: give at least one --env");
     std::vector<NamedPath> inputs = {{"--skeleton", options.skeleton_path},
                                      {"--poses", options.poses_path},
                                      {"--filter", options.filter_path}};
     for (const std::string& e : options.env_paths) inputs.push_back({"--env", e});
-    RefuseClashingPaths(inputs, {{"--output", options.output_path}});
+    ResultsOutput results(options.output_path, inputs);  // Refuses an output that is an input.
     const Skeleton skeleton = LoadSkeletonFile(options.skeleton_path, options.max_links);
     std::ifstream poses = OpenInputFile(options.poses_path, "pose stream file");
 
-    const auto load_start = std::chrono::steady_clock::now();
-    const Environment env = Environment::LoadFiles(options.env_paths, options.mesh);
-    spdlog::info(
-        "environment: {} objects, {} triangles, {:.1f} MiB, loaded in {:.3f} s", env.num_objects(),
-        env.num_triangles(), env.memory_bytes() / 1048576.0,
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - load_start).count());
+    QuerySceneSpec spec;
+    spec.env_paths = options.env_paths;
+    spec.filter_path = options.filter_path;
+    spec.ignore_rules = options.ignore_rules;
+    spec.mesh = options.mesh;
+    const std::unique_ptr<QueryScene> scene = LoadQueryScene(spec, skeleton, "sweptccd query");
+    const Environment& env = scene->env;
 
-    CollisionFilter filter(skeleton.num_links(), env.num_objects());
-    if (!options.filter_path.empty()) {
-      filter = CollisionFilter::FromFile(options.filter_path, skeleton, env);
-    }
-    for (const std::string& rule : options.ignore_rules) filter.AddRule(rule, skeleton, env);
+    results.Open();
+    std::ostream* out = &results.stream();
 
-    std::ofstream file_out;
-    std::ostream* out = &std::cout;
-    if (!options.output_path.empty()) {
-      file_out.open(options.output_path, std::ios::binary | std::ios::trunc);
-      if (!file_out) throw InputError(options.output_path + ": cannot open the output file");
-      out = &file_out;
-    }
-
-    CcdEngine engine(skeleton, env, std::move(filter));
+    CcdEngine engine(skeleton, env, std::move(scene->filter));
     // The backend: says on stderr which it picked and why (a GPU that cannot
     // be had is logged and the CPU answers).
-    gpu::BackendOptions backend_options;
-    backend_options.backend = options.backend;
-    backend_options.device_index = options.gpu_device;
-    backend_options.require_hardware = options.require_hardware;
-    gpu::Backend backend(backend_options);
+    gpu::Backend backend(options.backend.Options());
     // auto: a short calibration on this scene and skeleton picks the faster.
     backend.ResolveAuto(env, &skeleton, &engine.filter(), options.query);
-    if (options.backend != gpu::BackendKind::kCpu) {
+    if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
     }
     backend.Attach(&engine);
@@ -93,12 +79,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     if (!reader.first_line_error().empty()) {
       spdlog::warn("{}: {}", options.poses_path, reader.first_line_error());
     }
-    out->flush();
-    if (!*out) {
-      throw InputError(
-          (options.output_path.empty() ? std::string("standard output") : options.output_path) +
-          ": error while writing the results");
-    }
+    results.Finish();
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
     return 0;
   } catch (const InputError& e) {

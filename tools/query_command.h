@@ -8,6 +8,7 @@
 #include "core/geometry/mesh.h"
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
+#include "tools/command_common.h"
 
 namespace sweptccd {
 
@@ -16,9 +17,7 @@ struct QueryCommandOptions {
   std::string poses_path;
   std::vector<std::string> env_paths;
   std::string output_path;  // Empty: standard output.
-  gpu::BackendKind backend = gpu::BackendKind::kAuto;
-  int gpu_device = -1;           // EGL device index; -1: the first that works.
-  bool require_hardware = false;
+  BackendFlags backend;     // --backend, --gpu-device, --require-hardware.
   std::string filter_path;
   std::vector<std::string> ignore_rules;  // LINK:OBJECT
   QueryOptions query;

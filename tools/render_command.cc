@@ -333,8 +333,15 @@ json WriteEntityPicture(const RenderCommandOptions& o) {
   int64_t from = 0, to = 0;
   auto contact = [&](size_t r) {
     answer = world::OtherAnswer();
-    return records[r].valid && answerer.AnswerEntity(a, r, b, obj, &answer, &from, &to) &&
-           answer.contact;
+    if (!records[r].valid) return false;
+    const world::AvatarIndex ia(a);
+    const auto e = b >= 0 ? answerer.AnswerAvatar(ia, r, world::AvatarIndex(b))
+                          : answerer.AnswerObject(ia, r, world::TrackedObjectIndex(obj));
+    if (!e) return false;
+    answer = e->answer;
+    from = e->t_from;
+    to = e->t_to;
+    return answer.contact;
   };
   size_t chosen = records.size();
   if (o.pair >= 0) {

@@ -3,7 +3,7 @@
 // at both poses, the links' swept volumes, the avatar at the first contact,
 // the witness and the normal) and a timeline of the whole stream (each link's
 // separation against time, contacts marked), drawn through the headless EGL
-// context. See README.md, "Pictures of a contact".
+// context. See docs/USAGE.md, "Pictures of a contact".
 
 #include <string>
 #include <vector>
@@ -19,7 +19,7 @@ class App;
 namespace sweptccd {
 
 struct RenderCommandOptions {
-  // A pair of entities of a shared world (README, "Pictures of a contact"):
+  // A pair of entities of a shared world (docs/USAGE.md, "Pictures of a contact"):
   // --world with --avatar and --entity, instead of --skeleton/--poses/--env.
   std::string world_path;
   std::string avatar_id, entity_id;

@@ -33,7 +33,12 @@ src=$PWD
 build=${SWEPTCCD_ASAN_BUILD:-build-asan}
 jobs=${JOBS:-2}
 launcher=()
-if command -v ccache >/dev/null; then launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache); fi
+# ccache with paths taken relative to the checkout, so a clone in another
+# folder (CI's) reuses what an earlier build of the same sources compiled.
+if command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+  export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
+fi
 
 cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=Sanitize -DSWEPTCCD_SANITIZE=ON \
   -DCMAKE_CXX_FLAGS_SANITIZE="-O1 -g" -DCMAKE_C_FLAGS_SANITIZE="-O1 -g" \

@@ -29,6 +29,7 @@
 #include "sweptccd/object_pose_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace sweptccd {
 namespace {
@@ -426,17 +427,11 @@ void SendRound(const SimulateTrackerCommandOptions& o, const Pose& sample, int64
       ++counters->dropped;
       continue;
     }
-    tracker_pose_t m;
+    tracker_pose_t m = TrackerPoseOf(sample, c.offset_W);
     m.utime = utime;
     m.client_id = c.id;
     m.session = session;
     m.seq = client_seq;
-    m.num_links = static_cast<int32_t>(sample.links.size());
-    for (const LinkPose& l : sample.links) {
-      const Eigen::Vector3d p_W = l.p + c.offset_W;
-      m.position.push_back({p_W.x(), p_W.y(), p_W.z()});
-      m.orientation.push_back({l.q.w(), l.q.x(), l.q.y(), l.q.z()});
-    }
     // At most one sample of a client is held at a time. (A sample held at the
     // end of the run is sent after the last round, after nothing newer.)
     if (hold && !c.held) {
@@ -513,27 +508,20 @@ int Play(const SimulateTrackerCommandOptions& o, SampleSource* source, const Mac
             "': use ID=POSES.jsonl with an id of 1-64 characters from A-Z a-z 0-9 _ . -");
       }
       const std::string path = spec.substr(eq + 1);
-      std::ifstream in = OpenInputFile(path, "object pose file (--object)");
-      std::string line;
       int64_t seq = 0;
-      while (std::getline(in, line)) {
-        if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-        world::RigidSample x;
-        std::string error;
-        if (!world::ParseObjectPoseLine(line, &x, &error)) {
-          ++object_lines_skipped;
-          continue;
-        }
-        object_pose_t m{};
-        m.utime = x.utime + static_cast<int64_t>(o.bvh.utime_start);
-        m.object_id = spec.substr(0, eq);
-        m.session = session;
-        m.seq = seq++;
-        for (int c = 0; c < 3; ++c) m.position[c] = x.p[c];
-        m.orientation[0] = x.q.w(), m.orientation[1] = x.q.x(), m.orientation[2] = x.q.y();
-        m.orientation[3] = x.q.z();
-        objects.push_back(m);
-      }
+      // The one object pose reader (the lines `sweptccd world` uses).
+      object_lines_skipped += world::ReadObjectPoseFile(
+          path, "object pose file (--object)", [&](const world::RigidSample& x) {
+            object_pose_t m{};
+            m.utime = x.utime + static_cast<int64_t>(o.bvh.utime_start);
+            m.object_id = spec.substr(0, eq);
+            m.session = session;
+            m.seq = seq++;
+            for (int c = 0; c < 3; ++c) m.position[c] = x.p[c];
+            m.orientation[0] = x.q.w(), m.orientation[1] = x.q.x(), m.orientation[2] = x.q.y();
+            m.orientation[3] = x.q.z();
+            objects.push_back(m);
+          });
     }
     std::stable_sort(
         objects.begin(), objects.end(),

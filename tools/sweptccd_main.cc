@@ -45,20 +45,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"articulated", "independent"}));
   query->add_option("--eps", q.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   query->add_option("--delta", q.query.delta_m, "Distance tolerance, metres (default 1e-3)");
-  // Parsed into the enum as the flag is read: a bad name is a parse error.
-  query->add_option_function<std::string>(
-      "--backend",
-      [&q](const std::string& name) {
-        try {
-          q.backend = sweptccd::gpu::ParseBackendKind(name, "--backend");
-        } catch (const sweptccd::InputError& e) {
-          throw CLI::ValidationError(e.what());
-        }
-      },
-      "cpu, gpu or auto (default auto: the faster on a calibration at start)");
-  query->add_option("--gpu-device", q.gpu_device, "EGL device index for the GPU backend");
-  query->add_flag("--require-hardware", q.require_hardware,
-                  "GPU backend: refuse software renderers (llvmpipe)");
+  sweptccd::AddBackendFlags(
+      query, &q.backend, "cpu, gpu or auto (default auto: the faster on a calibration at start)");
   query->add_flag("--per-link", q.query.per_link, "A bracket for every touching link");
   query->add_option("--output", q.output_path, "Results file (default: standard output)");
   query->add_option("--filter", q.filter_path,
@@ -72,8 +60,7 @@ int main(int argc, char** argv) {
       ->add_option("--max-mesh-bytes", q.mesh.max_bytes,
                    "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
       ->check(CLI::PositiveNumber);
-  query->add_option("--max-links", q.max_links, "Largest skeleton, links (default 256)")
-      ->check(CLI::PositiveNumber);
+  sweptccd::AddMaxLinksFlag(query, &q.max_links);
 
   sweptccd::BenchCommandOptions b;
   CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");
@@ -115,16 +102,9 @@ int main(int argc, char** argv) {
   world->add_option("--world", wo.world_path, "World JSON file")->required();
   world->add_option("--eps", wo.query.eps_s, "Time tolerance, seconds (default 1e-4)");
   world->add_option("--delta", wo.query.delta_m, "Distance tolerance, metres (default 1e-3)");
-  world->add_option_function<std::string>(
-      "--backend",
-      [&wo](const std::string& name) {
-        try {
-          wo.backend = sweptccd::gpu::ParseBackendKind(name, "--backend");
-        } catch (const sweptccd::InputError& e) {
-          throw CLI::ValidationError(e.what());
-        }
-      },
-      "cpu, gpu or auto (static environment only; entities run on the CPU)");
+  sweptccd::AddBackendFlags(world, &wo.backend,
+                            "cpu, gpu or auto (static environment only; entities run on the CPU)");
+  sweptccd::AddMaxLinksFlag(world, &wo.load.max_links);
   world->add_flag("--per-link", wo.query.per_link, "A bracket for every touching link");
   world->add_option("--output", wo.output_path, "Results file (default: standard output)");
   world->add_flag("--bench", wo.bench,

@@ -258,13 +258,19 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
   std::vector<world::OtherAnswer> answers(n_avatars + n_objects);
   std::vector<char> answered(answers.size());
   const auto answer_all = [&](int a, size_t r) {
-    QueryResult env = answerer.AnswerEnvironment(a, r);
+    const world::AvatarIndex ia(a);
+    QueryResult env = answerer.AnswerEnvironment(ia, r);
     const double t_env = bench::ThreadCpuSeconds();
-    int64_t t_from, t_to;
     for (int e = 0; e < n_avatars + n_objects; ++e) {
-      answered[e] = e != a && answerer.AnswerEntity(a, r, e < n_avatars ? e : -1,
-                                                    e < n_avatars ? -1 : e - n_avatars, &answers[e],
-                                                    &t_from, &t_to);
+      if (e == a) {
+        answered[e] = false;
+        continue;
+      }
+      std::optional<world::WorldAnswerer::Entry> x =
+          e < n_avatars ? answerer.AnswerAvatar(ia, r, world::AvatarIndex(e))
+                        : answerer.AnswerObject(ia, r, world::TrackedObjectIndex(e - n_avatars));
+      answered[e] = x.has_value();
+      if (x) answers[e] = std::move(x->answer);
     }
     return std::make_pair(env.contact, t_env);
   };

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "core/world/world_query.h"
 #include "msgs/text.h"
 
@@ -21,19 +22,16 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     const std::string problem = ValidateQueryOptions(options.query);
     if (!problem.empty()) throw InputError("sweptccd world: " + problem);
     const world::LoadedWorld loaded = world::LoadWorldFile(options.world_path, options.load);
-    std::ofstream file_out;
-    std::ostream* out = &std::cout;
-    if (!options.output_path.empty()) {
-      file_out.open(options.output_path, std::ios::binary | std::ios::trunc);
-      if (!file_out) throw InputError(options.output_path + ": cannot open the output file");
-      out = &file_out;
-    }
+    // Every file the world names is an input the output must not be.
+    std::vector<NamedPath> inputs = {{"--world", options.world_path}};
+    for (const auto& [role, path] : loaded.files) inputs.push_back({"--world's " + role, path});
+    ResultsOutput results(options.output_path, inputs);
+    results.Open();
+    std::ostream* out = &results.stream();
     world::WorldAnswerer answerer(loaded, options.query);
     // The static-environment part runs on the chosen backend; the parts
     // between entities run on the CPU under every backend (same answers).
-    gpu::BackendOptions backend_options;
-    backend_options.backend = options.backend;
-    gpu::Backend backend(backend_options);
+    gpu::Backend backend(options.backend.Options());
     // auto: calibrated with the first avatar's engine (the one-capsule
     // calibration skeleton when the world has no avatar).
     const CcdEngine* first = nullptr;
@@ -42,7 +40,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     });
     backend.ResolveAuto(loaded.env, first ? &first->skeleton() : nullptr,
                         first ? &first->filter() : nullptr, options.query);
-    if (options.backend != gpu::BackendKind::kCpu) {
+    if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd world: backend %s\n", backend.reason().c_str());
     }
     answerer.ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
@@ -51,7 +49,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     for (int a = 0; a < static_cast<int>(loaded.world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
         const auto start = std::chrono::steady_clock::now();
-        const std::string line = answerer.RecordJson(a, r);
+        const std::string line = answerer.RecordJson(world::AvatarIndex(a), r);
         record_us.push_back(
             std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
                 .count());
@@ -69,25 +67,17 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       }
     }
     if (options.bench) {
-      std::sort(record_us.begin(), record_us.end());
-      auto pct = [&](double p) {
-        return record_us.empty() ? 0.0 : record_us[static_cast<size_t>(p * (record_us.size() - 1))];
-      };
+      const Summary us = Summarise(record_us);  // The one percentile rule.
       double total = 0;
       for (double v : record_us) total += v;
       std::fprintf(stderr, "sweptccd world --bench: %s\n", options.world_path.c_str());
       *out << "avatars " << loaded.world.avatars.size() << "\nobjects "
            << loaded.world.objects.size() << "\nrecords " << records << "\nentity_entries "
            << entries << "\nentity_contacts " << contacts << "\nculled_by_box " << culled
-           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << pct(0.5) << "\nrecord_us_p99 "
-           << pct(0.99) << "\nrecord_us_max " << pct(1.0) << '\n';
+           << "\ntotal_s " << total * 1e-6 << "\nrecord_us_p50 " << us.median << "\nrecord_us_p99 "
+           << us.p99 << "\nrecord_us_max " << us.max << '\n';
     }
-    out->flush();
-    if (!*out) {
-      throw InputError(
-          (options.output_path.empty() ? std::string("standard output") : options.output_path) +
-          ": error while writing the results");
-    }
+    results.Finish();
     spdlog::info("{} records", records);
     return 0;
   } catch (const InputError& e) {

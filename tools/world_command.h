@@ -7,15 +7,16 @@
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
 #include "core/world/world_file.h"
+#include "tools/command_common.h"
 
 namespace sweptccd {
 
 struct WorldCommandOptions {
   std::string world_path;
   std::string output_path;  // Empty: standard output.
-  gpu::BackendKind backend = gpu::BackendKind::kAuto;
-  QueryOptions query;  // eps, delta, per-link, work limit (motion: per avatar).
-  world::WorldLoadOptions load;
+  BackendFlags backend;     // --backend, --gpu-device, --require-hardware.
+  QueryOptions query;       // eps, delta, per-link, work limit (motion: per avatar).
+  world::WorldLoadOptions load;  // --max-links (load.max_links).
   /// --bench: answer every record as usual but print a table (counts and
   /// time per record) instead of the records.
   bool bench = false;

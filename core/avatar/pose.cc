@@ -9,7 +9,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/avatar/skeleton.h"
+#include "core/bounded_file.h"
 #include "core/json_text.h"
+#include "core/utime_json.h"
 
 namespace sweptccd {
 
@@ -97,27 +99,6 @@ void FlushTinyComponents(Eigen::Quaterniond* q) {
   }
 }
 
-namespace {
-
-bool ReadUtime(const nlohmann::json& j, int64_t* utime) {
-  if (j.is_number_integer()) {
-    *utime = j.get<int64_t>();
-    if (j.is_number_unsigned() && j.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX))
-      return false;
-    return true;
-  }
-  if (j.is_number_float()) {
-    // Accept 1000000.0: integral values within the int64 range.
-    const double v = j.get<double>();
-    if (!std::isfinite(v) || v != std::floor(v) || std::fabs(v) >= 9.2e18) return false;
-    *utime = static_cast<int64_t>(v);
-    return true;
-  }
-  return false;
-}
-
-}  // namespace
-
 std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_links,
                                            std::string* error) {
   if (const std::string nul = NulByteProblem(line); !nul.empty()) {
@@ -203,39 +184,6 @@ uint64_t DefaultMaxPoseLineBytes(int num_links) {
   return 4096 + links * 7 * 64;
 }
 
-bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
-                     bool* blank) {
-  line->clear();
-  *too_long = false;
-  *blank = true;
-  std::streambuf* buf = in.rdbuf();
-  bool any = false;
-  for (;;) {
-    int c;
-    try {
-      c = buf->sbumpc();
-    } catch (const std::exception&) {
-      // A read error (e.g. EISDIR: a folder opens, but cannot be read):
-      // libstdc++'s filebuf throws where istream's own reads would set
-      // badbit. Set it as they would; the reader stops and says bad().
-      in.setstate(std::ios::badbit);
-      return false;
-    }
-    if (c == std::char_traits<char>::eof()) {
-      in.setstate(any ? std::ios::eofbit : std::ios::eofbit | std::ios::failbit);
-      return any;
-    }
-    any = true;
-    if (c == '\n') return true;
-    if (*blank && !std::isspace(c)) *blank = false;
-    if (line->size() < max_bytes) {
-      line->push_back(static_cast<char>(c));
-    } else {
-      *too_long = true;
-    }
-  }
-}
-
 PoseLineReader::PoseLineReader(std::istream& in, int num_links, uint64_t max_line_bytes)
     : in_(in),
       num_links_(num_links),
@@ -262,18 +210,23 @@ std::optional<PoseLine> PoseLineReader::Next() {
   return std::nullopt;
 }
 
+std::optional<PairOutcome> FeedCountedPose(PosePairer* pairer, std::optional<Pose> pose,
+                                           int64_t line_number, int num_links, std::string* error) {
+  if (pose) {
+    const std::string problem = ValidateAndNormalizePose(&*pose, num_links);
+    if (!problem.empty()) {
+      *error = "line " + std::to_string(line_number) + ": " + problem;
+      pose.reset();
+    }
+  }
+  return pairer->Feed(std::move(pose), *error);
+}
+
 std::optional<PairOutcome> PoseStreamReader::Next() {
   while (std::optional<PoseLine> line = lines_.Next()) {
     std::string error = line->error;
-    std::optional<Pose> pose = std::move(line->pose);
-    if (pose) {
-      const std::string problem = ValidateAndNormalizePose(&*pose, num_links_);
-      if (!problem.empty()) {
-        error = "line " + std::to_string(line->line_number) + ": " + problem;
-        pose.reset();
-      }
-    }
-    std::optional<PairOutcome> outcome = pairer_.Feed(std::move(pose), error);
+    std::optional<PairOutcome> outcome =
+        FeedCountedPose(&pairer_, std::move(line->pose), line->line_number, num_links_, &error);
     if (outcome) return outcome;
     first_line_error_ = error;  // Only the first counted line yields no record.
   }

@@ -89,13 +89,6 @@ std::optional<Pose> ParsePoseLineAsWritten(const std::string& line, int num_link
 /// 4 KiB for the rest. `num_links` < 0 (unknown) counts kDefaultMaxLinks.
 uint64_t DefaultMaxPoseLineBytes(int num_links);
 
-/// Reads one line (to '\n' or the end) through the stream buffer, keeping at
-/// most max_bytes of it in *line. Returns false at the end of the stream with
-/// nothing read (a read error sets badbit). *too_long: the line had more
-/// bytes; *blank: only whitespace. Shared by every JSON Lines reader.
-bool ReadBoundedLine(std::istream& in, uint64_t max_bytes, std::string* line, bool* too_long,
-                     bool* blank);
-
 /// One counted (non-blank) line of a pose stream.
 struct PoseLine {
   int64_t line_number = 0;   // 1-based, blank lines included.
@@ -163,6 +156,15 @@ class PosePairer {
   int64_t lines_seen_ = 0;
   std::optional<Pose> anchor_;
 };
+
+/// Validates the pose of one counted line (ValidateAndNormalizePose) and
+/// feeds it to `pairer`: a pose with a problem is fed as invalid, `*error`
+/// set to "line N: problem" (N = `line_number`); `pose` empty means the line
+/// did not parse, `*error` saying why. Returns what the pairer returns. The
+/// one wording of pose-stream records, shared by PoseStreamReader and the
+/// Python engine (python/, whose array rows are lines).
+std::optional<PairOutcome> FeedCountedPose(PosePairer* pairer, std::optional<Pose> pose,
+                                           int64_t line_number, int num_links, std::string* error);
 
 /// A SPEC pose stream file read line by line (PoseLineReader: blank lines not
 /// counted, lines over `max_line_bytes` (0: the default cap) invalid), each

@@ -25,11 +25,12 @@ std::string LinkLabel(const std::vector<Link>& links, int i) {
 
 bool AllFinite(const Eigen::Vector3d& v) { return v.allFinite(); }
 
-}  // namespace
-
-Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const std::string& source) {
+// Checks each link in index order (a name, unique; finite numbers within
+// 1e9 m; radius > 0; a parent index in range, not itself; at most one root)
+// and returns the root, -1 when every link has a parent. Throws InputError
+// naming the first bad link.
+int CheckLinksAndFindRoot(const std::vector<Link>& links, const std::string& source) {
   const int n = static_cast<int>(links.size());
-  if (n == 0) throw InputError(source + ": the skeleton has no links");
   std::map<std::string, int> by_name;
   int root = -1;
   for (int i = 0; i < n; ++i) {
@@ -45,8 +46,8 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
       throw InputError(who + ": 'a' or 'b' holds a non-finite number");
     }
     if (!std::isfinite(l.radius)) throw InputError(who + ": radius is not a finite number");
-    if (l.a_L.cwiseAbs().maxCoeff() > kMaxCoordinate || l.b_L.cwiseAbs().maxCoeff() > kMaxCoordinate ||
-        l.radius > kMaxCoordinate) {
+    if (l.a_L.cwiseAbs().maxCoeff() > kMaxCoordinate ||
+        l.b_L.cwiseAbs().maxCoeff() > kMaxCoordinate || l.radius > kMaxCoordinate) {
       throw InputError(who + ": 'a', 'b' or radius is beyond 1e9 m");
     }
     if (!(l.radius > 0)) {
@@ -64,6 +65,14 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
       root = i;
     }
   }
+  return root;
+}
+
+// Throws InputError naming a link on a loop of parents, if any: with no root
+// (`root` -1) every chain of parents loops; with one, every link must reach
+// it. Precondition: parent indices in range (CheckLinksAndFindRoot).
+void RefuseLoops(const std::vector<Link>& links, int root, const std::string& source) {
+  const int n = static_cast<int>(links.size());
   if (root == -1) {
     // Every link has a parent, so following parents from link 0 must cycle:
     // name a link on that loop.
@@ -96,6 +105,15 @@ Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const st
     }
     for (int w : walk) state[w] = 2;
   }
+}
+
+}  // namespace
+
+Skeleton Skeleton::FromLinks(std::string name, std::vector<Link> links, const std::string& source) {
+  const int n = static_cast<int>(links.size());
+  if (n == 0) throw InputError(source + ": the skeleton has no links");
+  const int root = CheckLinksAndFindRoot(links, source);
+  RefuseLoops(links, root, source);
   std::vector<std::vector<int>> children(n);
   for (int i = 0; i < n; ++i) {
     if (links[i].parent >= 0) children[links[i].parent].push_back(i);

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <vector>
 
+#include "core/query/certificate.h"
+
 namespace sweptccd::internal {
 
 namespace {
@@ -248,28 +250,26 @@ bool QueryRun::TryClose(const Interval& interval, const CandidateList& list) {
       have = true;
     }
   }
-  // Accept with the tolerance as margin, so that a checker reading the
-  // files' decimal vertices (we hold floats) still sees <= delta; when
-  // delta is within a few tolerances, plain <= delta (termination).
-  const double tol = bounds_.tolerance_m();
-  const double accept = options_.delta_m > 4 * tol ? options_.delta_m - tol : options_.delta_m;
-  if (!have || best.separation > accept) return false;
+  // G3 with the slack as margin (certificate.h).
+  if (!have || best.separation > AcceptedSeparation(options_.delta_m, bounds_.tolerance_m())) {
+    return false;
+  }
   witnesses_.CloseLeaf(interval.link, interval.s0, interval.s1, best);
   return true;
 }
 
 // Out of work: every link with work left is undecided from its earliest
-// open interval.
+// open interval (certificate.h).
 void QueryRun::CloseOutOfWork() {
-  std::vector<double> earliest(num_links_, 2.0);
+  OpenWork open(num_links_);
   while (!queue_.empty()) {
     const Interval& t = queue_.top();
-    if (!witnesses_.done(t.link)) earliest[t.link] = std::min(earliest[t.link], t.s0);
+    if (!witnesses_.done(t.link)) open.Note(t.link, t.s0);
     queue_.pop();
     if (!options_.per_link) break;  // The top one is the earliest of all.
   }
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (earliest[l] <= 1.0) witnesses_.CloseUndecided(l, earliest[l]);
+    if (open.open(l)) witnesses_.CloseUndecided(l, open.earliest(l));
   }
 }
 

@@ -3,11 +3,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/geometry/rounding_slack.h"
+
 namespace sweptccd::internal {
 
 double SweptBounds::Tolerance(const Environment& environment, const PairMotion& motion) {
-  return std::max(environment.coordinate_tolerance(),
-                  std::ldexp(motion.coordinate_scale(), -22) + 1e-9);
+  return std::max(environment.coordinate_tolerance(), RoundingSlack(motion.coordinate_scale()));
 }
 
 SegmentEnds SweptBounds::EndsOver(LinkIndex link, double s0, double s1) const {

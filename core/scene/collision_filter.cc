@@ -1,15 +1,18 @@
 #include "core/scene/collision_filter.h"
 
+#include <algorithm>
 #include <cctype>
+#include <cstdint>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "core/scene/environment.h"
+#include "core/avatar/link_key.h"
+#include "core/avatar/skeleton.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/json_text.h"
-#include "core/avatar/skeleton.h"
+#include "core/scene/environment.h"
 
 namespace sweptccd {
 
@@ -48,16 +51,6 @@ bool ParseIndex(const std::string& s, int* out) {
   return true;
 }
 
-LinkIndex ResolveLink(const std::string& text, const Skeleton& skeleton,
-                      const std::string& where) {
-  if (text == "*") return kAllLinks;
-  int i = skeleton.FindLink(text);
-  if (i >= 0) return LinkIndex(i);
-  if (ParseIndex(text, &i) && i < skeleton.num_links()) return LinkIndex(i);
-  throw InputError(where + ": unknown link '" + text + "' (give a link name, an index below " +
-                   std::to_string(skeleton.num_links()) + ", or *)");
-}
-
 ObjectIndex ResolveObject(const std::string& text, const Environment& env,
                           const std::string& where) {
   if (text == "*") return kAllObjects;
@@ -76,6 +69,16 @@ std::string JsonToKey(const nlohmann::json& j, const std::string& where, const c
   if (j.is_string()) return j.get<std::string>();
   if (j.is_number_unsigned()) return std::to_string(j.get<uint64_t>());
   throw InputError(where + ": '" + field + "' must be a name, an index or \"*\"");
+}
+
+// A rule's link: a JSON number is an index; text is a name first, then "*",
+// then an index (ResolveLinkKey, the one rule of SPEC 8 "Filters").
+LinkIndex JsonToLink(const nlohmann::json& j, const Skeleton& skeleton, const std::string& where) {
+  if (j.is_number_unsigned()) {
+    return ResolveLinkIndex(static_cast<int64_t>(std::min<uint64_t>(j.get<uint64_t>(), INT64_MAX)),
+                            skeleton, where);
+  }
+  return ResolveLinkKey(JsonToKey(j, where, "link"), skeleton, where);
 }
 
 }  // namespace
@@ -102,7 +105,7 @@ CollisionFilter CollisionFilter::FromJson(const std::string& text, const std::st
     if (!r.is_object() || !r.contains("link") || !r.contains("object")) {
       throw InputError(where + ": each rule needs \"link\" and \"object\"");
     }
-    const LinkIndex link = ResolveLink(JsonToKey(r["link"], where, "link"), skeleton, where);
+    const LinkIndex link = JsonToLink(r["link"], skeleton, where);
     const ObjectIndex object = ResolveObject(JsonToKey(r["object"], where, "object"), env, where);
     filter.Ignore(link, object);
   }
@@ -122,7 +125,7 @@ void CollisionFilter::AddRule(const std::string& rule, const Skeleton& skeleton,
   const std::string where = "--ignore '" + rule + "'";
   const size_t colon = rule.rfind(':');
   if (colon == std::string::npos) throw InputError(where + ": expected LINK:OBJECT");
-  Ignore(ResolveLink(rule.substr(0, colon), skeleton, where),
+  Ignore(ResolveLinkKey(rule.substr(0, colon), skeleton, where),
          ResolveObject(rule.substr(colon + 1), env, where));
 }
 

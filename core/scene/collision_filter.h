@@ -29,7 +29,8 @@ class CollisionFilter {
   bool IgnoresAll(LinkIndex link) const;
 
   /// Parses `{"ignore": [{"link": "foot_l", "object": 0}, {"link": "*", "object": "floor.obj"}]}`.
-  /// Links by name or index ("*" = all), objects by index, name (path) or "*".
+  /// Links as ResolveLinkKey reads them (a name first, then "*" = all, then
+  /// an index; a JSON number is an index), objects by index, name (path) or "*".
   /// Throws InputError naming `source` and the entry.
   static CollisionFilter FromJson(const std::string& text, const std::string& source,
                                   const Skeleton& skeleton, const Environment& env);

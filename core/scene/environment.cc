@@ -4,6 +4,8 @@
 #include <atomic>
 #include <cmath>
 
+#include "core/geometry/rounding_slack.h"
+
 namespace sweptccd {
 
 uint64_t Environment::NextContentId() {
@@ -22,12 +24,10 @@ void Environment::AddMesh(const TriangleMesh& mesh, const std::string& name) {
   EnvironmentObject obj;
   obj.name = name;
   obj.bvh = TriangleBvh(mesh);
-  // A float keeps 24 bits: rounding a coordinate x moves it by at most
-  // 2^-24 |x|, but assimp's text parser (fast_atoreal_move<float>) can be off
-  // by about one float ulp more. 2^-22 |x| covers two ulps, with room for the rounding of
-  // the double-precision distance computations (below 1e-8 of |x|).
+  // Floats read from text (assimp's fast_atoreal_move<float> can be off by
+  // about one ulp more than rounding): rounding_slack.h.
   coordinate_tolerance_ =
-      std::max(coordinate_tolerance_, std::ldexp(obj.bvh.max_abs_coordinate(), -22) + 1e-9);
+      std::max(coordinate_tolerance_, RoundingSlack(obj.bvh.max_abs_coordinate()));
   objects_.push_back(std::move(obj));
   content_id_ = NextContentId();
 }

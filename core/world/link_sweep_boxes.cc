@@ -3,13 +3,14 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/geometry/rounding_slack.h"
+
 namespace sweptccd::world {
 
-std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& motion,
-                                 double extra) {
-  // 1 um and 2^-18 of the scale: far above the few ulps by which the boxes
-  // below and the descent's own boxes are each rounded (~1e-15 m per metre).
-  const double pad = 1e-6 + std::ldexp(motion.coordinate_scale() + 10.0, -18);
+std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& motion, double extra) {
+  // Far above the few ulps by which the boxes below and the descent's own
+  // boxes are each rounded (rounding_slack.h).
+  const double pad = BoxPad(motion.coordinate_scale());
   std::vector<Aabb> boxes;
   boxes.reserve(static_cast<size_t>(skeleton.num_links()));
   for (int l = 0; l < skeleton.num_links(); ++l) {

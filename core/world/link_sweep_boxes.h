@@ -1,5 +1,5 @@
 #pragma once
-// The link-level broad phase of the entity descent (core/world/entity_ccd):
+// The link-level broad phase of the entity descent (core/world/entity_run):
 // one box per link over a whole motion that holds every box the descent
 // tests for that link over any part of the motion. Two links whose boxes are
 // apart are apart in every item of the descent, so their pair can leave the
@@ -29,8 +29,7 @@ namespace sweptccd::world {
 /// A radius that is not finite gives an infinite box (apart from nothing).
 /// O(links), with no pose composed (the segments at 0, 1/2 and 1 are kept by
 /// the motion). Precondition: extra >= 0 and finite.
-std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& motion,
-                                 double extra);
+std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& motion, double extra);
 
 /// True when the boxes are apart on some axis by a gap over `margin` (>= 0;
 /// a box grown by `margin` on every side would still be apart). Not

@@ -1,5 +1,6 @@
 #include "core/world/world.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace sweptccd::world {
@@ -21,37 +22,62 @@ bool RuleMatches(const EntityRule& r, int link, const std::string& entity, int o
 }
 }  // namespace
 
-bool World::IgnoresLinkPair(int a, int link_a, int b, int link_b) const {
-  for (const EntityRule& r : rules[a]) {
-    if (RuleMatches(r, link_a, avatars[b].id, link_b)) return true;
+bool IgnoresLinkPair(const FilterSide& a, LinkIndex link_a, const FilterSide& b, LinkIndex link_b) {
+  for (const EntityRule& r : a.rules) {
+    if (RuleMatches(r, link_a, b.id, link_b)) return true;
   }
-  for (const EntityRule& r : rules[b]) {
-    if (RuleMatches(r, link_b, avatars[a].id, link_a)) return true;
+  for (const EntityRule& r : b.rules) {
+    if (RuleMatches(r, link_b, a.id, link_a)) return true;
   }
   return false;
 }
 
-bool World::IgnoresObject(int a, int link_a, int o) const {
-  for (const EntityRule& r : rules[a]) {
-    if (RuleMatches(r, link_a, objects[o].id, -1)) return true;
+bool IgnoresObject(const FilterSide& a, LinkIndex link_a, const std::string& object) {
+  for (const EntityRule& r : a.rules) {
+    if (RuleMatches(r, link_a, object, -1)) return true;
   }
   return false;
+}
+
+bool NamesEntity(const FilterSide& a, const std::string& other) {
+  return std::any_of(a.rules.begin(), a.rules.end(),
+                     [&](const EntityRule& r) { return r.entity == other; });
+}
+
+bool World::IgnoresLinkPair(AvatarIndex a, LinkIndex link_a, AvatarIndex b,
+                            LinkIndex link_b) const {
+  return world::IgnoresLinkPair(FilterSide{avatars[a].id, rules[a]}, link_a,
+                                FilterSide{avatars[b].id, rules[b]}, link_b);
+}
+
+bool World::IgnoresObject(AvatarIndex a, LinkIndex link_a, TrackedObjectIndex o) const {
+  return world::IgnoresObject(FilterSide{avatars[a].id, rules[a]}, link_a, objects[o].id);
 }
 
 RigidMotion::RigidMotion(const RigidSample& a, const RigidSample& b) : x0(a), x1(b) {
   angle = SlerpAngle(x0.q, x1.q);
 }
 
+std::optional<PoseProblem> FindRigidProblem(const double pose[7]) {
+  Pose one;
+  one.links.resize(1);
+  one.links[0].p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
+  one.links[0].q = Eigen::Quaterniond(pose[3], pose[4], pose[5], pose[6]);
+  return FindPoseProblem(one, 1);
+}
+
 std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out) {
-  for (int k = 0; k < 7; ++k) {
-    if (!std::isfinite(pose[k])) return "non-finite number";
-  }
-  for (int k = 0; k < 3; ++k) {
-    if (std::fabs(pose[k]) > kMaxCoordinate) return "position beyond 1e9 m";
+  if (const std::optional<PoseProblem> problem = FindRigidProblem(pose)) {
+    switch (problem->kind) {
+      case PoseProblem::Kind::kNonFinite:
+        return "non-finite number";
+      case PoseProblem::Kind::kPositionOutOfRange:
+        return "position beyond 1e9 m";
+      default:
+        return "quaternion norm below 1e-6";
+    }
   }
   const Eigen::Quaterniond q(pose[3], pose[4], pose[5], pose[6]);
-  const double norm = q.norm();
-  if (!(norm >= kMinQuaternionNorm)) return "quaternion norm below 1e-6";
   out->utime = utime;
   out->p = Eigen::Vector3d(pose[0], pose[1], pose[2]);
   // Normalised as an avatar's link (ValidateAndNormalizePose), so that the

@@ -15,8 +15,17 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/scene/environment.h"
+#include "core/typed_index.h"
 
 namespace sweptccd::world {
+
+struct AvatarTag;
+struct TrackedObjectTag;
+/// An avatar of a World (0-based, in file order).
+using AvatarIndex = TypedIndex<AvatarTag>;
+/// A tracked object of a World (0-based, in file order); not an object of
+/// an Environment (ObjectIndex).
+using TrackedObjectIndex = TypedIndex<TrackedObjectTag>;
 
 /// Whether `id` is a valid entity id: 1-64 characters from [A-Za-z0-9_.-].
 bool IsValidEntityId(const std::string& id);
@@ -28,11 +37,18 @@ struct RigidSample {
   Eigen::Quaterniond q{1, 0, 0, 0};
 };
 
-/// A rigid sample from its utime and pose [px, py, pz, qw, qx, qy, qz] (SPEC
-/// 8, "Trajectory"): empty and *out set (quaternion normalised) when usable,
-/// else the problem ("non-finite number", "position beyond 1e9 m",
-/// "quaternion norm below 1e-6"). The one rule of object pose lines
-/// (ParseObjectPoseLine) and of the service's object_pose_t. Pure.
+/// Why an object pose [px, py, pz, qw, qx, qy, qz] is unusable (SPEC 8,
+/// "Trajectory"), or nullopt: the rule of an avatar's link pose
+/// (FindPoseProblem over one link, reported as link 0): a non-finite
+/// number, a coordinate beyond 1e9 m, a quaternion norm below 1e-6. The one
+/// rule of object pose lines (MakeRigidSample) and of the service's
+/// object_pose_t, which maps its kind to a rejection code. Pure.
+std::optional<PoseProblem> FindRigidProblem(const double pose[7]);
+
+/// A rigid sample from its utime and pose (as above): empty and *out set
+/// (quaternion normalised) when usable, else FindRigidProblem's problem as
+/// the world file words it ("non-finite number", "position beyond 1e9 m",
+/// "quaternion norm below 1e-6"). Pure.
 std::string MakeRigidSample(int64_t utime, const double pose[7], RigidSample* out);
 
 /// An avatar: its skeleton, motion model, the records of its stream (SPEC 2
@@ -64,6 +80,22 @@ struct EntityRule {
   int other_link = -1;
 };
 
+/// Who an entity is to the filters: its id and its rules (an object has
+/// none). The one rule of the filters, whoever holds the entities (a World,
+/// the daemon's shared world):
+struct FilterSide {
+  const std::string& id;
+  const std::vector<EntityRule>& rules;
+};
+/// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
+/// never count as contact (a rule of either avatar applies).
+bool IgnoresLinkPair(const FilterSide& a, LinkIndex link_a, const FilterSide& b, LinkIndex link_b);
+/// Whether link `link_a` of avatar `a` never touches the object `object`.
+bool IgnoresObject(const FilterSide& a, LinkIndex link_a, const std::string& object);
+/// Whether some rule of `a` names `other` (only then can a rule of `a`
+/// ignore a link pair with it).
+bool NamesEntity(const FilterSide& a, const std::string& other);
+
 /// The whole world. Plain data, immutable while queried.
 struct World {
   std::vector<AvatarEntity> avatars;
@@ -73,9 +105,9 @@ struct World {
 
   /// Whether link `link_a` of avatar `a` and link `link_b` of avatar `b`
   /// never count as contact (a rule of either avatar applies).
-  bool IgnoresLinkPair(int a, int link_a, int b, int link_b) const;
+  bool IgnoresLinkPair(AvatarIndex a, LinkIndex link_a, AvatarIndex b, LinkIndex link_b) const;
   /// Whether link `link_a` of avatar `a` never touches object `o`.
-  bool IgnoresObject(int a, int link_a, int o) const;
+  bool IgnoresObject(AvatarIndex a, LinkIndex link_a, TrackedObjectIndex o) const;
 };
 
 /// The rigid motion of a one-link `independent` body between two samples

@@ -1,15 +1,19 @@
 #include "core/world/world_file.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "core/avatar/link_key.h"
 #include "core/bounded_file.h"
 #include "core/errors.h"
 #include "core/json_text.h"
+#include "core/utime_json.h"
 
 namespace sweptccd::world {
 namespace {
@@ -32,24 +36,21 @@ std::string StringField(const json& entry, const char* key, const std::string& w
   return entry[key].get<std::string>();
 }
 
-// A link given by name, index or "*" (-1).
+// A link of a rule, -1 for all: a JSON number is an index; text is a name
+// first, then "*", then an index (ResolveLinkKey, SPEC 8 "Filters").
 int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string& where,
                    const char* field) {
-  if (key.is_number_integer() || key.is_number_unsigned()) {
-    const int64_t i = key.get<int64_t>();
-    if (i >= 0 && i < skeleton.num_links()) return static_cast<int>(i);
-    throw InputError(where + ": \"" + field + "\" index " + std::to_string(i) +
-                     " is out of range (the skeleton has " + std::to_string(skeleton.num_links()) +
-                     " links)");
+  const std::string at = where + ": \"" + field + "\"";
+  if (key.is_number_unsigned()) {
+    return ResolveLinkIndex(
+               static_cast<int64_t>(std::min<uint64_t>(key.get<uint64_t>(), INT64_MAX)), skeleton,
+               at)
+        .value();
   }
+  if (key.is_number_integer()) return ResolveLinkIndex(key.get<int64_t>(), skeleton, at).value();
   if (!key.is_string())
     throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
-  const std::string name = key.get<std::string>();
-  if (name == "*") return -1;
-  const int found = skeleton.FindLink(name);
-  if (found >= 0) return found;
-  throw InputError(where + ": unknown link '" + name + "' in \"" + field + "\" (skeleton '" +
-                   skeleton.name() + "')");
+  return sweptccd::ResolveLinkKey(key.get<std::string>(), skeleton, at).value();
 }
 
 void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
@@ -77,39 +78,9 @@ void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
 }
 
 void ReadObjectPoses(const std::string& path, ObjectEntity* object) {
-  std::ifstream in = OpenInputFile(path, "object pose file");
-  // A line holds 7 numbers and a utime: a line over 64 KiB is read to its
-  // newline without being kept, and is not used (as a malformed line).
-  constexpr std::streamsize kMaxLine = 64 << 10;
-  std::vector<char> buffer(kMaxLine + 1);
-  for (;;) {
-    in.getline(buffer.data(), kMaxLine + 1);
-    if (in.bad()) break;
-    const bool too_long = in.fail() && !in.eof() && in.gcount() == kMaxLine;
-    if (in.fail() && !too_long && in.gcount() == 0) break;  // End of the stream.
-    if (too_long) {
-      in.clear();
-      in.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
-      continue;
-    }
-    const bool last = in.eof();
-    // The bytes read, NULs included, without the newline.
-    const std::string line(buffer.data(), static_cast<size_t>(in.gcount() - (last ? 0 : 1)));
-    in.clear(in.rdstate() & ~std::ios::failbit);
-    if (line.find_first_not_of(" \t\r\n") == std::string::npos) {
-      if (last) break;
-      continue;
-    }
-    RigidSample x;
-    std::string error;
-    if (!ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
-      if (last) break;
-      continue;
-    }
+  ReadObjectPoseFile(path, "object pose file", [object](const RigidSample& x) {
     if (object->used.empty() || x.utime > object->used.back().utime) object->used.push_back(x);
-    if (last) break;
-  }
-  if (in.bad()) throw InputError(path + ": error while reading");
+  });
 }
 
 }  // namespace
@@ -124,13 +95,7 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
     *error = "expected {\"utime\": ..., \"pose\": [7 numbers]}";
     return false;
   }
-  const json& u = j["utime"];
-  if (u.is_number_integer() || u.is_number_unsigned()) {
-    sample->utime = u.get<int64_t>();
-  } else if (u.is_number_float() && std::isfinite(u.get<double>()) &&
-             u.get<double>() == std::floor(u.get<double>()) && std::fabs(u.get<double>()) < 9e18) {
-    sample->utime = static_cast<int64_t>(u.get<double>());
-  } else {
+  if (!ReadUtime(j["utime"], &sample->utime)) {  // The one utime rule of pose lines.
     *error = "utime must be an integer";
     return false;
   }
@@ -150,6 +115,26 @@ bool ParseObjectPoseLine(const std::string& line, RigidSample* sample, std::stri
   const int64_t utime = sample->utime;
   *error = MakeRigidSample(utime, v, sample);
   return error->empty();
+}
+
+int64_t ReadObjectPoseFile(const std::string& path, const std::string& what,
+                           const std::function<void(const RigidSample&)>& usable) {
+  std::ifstream in = OpenInputFile(path, what);
+  int64_t unusable = 0;
+  std::string line;
+  bool too_long = false, blank = true;
+  while (in.good() && ReadBoundedLine(in, kMaxObjectPoseLineBytes, &line, &too_long, &blank)) {
+    if (blank) continue;
+    RigidSample x;
+    std::string error;
+    if (too_long || !ParseObjectPoseLine(line, &x, &error)) {  // Not used (SPEC 8).
+      ++unusable;
+      continue;
+    }
+    usable(x);
+  }
+  if (in.bad()) throw InputError(path + ": error while reading the " + what);
+  return unusable;
 }
 
 LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& options) {
@@ -203,6 +188,7 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
       throw InputError(path + ": env[" + std::to_string(i) + "] must be a path");
     env_written.push_back(env[i].get<std::string>());
     env_paths.push_back(Resolve(dir, env_written.back()));
+    out.files.emplace_back("env[" + std::to_string(i) + "]", env_paths.back());
   }
   out.env = Environment::LoadFiles(env_paths, options.mesh);
 
@@ -212,8 +198,10 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         path + ": avatars[" + std::to_string(i) + "] ('" + avatar_ids[i] + "')";
     AvatarEntity a;
     a.id = avatar_ids[i];
-    a.skeleton =
-        LoadSkeletonFile(Resolve(dir, StringField(e, "skeleton", where)), options.max_links);
+    const std::string role = where.substr(path.size() + 2);  // "avatars[i] ('id')".
+    const std::string skeleton_path = Resolve(dir, StringField(e, "skeleton", where));
+    out.files.emplace_back(role + " skeleton", skeleton_path);
+    a.skeleton = LoadSkeletonFile(skeleton_path, options.max_links);
     const std::string motion = StringField(e, "motion", where, /*required=*/false);
     if (!motion.empty()) {
       const std::optional<MotionModel> m = ParseMotionModel(motion);
@@ -221,7 +209,9 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         throw InputError(where + ": unknown motion '" + motion + "' (articulated or independent)");
       a.motion = *m;
     }
-    ReadAvatarPoses(Resolve(dir, StringField(e, "poses", where)), &a);
+    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+    out.files.emplace_back(role + " poses", poses_path);
+    ReadAvatarPoses(poses_path, &a);
     out.world.avatars.push_back(std::move(a));
   }
   for (size_t i = 0; i < objects.size(); ++i) {
@@ -230,11 +220,15 @@ LoadedWorld LoadWorldFile(const std::string& path, const WorldLoadOptions& optio
         path + ": objects[" + std::to_string(i) + "] ('" + object_ids[i] + "')";
     ObjectEntity o;
     o.id = object_ids[i];
+    const std::string role = where.substr(path.size() + 2);  // "objects[i] ('id')".
     const std::string mesh_path = Resolve(dir, StringField(e, "mesh", where));
+    out.files.emplace_back(role + " mesh", mesh_path);
     auto mesh = std::make_shared<Environment>();
     mesh->AddMesh(LoadMeshFile(mesh_path, options.mesh), mesh_path);
     o.mesh = std::move(mesh);
-    ReadObjectPoses(Resolve(dir, StringField(e, "poses", where)), &o);
+    const std::string poses_path = Resolve(dir, StringField(e, "poses", where));
+    out.files.emplace_back(role + " poses", poses_path);
+    ReadObjectPoses(poses_path, &o);
     out.world.objects.push_back(std::move(o));
   }
 

@@ -7,7 +7,10 @@
 
 #include "core/errors.h"
 #include "core/query/result_json.h"
+#include "core/world/entity_broad_phase.h"
+#include "core/world/interval_motions.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/window_split.h"
 
 namespace sweptccd::world {
 namespace {
@@ -16,12 +19,12 @@ using ojson = nlohmann::ordered_json;
 
 ojson Vec(const Eigen::Vector3d& v) { return ojson::array({v.x(), v.y(), v.z()}); }
 
-ojson ContactJson(const OtherContact& c, double dur) {
+ojson ContactJson(const EntityContactRecord& c) {
   ojson j;
-  j["link"] = c.link;
-  if (c.other_link >= 0) j["other_link"] = c.other_link;
+  j["link"] = c.link.value();
+  if (c.other_link >= 0) j["other_link"] = c.other_link.value();
   if (c.triangle >= 0) j["triangle"] = c.triangle;
-  j["s"] = std::clamp(c.tau / dur, 0.0, 1.0);
+  j["s"] = c.s;
   j["point_link"] = Vec(c.point_link);
   j["point_other"] = Vec(c.point_other);
   j["normal"] = Vec(c.normal);
@@ -29,15 +32,44 @@ ojson ContactJson(const OtherContact& c, double dur) {
   return j;
 }
 
-void BracketFields(const OtherBracket& b, int64_t u0, int64_t u1, int64_t t_from, int64_t t_to,
-                   ojson* j) {
-  const PrintedBracket p = PrintBracket(b, u0, u1, t_from, t_to);
-  (*j)["initially_colliding"] = b.initially_colliding;
-  (*j)["undecided"] = b.undecided;
+void BracketFields(const EntityBracketRecord& p, ojson* j) {
+  (*j)["initially_colliding"] = p.initially_colliding;
+  (*j)["undecided"] = p.undecided;
   (*j)["s_lo"] = p.s_lo;
   (*j)["s_hi"] = p.s_hi;
   (*j)["t_lo"] = p.t_lo;
   (*j)["t_hi"] = p.t_hi;
+}
+
+// The entry's JSON object of SPEC 8 (`others`).
+ojson EntityJson(const EntityRecord& r) {
+  ojson e;
+  e["entity"] = r.entity;
+  e["kind"] = r.is_object ? "object" : "avatar";
+  e["window"] = ojson::array({r.t_from, r.t_to});
+  e["result"] = r.contact ? "contact" : "free";
+  if (r.contact) {
+    BracketFields(r.bracket, &e);
+    ojson contacts = ojson::array();
+    for (const EntityContactRecord& c : r.contacts) contacts.push_back(ContactJson(c));
+    e["contacts"] = contacts;
+  } else {
+    e["initially_colliding"] = false;
+    e["undecided"] = false;
+  }
+  if (r.per_link) {
+    ojson links = ojson::array();
+    for (const EntityBracketRecord& br : r.links) {
+      ojson l;
+      l["link"] = br.link.value();
+      BracketFields(br, &l);
+      if (br.has_witness) l["contact"] = ContactJson(br.witness);
+      links.push_back(l);
+    }
+    e["links"] = links;
+  }
+  e["stats"] = {{"intervals", r.intervals}, {"culled_by_box", r.culled_by_box}};
+  return e;
 }
 
 }  // namespace
@@ -70,18 +102,12 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
       avatar_boxes_.back().push_back(AvatarMotionBox(e.skeleton, motion));
       link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
     }
-    interval_motions_.push_back(std::make_unique<IntervalMotions>(e, 4, std::move(link_boxes)));
+    interval_motions_.push_back(std::make_unique<IntervalMotions>(
+        WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
+        std::move(link_boxes)));
     avatar_sample_scales_.emplace_back();
-    for (const Pose& pose : e.used) {
-      double scale = 0;
-      for (const LinkPose& l : pose.links) scale = std::max(scale, l.p.cwiseAbs().maxCoeff());
-      avatar_sample_scales_.back().push_back(scale);
-    }
-    double skeleton_scale = 0;
-    for (const Link& l : e.skeleton.links()) {
-      skeleton_scale = std::max({skeleton_scale, l.a_L.norm(), l.b_L.norm()});
-    }
-    avatar_skeleton_scales_.push_back(skeleton_scale);
+    for (const Pose& pose : e.used) avatar_sample_scales_.back().push_back(SampleScale(pose));
+    avatar_skeleton_scales_.push_back(SkeletonScale(e.skeleton));
   }
   for (const ObjectEntity& e : w_.world.objects) {
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
@@ -100,40 +126,36 @@ void WorldAnswerer::ForEachEngine(const std::function<void(CcdEngine*)>& f) {
   for (auto& e : engines_) f(e.get());
 }
 
-bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer,
-                                 int64_t* t_from, int64_t* t_to) const {
+std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, size_t r,
+                                                                AvatarIndex b,
+                                                                TrackedObjectIndex o) const {
+  SWEPTCCD_CHECK(b.is_valid() != o.is_valid());
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
-  const std::vector<int64_t>& times = b >= 0 ? avatar_times_[b] : object_times_[o];
-  if (times.empty()) return false;
-  *t_from = std::max(u0, times.front());
-  *t_to = std::min(u1, times.back());
-  if (*t_from > *t_to) return false;
-  const std::vector<Piece> pieces = SplitWindow(u0, *t_from, *t_to, times);
+  const std::vector<int64_t>& times = b.is_valid() ? avatar_times_[b] : object_times_[o];
+  std::optional<Entry> entry;      // Every return returns it (no copy).
+  EntryWindow* window = &window_;  // Its capacity kept from entry to entry.
+  if (!WindowInto(
+          u0, u1, times.size(), [&](size_t k) { return times[k]; }, window))
+    return entry;
+  entry.emplace();
+  entry->t_from = window->t_from;
+  entry->t_to = window->t_to;
   // Broad phase: A's box over the pair against E's box of each piece's
   // sample interval.
-  const std::vector<Aabb>& boxes = b >= 0 ? avatar_boxes_[b] : object_boxes_[o];
+  const std::vector<Aabb>& boxes = b.is_valid() ? avatar_boxes_[b] : object_boxes_[o];
   if (box_a_ != a || box_r_ != r) {
     box_ = PairBox(a, r);
     box_a_ = a;
     box_r_ = r;
   }
-  bool near = false;
-  for (const Piece& p : pieces) near = near || box_.Overlaps(boxes[static_cast<size_t>(p.k)]);
-  if (!near) {
-    *answer = OtherAnswer();
-    answer->culled_by_box = true;
-    return true;
+  if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; })) {
+    entry->answer.culled_by_box = true;
+    return entry;
   }
   RecordMotion(a, r);  // Sets memo_ to this record's.
-  // The rounding slack from the window's samples only (WindowScale): what a
-  // live service holding only those answers with too.
-  const std::unique_ptr<OtherTarget> target =
-      b >= 0 ? MakeAvatarTarget(w_.world, a, b, AvatarWindowScale(b, pieces),
-                                interval_motions_[static_cast<size_t>(b)].get())
-             : MakeObjectTarget(w_.world, a, o, WindowScale(w_.world.objects[o], pieces));
-  if (b >= 0 && link_boxes_a_ == nullptr) {
+  if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {
       link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
     } else {
@@ -141,12 +163,18 @@ bool WorldAnswerer::AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* ans
       link_boxes_a_ = &link_boxes_;
     }
   }
-  *answer = AnswerOther(A.skeleton, &*memo_, u0, u1, pieces, *target, entity_options_,
-                        b >= 0 ? link_boxes_a_ : nullptr);
-  return true;
+  const PairSide side{FilterSide{A.id, w_.world.rules[a]},   A.skeleton, u0, u1, &*memo_,
+                      b.is_valid() ? link_boxes_a_ : nullptr};
+  entry->answer =
+      b.is_valid()
+          ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
+                                AvatarWindowScale(b, window->pieces),
+                                interval_motions_[static_cast<size_t>(b)].get())
+          : AnswerAgainstObject(side, WindowOfObject(w_.world, o), *window, entity_options_);
+  return entry;
 }
 
-double WorldAnswerer::AvatarWindowScale(int b, const std::vector<Piece>& pieces) const {
+double WorldAnswerer::AvatarWindowScale(AvatarIndex b, const std::vector<Piece>& pieces) const {
   // WindowScale(avatars[b], pieces) from the kept maxima.
   const std::vector<double>& samples = avatar_sample_scales_[static_cast<size_t>(b)];
   SWEPTCCD_CHECK(!pieces.empty() && !samples.empty());
@@ -158,7 +186,7 @@ double WorldAnswerer::AvatarWindowScale(int b, const std::vector<Piece>& pieces)
   return std::max(scale, avatar_skeleton_scales_[static_cast<size_t>(b)]);
 }
 
-const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
+const PairMotion& WorldAnswerer::RecordMotion(AvatarIndex a, size_t r) const {
   if (motion_ != nullptr && motion_a_ == a && motion_r_ == r) return *motion_;
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
@@ -185,14 +213,14 @@ const PairMotion& WorldAnswerer::RecordMotion(int a, size_t r) const {
   return *motion_;
 }
 
-Aabb WorldAnswerer::PairBox(int a, size_t r) const {
+Aabb WorldAnswerer::PairBox(AvatarIndex a, size_t r) const {
   const PairMotion& motion = RecordMotion(a, r);
   // The interval's box was made from the same samples by the same function.
   if (motion_k_ >= 0) return avatar_boxes_[static_cast<size_t>(a)][static_cast<size_t>(motion_k_)];
   return AvatarMotionBox(w_.world.avatars[a].skeleton, motion);
 }
 
-QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
+QueryResult WorldAnswerer::AnswerEnvironment(AvatarIndex a, size_t r) const {
   if (w_.env.num_objects() == 0) return QueryResult();  // `free`.
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
@@ -201,7 +229,7 @@ QueryResult WorldAnswerer::AnswerEnvironment(int a, size_t r) const {
   return engines_[a]->Query(RecordMotion(a, r), rec.pose0, rec.pose1, options);
 }
 
-std::string WorldAnswerer::RecordJson(int a, size_t r) const {
+std::string WorldAnswerer::RecordJson(AvatarIndex a, size_t r) const {
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   ojson j;
@@ -214,44 +242,18 @@ std::string WorldAnswerer::RecordJson(int a, size_t r) const {
   const auto start = std::chrono::steady_clock::now();
   const QueryResult env_result = AnswerEnvironment(a, r);
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
-  const double dur = static_cast<double>(u1 - u0);
   ojson others = ojson::array();
-  auto add = [&](int b, int o) {
-    OtherAnswer ans;
-    int64_t t_from = 0, t_to = 0;
-    if (!AnswerEntity(a, r, b, o, &ans, &t_from, &t_to)) return;
-    ojson e;
-    e["entity"] = b >= 0 ? w_.world.avatars[b].id : w_.world.objects[o].id;
-    e["kind"] = b >= 0 ? "avatar" : "object";
-    e["window"] = ojson::array({t_from, t_to});
-    e["result"] = ans.contact ? "contact" : "free";
-    if (ans.contact) {
-      BracketFields(ans.bracket, u0, u1, t_from, t_to, &e);
-      ojson contacts = ojson::array();
-      if (ans.bracket.has_witness) contacts.push_back(ContactJson(ans.bracket.witness, dur));
-      e["contacts"] = contacts;
-    } else {
-      e["initially_colliding"] = false;
-      e["undecided"] = false;
-    }
-    if (options_.per_link) {
-      ojson links = ojson::array();
-      for (const OtherBracket& br : ans.links) {
-        ojson l;
-        l["link"] = br.link;
-        BracketFields(br, u0, u1, t_from, t_to, &l);
-        if (br.has_witness) l["contact"] = ContactJson(br.witness, dur);
-        links.push_back(l);
-      }
-      e["links"] = links;
-    }
-    e["stats"] = {{"intervals", ans.intervals}, {"culled_by_box", ans.culled_by_box}};
-    others.push_back(e);
+  auto add = [&](const std::string& id, bool is_object, const std::optional<Entry>& e) {
+    if (!e) return;
+    others.push_back(EntityJson(
+        MakeEntityRecord(id, is_object, u0, u1, e->t_from, e->t_to, e->answer, options_.per_link)));
   };
-  for (int b = 0; b < static_cast<int>(w_.world.avatars.size()); ++b) {
-    if (b != a) add(b, -1);
+  for (AvatarIndex b(0); b < static_cast<int>(w_.world.avatars.size()); ++b) {
+    if (b != a) add(w_.world.avatars[b].id, false, AnswerAvatar(a, r, b));
   }
-  for (int o = 0; o < static_cast<int>(w_.world.objects.size()); ++o) add(-1, o);
+  for (TrackedObjectIndex o(0); o < static_cast<int>(w_.world.objects.size()); ++o) {
+    add(w_.world.objects[o].id, true, AnswerObject(a, r, o));
+  }
   const double elapsed_us =
       std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count();
   j = ojson::parse(ResultToJson(rec.pair, u0, u1, env_result, options_.per_link, elapsed_us));

@@ -1,7 +1,8 @@
 #pragma once
 // Answers every record of every avatar of a loaded world (SPEC section 8,
 // "What is answered"): the static-environment part through CcdEngine (on the
-// chosen backend), the part per other entity through AnswerOther (CPU).
+// chosen backend), the part per other entity through the entity query
+// (entity_query.h, CPU), whose records it writes as JSON.
 
 #include <functional>
 #include <memory>
@@ -10,7 +11,8 @@
 #include <vector>
 
 #include "core/query/ccd_query.h"
-#include "core/world/entity_ccd.h"
+#include "core/world/entity_query.h"
+#include "core/world/interval_motions.h"
 #include "core/world/world_file.h"
 
 namespace sweptccd::world {
@@ -25,21 +27,30 @@ class WorldAnswerer {
 
   /// The static-environment answer of avatar a's valid record r (SPEC 8:
   /// `free` when the world has no environment), on the attached backend.
-  QueryResult AnswerEnvironment(int a, size_t r) const;
+  QueryResult AnswerEnvironment(AvatarIndex a, size_t r) const;
 
   /// The JSON record (one line, no newline) of record `r` of avatar `a`.
-  std::string RecordJson(int a, size_t r) const;
+  std::string RecordJson(AvatarIndex a, size_t r) const;
 
-  /// The `others` answer of avatar a's valid record r against avatar b or
-  /// object o (exactly one of b, o is >= 0); false when E does not overlap.
-  /// The broad phase first: A's AvatarMotionBox over the pair against E's
-  /// box of each piece's sample interval (computed once per entity); apart,
-  /// the answer is `free` without any link work.
-  bool AnswerEntity(int a, size_t r, int b, int o, OtherAnswer* answer, int64_t* t_from,
-                    int64_t* t_to) const;
+  /// One entry of a record's `others`: its window (utimes) and answer.
+  struct Entry {
+    int64_t t_from = 0, t_to = 0;
+    OtherAnswer answer;
+  };
+  /// The entry of avatar a's valid record r against avatar b (against
+  /// object o); nullopt when E does not overlap the pair. The broad phase
+  /// first: A's AvatarMotionBox over the pair against E's box of each
+  /// piece's sample interval (computed once per entity); apart, the answer
+  /// is `free` without any link work.
+  std::optional<Entry> AnswerAvatar(AvatarIndex a, size_t r, AvatarIndex b) const {
+    return AnswerEntity(a, r, b, TrackedObjectIndex());
+  }
+  std::optional<Entry> AnswerObject(AvatarIndex a, size_t r, TrackedObjectIndex o) const {
+    return AnswerEntity(a, r, AvatarIndex(), o);
+  }
 
   /// A box holding every link of avatar a over its valid record r.
-  Aabb PairBox(int a, size_t r) const;
+  Aabb PairBox(AvatarIndex a, size_t r) const;
 
  private:
   const LoadedWorld& w_;
@@ -55,15 +66,20 @@ class WorldAnswerer {
   // of these over its samples and the skeleton's (a maximum is exact).
   std::vector<std::vector<double>> avatar_sample_scales_;
   std::vector<double> avatar_skeleton_scales_;
-  double AvatarWindowScale(int b, const std::vector<Piece>& pieces) const;
+  double AvatarWindowScale(AvatarIndex b, const std::vector<Piece>& pieces) const;
+  // The window of the entry being answered (its arrays kept between entries).
+  mutable EntryWindow window_;
+  // AnswerAvatar (b valid) or AnswerObject (o valid).
+  std::optional<Entry> AnswerEntity(AvatarIndex a, size_t r, AvatarIndex b,
+                                    TrackedObjectIndex o) const;
   // PairBox of the last record asked for (records are answered one by one).
-  mutable int box_a_ = -1;
+  mutable AvatarIndex box_a_;
   mutable size_t box_r_ = 0;
   mutable Aabb box_;
   // The motion of the last record asked for: PairBox and every entity of
   // the record use it (a construction composes every link three times).
-  const PairMotion& RecordMotion(int a, size_t r) const;
-  mutable int motion_a_ = -1;
+  const PairMotion& RecordMotion(AvatarIndex a, size_t r) const;
+  mutable AvatarIndex motion_a_;
   mutable size_t motion_r_ = 0;
   // The record's motion: A's interval motion when the record is the pair of
   // A's used samples k, k + 1 (built once for A's record and for every

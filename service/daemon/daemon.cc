@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <deque>
+#include <functional>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
 #include <mutex>
@@ -22,6 +23,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/avatar/link_key.h"
 #include "core/avatar/skeleton.h"
 #include "core/errors.h"
 #include "core/geometry/mesh.h"
@@ -30,7 +32,9 @@
 #include "core/scene/environment.h"
 #include "msgs/text.h"
 #include "service/collision_service.h"
+#include "service/fanout_publisher.h"
 #include "service/lcm_transport.h"
+#include "service/ws/door.h"
 
 namespace sweptccd {
 
@@ -66,29 +70,6 @@ std::shared_ptr<const Environment> LoadEnvironment(const ServiceConfig& config) 
   return env;
 }
 
-// A link index written as 1-9 decimal digits, else nullopt.
-std::optional<int> LinkIndexOf(const std::string& key) {
-  if (key.empty() || key.size() > 9 || key.find_first_not_of("0123456789") != std::string::npos) {
-    return std::nullopt;
-  }
-  return std::stoi(key);
-}
-
-// A link of a filter rule (EntityRuleSpec): a link name first, then "*" (-1),
-// then an index. Throws InputError naming the rule and the skeleton.
-int ResolveRuleLink(const std::string& key, const Skeleton& skeleton, const std::string& where) {
-  const int found = skeleton.FindLink(key);
-  if (found >= 0) return found;
-  if (key == "*") return -1;
-  if (const std::optional<int> index = LinkIndexOf(key); index && *index < skeleton.num_links()) {
-    return *index;
-  }
-  throw InputError(where + ": no link '" + EscapeForDisplay(key) + "' in skeleton '" +
-                   EscapeForDisplay(skeleton.name()) + "' (" +
-                   std::to_string(skeleton.num_links()) +
-                   " links; give a link name, an index or \"*\")");
-}
-
 // What a shared-world filter's other entity can be resolved against: the
 // configured clients' skeletons (a live client's skeleton may differ at its
 // next join, so its links are given by index or "*") and the tracked objects
@@ -114,7 +95,7 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
                      "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
   }
   world::EntityRule rule;
-  rule.link = ResolveRuleLink(r.link, own, where + ".link");
+  rule.link = ResolveLinkKey(r.link, own, where + ".link").value();  // kAllLinks: -1.
   rule.entity = r.entity;
   if (r.other_link.empty()) return rule;
   if (targets.objects.count(r.entity)) {
@@ -123,11 +104,9 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
   }
   const auto other = targets.skeletons.find(r.entity);
   if (other != targets.skeletons.end()) {
-    rule.other_link = ResolveRuleLink(r.other_link, *other->second, where + ".other_link");
-  } else if (r.other_link == "*") {
-    rule.other_link = -1;
-  } else if (const std::optional<int> index = LinkIndexOf(r.other_link)) {
-    rule.other_link = *index;
+    rule.other_link = ResolveLinkKey(r.other_link, *other->second, where + ".other_link").value();
+  } else if (const std::optional<LinkIndex> index = LinkKeyWithoutNames(r.other_link)) {
+    rule.other_link = index->value();
   } else {
     throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
                      "' names a link of '" + r.entity +
@@ -230,10 +209,12 @@ int64_t WallUtime() {
 // Joins waiting for the join thread at most; more are answered "busy".
 constexpr size_t kMaxQueuedJoins = 16;
 
+using JoinReplyFn = std::function<void(const join_reply_t&)>;
+
 // Live clients (docs/SERVICE.md, "Live clients"): joins are checked and
-// queued on the LCM thread, then built (skeleton, filter, engine) and
-// answered on the join thread, never on a worker nor under the lock workers
-// take; leaves are handled at once (cheap).
+// queued on the LCM thread (or the WebSocket door's), then built (skeleton,
+// filter, engine) and answered on the join thread, never on a worker nor
+// under the lock workers take; leaves are handled at once (cheap).
 class LiveRegistry : public LiveSessionHandler {
  public:
   LiveRegistry(const ServiceConfig& config, std::shared_ptr<const Environment> env,
@@ -259,21 +240,14 @@ class LiveRegistry : public LiveSessionHandler {
     if (thread_.joinable()) thread_.join();
   }
 
-  void OnJoinRequest(join_request_t request) override {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (!stopping_ && queue_.size() < kMaxQueuedJoins) {
-        queue_.push_back(std::move(request));
-        ++queued_;
-        cv_.notify_one();
-        return;
-      }
-    }
-    Reply(request, {join_reply_t::REASON_BUSY,
-                    std::to_string(kMaxQueuedJoins) + " joins are waiting already; join again "
-                                                      "in a moment",
-                    0,
-                    {}});
+  void OnJoinRequest(join_request_t request) override { Submit({std::move(request), {}}); }
+
+  // A join through the WebSocket door (docs/WEBSOCKET.md): the same queue,
+  // checks and service; in signed mode the session key is a fresh random
+  // key that stays in the service (the connection is the session), and the
+  // answer goes to `reply` instead of LCM.
+  void SubmitDoorJoin(join_request_t request, JoinReplyFn reply) {
+    Submit({std::move(request), std::move(reply)});
   }
 
   void OnLeave(const leave_t& leave) override {
@@ -293,18 +267,42 @@ class LiveRegistry : public LiveSessionHandler {
   }
 
  private:
+  // A queued join: `reply` set for the WebSocket door's (door keyed).
+  struct PendingJoin {
+    join_request_t request;
+    JoinReplyFn reply;
+  };
+
+  void Submit(PendingJoin join) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!stopping_ && queue_.size() < kMaxQueuedJoins) {
+        queue_.push_back(std::move(join));
+        ++queued_;
+        cv_.notify_one();
+        return;
+      }
+    }
+    Reply(join, {join_reply_t::REASON_BUSY,
+                 std::to_string(kMaxQueuedJoins) + " joins are waiting already; join again "
+                                                   "in a moment",
+                 0,
+                 {}});
+  }
+
   void Run() {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
       if (stopping_) break;
-      join_request_t request = std::move(queue_.front());
+      PendingJoin join = std::move(queue_.front());
       queue_.pop_front();
       lock.unlock();
       try {
-        Handle(request);
+        Handle(join);
       } catch (const std::exception& e) {
-        spdlog::error("join of client '{}': {}", EscapeForDisplay(request.client_id), e.what());
+        spdlog::error("join of client '{}': {}", EscapeForDisplay(join.request.client_id),
+                      e.what());
       }
       lock.lock();
       ++answered_;
@@ -318,7 +316,7 @@ class LiveRegistry : public LiveSessionHandler {
   }
 
   // Everything SPEC section 1 and the limits ask of a join, then the service.
-  LiveJoinOutcome Decide(const join_request_t& r) {
+  LiveJoinOutcome Decide(const join_request_t& r, bool door_keyed) {
     const int64_t skew = r.utime - WallUtime();
     if (skew > max_utime_jump_us_ || -skew > max_utime_jump_us_) {
       return Refuse(join_reply_t::REASON_STALE_REQUEST,
@@ -400,7 +398,7 @@ class LiveRegistry : public LiveSessionHandler {
     if (signed_mode_) {
       bool zero = true;
       for (uint8_t b : r.public_key) zero = zero && b == 0;
-      if (zero) {
+      if (zero && !door_keyed) {
         return Refuse(join_reply_t::REASON_BAD_OPTIONS,
                       "signed mode: the join carries no public_key to seal the session key to");
       }
@@ -413,8 +411,9 @@ class LiveRegistry : public LiveSessionHandler {
     return service_->JoinLive(std::move(request), std::move(key));
   }
 
-  void Handle(const join_request_t& r) {
-    const LiveJoinOutcome outcome = Decide(r);
+  void Handle(const PendingJoin& join) {
+    const join_request_t& r = join.request;
+    const LiveJoinOutcome outcome = Decide(r, static_cast<bool>(join.reply));
     if (outcome.reason == join_reply_t::REASON_ACCEPTED) {
       spdlog::info("live client '{}' joined: session {}, {} links", r.client_id, outcome.session,
                    r.num_links);
@@ -422,10 +421,11 @@ class LiveRegistry : public LiveSessionHandler {
       spdlog::info("join of client '{}' refused ({}): {}", EscapeForDisplay(r.client_id),
                    static_cast<int>(outcome.reason), EscapeForDisplay(outcome.message, 400));
     }
-    Reply(r, outcome);
+    Reply(join, outcome);
   }
 
-  void Reply(const join_request_t& r, const LiveJoinOutcome& outcome) {
+  void Reply(const PendingJoin& join, const LiveJoinOutcome& outcome) {
+    const join_request_t& r = join.request;
     join_reply_t reply;
     reply.utime = WallUtime();
     reply.client_id = r.client_id;
@@ -435,7 +435,7 @@ class LiveRegistry : public LiveSessionHandler {
     reply.session = outcome.session;
     reply.instance = service_->instance();
     reply.silence_timeout_ms = config_.silence_timeout_ms;
-    if (outcome.reason == join_reply_t::REASON_ACCEPTED && outcome.key) {
+    if (outcome.reason == join_reply_t::REASON_ACCEPTED && outcome.key && !join.reply) {
       try {
         reply.sealed_key = SealKey(*outcome.key, r.public_key);
       } catch (const std::exception& e) {
@@ -447,6 +447,10 @@ class LiveRegistry : public LiveSessionHandler {
     }
     reply.sealed_key_size = static_cast<int32_t>(reply.sealed_key.size());
     try {
+      if (join.reply) {
+        join.reply(reply);
+        return;
+      }
       transport_->PublishJoinReply(reply);
     } catch (const std::exception& e) {
       spdlog::error("publishing a join reply failed: {}", e.what());
@@ -462,7 +466,7 @@ class LiveRegistry : public LiveSessionHandler {
   int64_t max_utime_jump_us_;
   std::mutex mutex_;
   std::condition_variable cv_, idle_cv_;
-  std::deque<join_request_t> queue_;
+  std::deque<PendingJoin> queue_;
   int64_t queued_ = 0, answered_ = 0;
   bool stopping_ = false;
   std::thread thread_;
@@ -482,9 +486,11 @@ struct Daemon::Impl {
   ServiceConfig config;
   std::unique_ptr<gpu::Backend> backend;  // Outlives the service (its engines use it).
   std::unique_ptr<lcm::LCM> lcm;
-  std::unique_ptr<LcmTransport> transport;  // Outlives the service (its publisher).
+  std::unique_ptr<LcmTransport> transport;     // Outlives the service (its publisher).
+  std::unique_ptr<FanoutPublisher> publisher;  // LCM, then the door: the service's.
   std::unique_ptr<CollisionService> service;
   std::unique_ptr<LiveRegistry> live;  // Stopped before the service.
+  std::unique_ptr<WsDoor> door;        // Null without websocket.listen; destroyed first.
   int control[2] = {-1, -1};
   std::thread loop;
 
@@ -532,9 +538,18 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
         "UNSIGNED MODE: poses are not authenticated and what this service publishes is "
         "not signed; anyone on the network can forge or replay them. Lab bench only.");
   }
+  // The door's copies (the transport takes the originals).
+  const KeyRing door_keys = security.keys;
+  const WireLimits door_limits = security.limits;
   transport = std::make_unique<LcmTransport>(lcm.get(), config.channels, std::move(security));
-  service = std::make_unique<CollisionService>(env, std::move(clients),
-                                               OptionsFor(config, backend.get()), transport.get());
+  publisher = std::make_unique<FanoutPublisher>(transport.get());
+  ServiceOptions service_options = OptionsFor(config, backend.get());
+  std::vector<ws::SceneObject> scene_objects;
+  for (const TrackedObjectConfig& o : service_options.objects) {
+    scene_objects.push_back({o.object_id, o.mesh});
+  }
+  service = std::make_unique<CollisionService>(env, std::move(clients), std::move(service_options),
+                                               publisher.get());
   if (pipe2(control, O_CLOEXEC) != 0) {
     throw InputError(std::string("cannot create the daemon's control pipe: ") +
                      std::strerror(errno));
@@ -543,6 +558,30 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   live = std::make_unique<LiveRegistry>(config, env, std::move(rule_targets), service.get(),
                                         transport.get(), signed_mode);
   transport->SubscribeLive(live.get());
+  if (!config.websocket.listen.empty()) {
+    WsDoorOptions options = config.websocket;
+    if (options.view_dir.empty()) options.view_dir = SWEPTCCD_DEFAULT_VIEW_DIR;
+    WsDoorContext ctx;
+    ctx.service = service.get();
+    ctx.signed_mode = signed_mode;
+    ctx.keys = door_keys;
+    ctx.limits = door_limits;
+    ctx.silence_timeout_ms = config.silence_timeout_ms;
+    ctx.max_pose_rate_hz = config.max_pose_rate_hz;
+    ctx.pose_burst = ServiceOptions().pose_burst;
+    ctx.shared_world = config.shared_world;
+    for (const ObjectSpec& o : config.objects) ctx.tracked_objects.push_back(o.id);
+    const auto t0 = Clock::now();
+    ctx.scene = ws::BuildScene(*env, scene_objects, options.max_scene_triangles);
+    spdlog::info("websocket scene: {} meshes for display, built in {:.3f} s",
+                 ctx.scene.meshes.size(), std::chrono::duration<double>(Clock::now() - t0).count());
+    LiveRegistry* registry = live.get();
+    ctx.submit_join = [registry](join_request_t request, JoinReplyFn reply) {
+      registry->SubmitDoorJoin(std::move(request), std::move(reply));
+    };
+    door = std::make_unique<WsDoor>(std::move(options), std::move(ctx));
+    publisher->SetSecond(door.get());
+  }
 }
 
 Daemon::Impl::~Impl() {
@@ -646,6 +685,7 @@ void Daemon::Start() {
   SWEPTCCD_CHECK(!impl_->loop.joinable() && !impl_->stopped);
   impl_->running = true;
   impl_->loop = std::thread([impl = impl_.get()] { impl->Loop(); });
+  if (impl_->door) impl_->door->Start();
   const ServiceConfig& c = impl_->config;
   spdlog::info(
       "ready: {} clients, {} workers, listening on '{}' channel {}; up to {} live "
@@ -675,6 +715,10 @@ void Daemon::Stop() {
   impl_->live->Stop();
   impl_->service->Stop();
   impl_->service->PublishStatus();
+  if (impl_->door) {
+    impl_->door->Stop();
+    impl_->publisher->SetSecond(nullptr);
+  }
   spdlog::info("stopped");
 }
 

@@ -36,7 +36,7 @@ done
 [ -s "$work/all_types.lcmlog" ] || fail "lcm_log_writer wrote no log"
 javac -nowarn -d "$work/classes" -cp "$lcm_jar" "$src/tests/packaging/DecodeLog.java"
 # The jar reaches the type lookup as it reaches lcm-spy: through CLASSPATH
-# (lcm-spy's own -cp is lcm.jar; README "Install and use from your project").
+# (lcm-spy's own -cp is lcm.jar; docs/USAGE.md "Install and use from your project").
 # LCMTypeDatabase scans the whole class path, lcm.jar's lcm-spy GUI classes
 # included, which need jchart2d (not needed here): drop those notices.
 rc=0

@@ -34,16 +34,15 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
-#include <lcm/lcm-cpp.hpp>
-#include <nlohmann/json.hpp>
-
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <lcm/lcm-cpp.hpp>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <thread>
@@ -54,6 +53,7 @@
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -157,17 +157,11 @@ int Huge(lcm::LCM* lcm) {
 
 sweptccd::tracker_pose_t PoseFromJson(const nlohmann::json& p, const std::string& id,
                                       int64_t session, int64_t seq, int64_t utime) {
-  sweptccd::tracker_pose_t m{};
-  m.utime = utime;
+  nlohmann::json line = {{"utime", utime}, {"links", p["links"]}};
+  sweptccd::tracker_pose_t m = sweptccd::TrackerPoseOfLine(line.dump());
   m.client_id = id;
   m.session = session;
   m.seq = seq;
-  m.num_links = static_cast<int32_t>(p["links"].size());
-  for (const auto& l : p["links"]) {
-    m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-    m.orientation.push_back(
-        {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-  }
   return m;
 }
 

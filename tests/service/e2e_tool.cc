@@ -51,17 +51,16 @@
 //
 // Exit 0 when every check passes; every wait is bounded.
 
-#include <lcm/lcm-cpp.hpp>
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <lcm/lcm-cpp.hpp>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <thread>
@@ -75,6 +74,7 @@
 #include "sweptccd/rejection_t.hpp"
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -140,17 +140,10 @@ std::vector<nlohmann::json> ReadLines(const std::string& path) {
 }
 
 sweptccd::tracker_pose_t MakePose(const nlohmann::json& p, const std::string& id, int64_t seq) {
-  sweptccd::tracker_pose_t m;
-  m.utime = p["utime"].get<int64_t>();
+  sweptccd::tracker_pose_t m = sweptccd::TrackerPoseOfLine(p.dump());
   m.client_id = id;
   m.session = 1;
   m.seq = seq;
-  m.num_links = static_cast<int32_t>(p["links"].size());
-  for (const auto& l : p["links"]) {
-    m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-    m.orientation.push_back(
-        {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-  }
   return m;
 }
 

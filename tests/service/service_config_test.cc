@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "core/errors.h"
 
 namespace sweptccd {
@@ -302,6 +304,70 @@ objects: [{id: cup, mesh: m.obj}]
 )";
   EXPECT_NE(RefusalOf(no_room).find("object 'cup' has no key"), std::string::npos);
   EXPECT_TRUE(ParseServiceConfig(base, "cfg.yaml", "/").shared_world);
+}
+
+}  // namespace
+}  // namespace sweptccd
+
+namespace sweptccd {
+namespace {
+
+// The WebSocket door's block (docs/WEBSOCKET.md): every key, relative paths
+// against the file's folder, unknown keys and bad values refused; the
+// --ws-* flags override it.
+TEST(ServiceConfigTest, WebsocketBlockParses) {
+  // The deploy example's commented block, uncommented, parses.
+  std::ifstream in(SWEPTCCD_SOURCE_DIR "/deploy/sweptccd.yaml");
+  std::string line, block;
+  bool inside = false;
+  while (std::getline(in, line)) {
+    if (line == "# websocket:") inside = true;
+    if (inside && line.rfind("# ", 0) == 0) block += line.substr(2) + "\n";
+  }
+  ASSERT_FALSE(block.empty());
+  const ServiceConfig d = ParseServiceConfig(
+      "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\nsecurity: {room_key: r.key}\n" +
+          block,
+      "deploy", "/base");
+  EXPECT_EQ(d.websocket.listen, "127.0.0.1:8765");
+  EXPECT_EQ(d.websocket.cert_path, "/etc/sweptccd/door.crt");
+  EXPECT_EQ(d.websocket.allow_origins, std::vector<std::string>{"https://app.example"});
+  EXPECT_EQ(d.websocket.max_scene_triangles, 200000);
+  EXPECT_NO_THROW(ValidateServiceConfig(d));
+  const ServiceConfig c = ParseServiceConfig(
+      "environment: [a.ply]\nclients: [{id: a, skeleton: s.json}]\nsecurity: {room_key: r.key}\n"
+      "websocket: {listen: \"0.0.0.0:9000\", cert: c.pem, key: k.pem, view_dir: view,\n"
+      "  max_connections: 5, max_connections_per_address: 2, handshake_timeout_ms: 700,\n"
+      "  idle_timeout_ms: 900, max_message_bytes: 4096, message_rate_hz: 50, message_burst: 3,\n"
+      "  send_queue_messages: 7, send_queue_bytes: 8192, socket_send_buffer_bytes: 16384,\n"
+      "  max_objects_per_connection: 1, max_scene_triangles: 99}\n",
+      "test", "/base");
+  const WsDoorOptions& w = c.websocket;
+  EXPECT_EQ(w.cert_path, "/base/c.pem");
+  EXPECT_EQ(w.key_path, "/base/k.pem");
+  EXPECT_EQ(w.view_dir, "/base/view");
+  EXPECT_EQ(w.max_connections, 5);
+  EXPECT_EQ(w.max_connections_per_address, 2);
+  EXPECT_EQ(w.handshake_timeout_ms, 700);
+  EXPECT_EQ(w.idle_timeout_ms, 900);
+  EXPECT_EQ(w.max_message_bytes, 4096u);
+  EXPECT_EQ(w.message_rate_hz, 50);
+  EXPECT_EQ(w.message_burst, 3);
+  EXPECT_EQ(w.send_queue_messages, 7u);
+  EXPECT_EQ(w.send_queue_bytes, 8192u);
+  EXPECT_EQ(w.socket_send_buffer_bytes, 16384);
+  EXPECT_EQ(w.max_objects_per_connection, 1);
+  EXPECT_EQ(w.max_scene_triangles, 99);
+  EXPECT_NO_THROW(ValidateServiceConfig(c));
+  EXPECT_THROW(ParseServiceConfig("websocket: {lisen: x}\n", "t", "/b"), InputError);
+  ServiceConfig bad = c;
+  bad.websocket.key_path.clear();
+  try {
+    ValidateServiceConfig(bad);
+    FAIL() << "cert without key accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--ws-key"), std::string::npos);
+  }
 }
 
 }  // namespace

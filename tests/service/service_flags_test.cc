@@ -24,12 +24,33 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   CLI::App app;
   ServiceFlags flags;
   AddServiceFlags(&app, &flags);
-  const char* argv[] = {"sweptccd-service", "--lcm-url", "memq://",   "--client",  "a=a.json",
-                        "--client",         "b=b.json",  "--filter",  "b=f.json",  "--ignore",
-                        "a=arm:*",          "--eps",     "1e-5",      "--backend", "cpu",
-                        "--gpu-device",     "-1",        "--workers", "3",
-                        "--room-key",       "room.key",  "--client-key", "a=a.key",
-                        "--max-pose-rate",  "500",       "--max-object-pose-rate", "60"};
+  const char* argv[] = {"sweptccd-service",
+                        "--lcm-url",
+                        "memq://",
+                        "--client",
+                        "a=a.json",
+                        "--client",
+                        "b=b.json",
+                        "--filter",
+                        "b=f.json",
+                        "--ignore",
+                        "a=arm:*",
+                        "--eps",
+                        "1e-5",
+                        "--backend",
+                        "cpu",
+                        "--gpu-device",
+                        "-1",
+                        "--workers",
+                        "3",
+                        "--room-key",
+                        "room.key",
+                        "--client-key",
+                        "a=a.key",
+                        "--max-pose-rate",
+                        "500",
+                        "--max-object-pose-rate",
+                        "60"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};
@@ -58,6 +79,53 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   EXPECT_EQ(config.security.room_key, "room.key");
   EXPECT_EQ(config.security.client_keys.at("a"), "a.key");
   EXPECT_NO_THROW(ValidateServiceConfig(config));
+}
+
+TEST(ServiceFlagsTest, WebsocketFlags) {
+  CLI::App app;
+  ServiceFlags flags;
+  AddServiceFlags(&app, &flags);
+  const char* argv[] = {"sweptccd-service",
+                        "--ws-listen",
+                        "0.0.0.0:8765",
+                        "--ws-cert",
+                        "c.pem",
+                        "--ws-key",
+                        "k.pem",
+                        "--ws-allow-origin",
+                        "https://a.example",
+                        "--ws-allow-origin",
+                        "https://b.example",
+                        "--ws-view-dir",
+                        "v",
+                        "--ws-max-connections",
+                        "9",
+                        "--ws-max-connections-per-address",
+                        "3"};
+  app.parse(static_cast<int>(std::size(argv)), argv);
+  ServiceConfig config;
+  config.websocket.allow_origins = {"https://yaml.example"};
+  config.websocket.handshake_timeout_ms = 1234;
+  ApplyServiceFlags(flags, &config);
+  const WsDoorOptions& w = config.websocket;
+  EXPECT_EQ(w.listen, "0.0.0.0:8765");
+  EXPECT_EQ(w.cert_path, "c.pem");
+  EXPECT_EQ(w.key_path, "k.pem");
+  EXPECT_EQ(w.view_dir, "v");
+  EXPECT_EQ(w.allow_origins, (std::vector<std::string>{"https://yaml.example", "https://a.example",
+                                                       "https://b.example"}));
+  EXPECT_EQ(w.max_connections, 9);
+  EXPECT_EQ(w.max_connections_per_address, 3);
+  EXPECT_EQ(w.handshake_timeout_ms, 1234);  // Not given: kept.
+  // Not given at all: the door stays off.
+  CLI::App app2;
+  ServiceFlags none;
+  AddServiceFlags(&app2, &none);
+  const char* argv2[] = {"sweptccd-service"};
+  app2.parse(1, argv2);
+  ServiceConfig off;
+  ApplyServiceFlags(none, &off);
+  EXPECT_TRUE(off.websocket.listen.empty());
 }
 
 TEST(ServiceFlagsTest, RefusalsNameTheFlag) {

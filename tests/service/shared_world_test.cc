@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -21,6 +22,7 @@
 #include <tuple>
 #include <vector>
 
+#include "core/world/entity_broad_phase.h"
 #include "core/world/world_query.h"
 
 namespace sweptccd {
@@ -134,7 +136,7 @@ struct Offline {
   // The `others` entries of avatar a's record r, by entity id.
   std::map<std::string, json> Others(int a, size_t r) const {
     std::map<std::string, json> out;
-    const json record = json::parse(answerer->RecordJson(a, r));
+    const json record = json::parse(answerer->RecordJson(world::AvatarIndex(a), r));
     for (const json& e : record["others"]) {
       out[e["entity"].get<std::string>()] = e;
     }
@@ -211,8 +213,7 @@ void ExpectEqualToOffline(const SharedJob& job, const shared_entry_t& live, cons
 }
 
 // Per-link mode: the live entry's `links` equal `sweptccd world --per-link`'s.
-void ExpectLinksEqualToOffline(const SharedJob& job, const shared_entry_t& live,
-                               const json& off) {
+void ExpectLinksEqualToOffline(const SharedJob& job, const shared_entry_t& live, const json& off) {
   SCOPED_TRACE(job.client_id + " pair " + std::to_string(job.pair) + " vs " + live.entity +
                " (per link)");
   ASSERT_TRUE(off.contains("links"));
@@ -330,8 +331,7 @@ void RunClientsAtDifferentRates(bool far_tail) {
   // Offline: every overlapping (record, entity) entry, and which of them the
   // live service can certify (the entity has a sample after utime1).
   std::set<std::tuple<std::string, int64_t, std::string>> expected_covered, expected_all;
-  const int64_t last_utime[3] = {used[0].back().utime, used[1].back().utime,
-                                 box_used.back().utime};
+  const int64_t last_utime[3] = {used[0].back().utime, used[1].back().utime, box_used.back().utime};
   int contacts = 0;
   for (int a = 0; a < 2; ++a) {
     for (size_t r = 0; r < off.w.world.avatars[a].records.size(); ++r) {
@@ -367,8 +367,8 @@ void RunClientsAtDifferentRates(bool far_tail) {
     EXPECT_TRUE(m.links.empty()) << "no per-link brackets outside per-link mode";
     if (i % 4 == 0 || m.result == shared_entry_t::RESULT_CONTACT) {
       const shared_entry_t ml = AnswerSharedJob(job, eo_links);
-      const json record =
-          json::parse(links_answerer.RecordJson(a, static_cast<size_t>(job.pair)));
+      const json record = json::parse(
+          links_answerer.RecordJson(world::AvatarIndex(a), static_cast<size_t>(job.pair)));
       for (const json& o : record["others"]) {
         if (o["entity"] != job.entity) continue;
         ExpectLinksEqualToOffline(job, ml, o);
@@ -448,8 +448,8 @@ TEST(SharedWorld, SamplesStampedAtTheSameFrameCoverInThatFrame) {
       EXPECT_EQ(due_frame[i], pair_frame + 1) << "an instant window waits for the next sample";
     } else {
       ++same_frame;
-      EXPECT_EQ(due_frame[i], pair_frame) << job.client_id << " pair " << job.pair << " vs "
-                                          << job.entity;
+      EXPECT_EQ(due_frame[i], pair_frame)
+          << job.client_id << " pair " << job.pair << " vs " << job.entity;
     }
     const shared_entry_t m = AnswerSharedJob(job, eo);
     contacts += m.result == shared_entry_t::RESULT_CONTACT;
@@ -517,7 +517,8 @@ TEST(SharedWorld, FiltersOfEitherAvatarApplyToTheSharedAnswers) {
     ExpectEqualToOffline(job, m, filtered->Others(a, r).at(job.entity));
     ++compared;
     contacts += m.result == shared_entry_t::RESULT_CONTACT;
-    json with = filtered->Others(a, r).at(job.entity), without = unfiltered->Others(a, r).at(job.entity);
+    json with = filtered->Others(a, r).at(job.entity),
+         without = unfiltered->Others(a, r).at(job.entity);
     with.erase("stats"), without.erase("stats");  // Work counts, not the answer.
     changed += with != without;
   }
@@ -572,8 +573,9 @@ TEST(SharedWorld, AClientsOwnTolerancesAnswerItsEntries) {
     EXPECT_EQ(job.own_a->eps_s, alice ? kEps : 0.0);
     EXPECT_EQ(job.own_a->delta_m, alice ? kDelta : 0.0);
     const shared_entry_t m = AnswerSharedJob(job, eo);
-    const json record = json::parse((alice ? alice_answerer : *off.answerer)
-                                        .RecordJson(alice ? 0 : 1, static_cast<size_t>(job.pair)));
+    const json record = json::parse(
+        (alice ? alice_answerer : *off.answerer)
+            .RecordJson(world::AvatarIndex(alice ? 0 : 1), static_cast<size_t>(job.pair)));
     for (const json& o : record["others"]) {
       if (o["entity"] == job.entity) {
         ExpectEqualToOffline(job, m, o);
@@ -827,6 +829,63 @@ TEST(SharedWorld, BadObjectPosesAreRefusedAndDisturbNothing) {
   EXPECT_EQ(live.history_size("box"), 2);
 }
 
+// An object pose is judged by the rule of an avatar's link pose and worded
+// as the avatar's (FindRigidProblem, PoseRejection): the same code and the
+// same detail (the component, the value, the fix) for the same numbers.
+// (Before, a second routine returned a string that the service turned back
+// into a code by substring, and its wording named neither.)
+TEST(SharedWorld, AnObjectPoseIsJudgedAndWordedAsAnAvatarLinkPose) {
+  SharedWorld live(SharedWorldOptions{});
+  live.AddObject("box", Cube(0.1), At(0));
+  std::vector<SharedJob> due;
+  const std::vector<std::pair<Eigen::Vector3d, Eigen::Vector4d>> bad = {
+      {{0, NAN, 0}, {1, 0, 0, 0}},       // Non-finite position.
+      {{0, 0, 0}, {1, 0, INFINITY, 0}},  // Non-finite orientation.
+      {{0, 0, -2e9}, {1, 0, 0, 0}},      // Beyond 1e9 m.
+      {{0, 0, 0}, {1e-7, 0, 0, 0}},      // Quaternion norm below 1e-6.
+      {{0, 0, 0}, {0, 0, 0, 0}}};        // Zero quaternion.
+  for (const auto& [p, q] : bad) {
+    object_pose_t m = ObjectPose("box", 100, 7, p, Eigen::Quaterniond(q[0], q[1], q[2], q[3]));
+    const std::optional<Rejection> object = live.OnObjectPose(m, 10'000'000, At(1), &due);
+    tracker_pose_t t{};
+    t.num_links = 1;
+    t.position.assign(1, {p[0], p[1], p[2]});
+    t.orientation.assign(1, {q[0], q[1], q[2], q[3]});
+    Pose pose;
+    const std::optional<Rejection> avatar = ValidateTrackerPose(t, 1, &pose);
+    ASSERT_TRUE(object.has_value());
+    ASSERT_TRUE(avatar.has_value());
+    EXPECT_EQ(object->reason, avatar->reason);
+    const std::string place = "link 0: ";
+    ASSERT_EQ(avatar->message.rfind(place, 0), 0u) << avatar->message;
+    EXPECT_EQ(object->message, "object 'box' seq 7: " + avatar->message.substr(place.size()));
+  }
+  EXPECT_EQ(live.history_size("box"), 0);
+  EXPECT_TRUE(due.empty());
+}
+
+// The utime_jump rule of objects is the avatar's (UtimeJump): a hostile
+// pair of utimes whose signed difference overflows int64 is a jump, not a
+// small (wrapped, negative) step. (Before, `msg.utime - last` overflowed
+// and the jump was used.)
+TEST(SharedWorld, AnObjectUtimeJumpThatOverflowsInt64IsRefused) {
+  SharedWorld live(SharedWorldOptions{});
+  live.AddObject("box", Cube(0.1), At(0));
+  std::vector<SharedJob> due;
+  const Eigen::Quaterniond q(1, 0, 0, 0);
+  const int64_t lowest = std::numeric_limits<int64_t>::min() + 1;
+  const int64_t highest = std::numeric_limits<int64_t>::max();
+  ASSERT_FALSE(
+      live.OnObjectPose(ObjectPose("box", lowest, 1, {0, 0, 0}, q), 10'000'000, At(0), &due));
+  const std::optional<Rejection> r =
+      live.OnObjectPose(ObjectPose("box", highest, 2, {0, 0, 0}, q), 10'000'000, At(1), &due);
+  ASSERT_TRUE(r.has_value()) << "a jump of ~1.8e19 us was used";
+  EXPECT_EQ(r->reason, "utime_jump");
+  EXPECT_EQ(live.history_size("box"), 1);
+  // The same pair on the avatar path (one code): a jump too.
+  EXPECT_EQ(UtimeJump(lowest, highest), std::numeric_limits<uint64_t>::max() - 1);
+  EXPECT_EQ(UtimeJump(-5, 5), 10u);
+}
 
 // The entry of a cleared job against the full answer of the same job: all
 // but compute_us.

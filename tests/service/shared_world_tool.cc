@@ -25,6 +25,14 @@
 //     first witness); every shared entry of such a pair not ended by the
 //     timeout equals `sweptccd world`'s entry bit for bit; every such pair has exactly its offline
 //     entries; the only rejection is one unknown_object for "ghost". Exit 0 when all hold.
+//   shared_world_tool --key FILE play-ws URL PORT DIR OFFLINE.jsonl
+//     `play` with alice a live client of the WebSocket door (127.0.0.1:PORT,
+//     docs/WEBSOCKET.md: join with DIR/arm.json and her filter, poses over
+//     the socket) while bob, carol and the cup stay on LCM: one room, two
+//     doors. Alice's answers are read from the WebSocket, everyone else's
+//     from LCM, all checked as `play` checks them; and every message of
+//     alice's that LCM carries too must equal the WebSocket's field for
+//     field (LCM encodings equal).
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <chrono>
@@ -34,6 +42,8 @@
 #include <functional>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
@@ -47,6 +57,8 @@
 #include "msgs/checked_decode.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
+#include "sweptccd_client/tracker_pose.h"
+#include "sweptccd_client/ws_client.h"
 
 namespace {
 
@@ -196,6 +208,11 @@ struct LiveEntry : shared_entry_t {
 };
 
 struct Receiver {
+  // A WebSocket client's id: LCM's copies of its messages are kept apart
+  // (compared with what the socket delivers), its answers come from `inbox`.
+  std::string ws_id;
+  std::vector<contact_event_t> lcm_ws_contacts;
+  std::vector<shared_contact_t> lcm_ws_shared;
   std::vector<contact_event_t> contacts;
   std::vector<LiveEntry> shared;  // Every entry of every message.
   int64_t shared_messages = 0;
@@ -213,11 +230,23 @@ struct Receiver {
   }
   void OnContact(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     contact_event_t m;
-    if (Take(rbuf, &m)) contacts.push_back(m);
+    if (!Take(rbuf, &m)) return;
+    if (!ws_id.empty() && m.client_id == ws_id) {
+      lcm_ws_contacts.push_back(m);
+    } else {
+      contacts.push_back(m);
+    }
   }
   void OnShared(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     shared_contact_t m;
     if (!Take(rbuf, &m)) return;
+    if (!ws_id.empty() && m.client_id == ws_id) {
+      lcm_ws_shared.push_back(m);
+      return;
+    }
+    AddShared(m);
+  }
+  void AddShared(const shared_contact_t& m) {
     ++shared_messages;
     for (const shared_entry_t& e : m.entries) {
       LiveEntry x;
@@ -365,11 +394,76 @@ struct Expect {
 
 int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& expect);
 
-int Play(const std::string& url, const std::string& dir, const std::string& offline_path) {
+// Messages a WebSocket client received (its own thread), merged into the
+// Receiver by the checking loop.
+struct WsInbox {
+  std::mutex mutex;
+  std::vector<contact_event_t> contacts, all_contacts;
+  std::vector<shared_contact_t> shared, all_shared;
+  std::vector<rejection_t> rejections;
+  void MergeInto(Receiver* rx) {
+    std::lock_guard<std::mutex> lock(mutex);
+    for (auto& c : contacts) rx->contacts.push_back(c);
+    for (auto& m : shared) rx->AddShared(m);
+    for (auto& r : rejections) rx->rejections.push_back(r);
+    contacts.clear(), shared.clear(), rejections.clear();
+  }
+};
+std::function<void()> g_merge = [] {};
+
+template <class T>
+std::vector<uint8_t> Bytes(T m) {
+  std::fill(std::begin(m.mac), std::end(m.mac), 0);
+  std::vector<uint8_t> b(static_cast<size_t>(m.getEncodedSize()));
+  m.encode(b.data(), 0, static_cast<int>(b.size()));
+  return b;
+}
+
+int Play(const std::string& url, const std::string& dir, const std::string& offline_path,
+         int ws_port = 0) {
   lcm::LCM lcm(url);
   if (!lcm.good()) return 2;
   Receiver rx;
   Subscribe(lcm, &rx);
+  // Alice through the WebSocket door.
+  std::unique_ptr<WsLiveClient> ws;
+  WsInbox inbox;
+  if (ws_port > 0) {
+    rx.ws_id = "alice";
+    WsLiveClient::Options o;
+    o.port = static_cast<uint16_t>(ws_port);
+    o.client_id = "alice";
+    o.room_key = g_key;
+    o.skeleton = LoadSkeletonFile(dir + "/arm.json");
+    o.ignore_entities = {{"upper", "cup", ""}};
+    o.reconnect = false;
+    ws = std::make_unique<WsLiveClient>(o);
+    ws->OnContact([&](const contact_event_t& e) {
+      std::lock_guard<std::mutex> lock(inbox.mutex);
+      inbox.contacts.push_back(e);
+      inbox.all_contacts.push_back(e);
+    });
+    ws->OnSharedContact([&](const shared_contact_t& e) {
+      std::lock_guard<std::mutex> lock(inbox.mutex);
+      inbox.shared.push_back(e);
+      inbox.all_shared.push_back(e);
+    });
+    ws->OnRejection([&](const rejection_t& r) {
+      std::lock_guard<std::mutex> lock(inbox.mutex);
+      inbox.rejections.push_back(r);
+    });
+    ws->OnError([](const std::string& code, const std::string& message) {
+      std::printf("websocket error %s: %s\n", code.c_str(), EscapeForDisplay(message).c_str());
+    });
+    const JoinResult joined = ws->Join();
+    if (!joined.ok()) {
+      std::printf("FAIL: alice's WebSocket join: %d %s\n", joined.reason, joined.message.c_str());
+      return 1;
+    }
+    std::printf("shared_world_tool: alice joined over the WebSocket door, session %lld\n",
+                static_cast<long long>(joined.session));
+    g_merge = [&] { inbox.MergeInto(&rx); };
+  }
   const Offline offline = LoadOffline(offline_path);
   // The raw lines of the files `write` made: the daemon normalises what it
   // receives exactly as `sweptccd world` normalises what it reads.
@@ -400,18 +494,19 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
   for (const Sample& x : order) {
     std::this_thread::sleep_until(t0 + std::chrono::microseconds(x.utime - u_first));
     if (x.kind == 0) {
-      tracker_pose_t m{};
-      m.utime = x.utime;
+      tracker_pose_t m = TrackerPoseOfLine(json{{"utime", x.utime}, {"links", x.values}}.dump());
       m.client_id = x.id;
       m.session = 1;
       m.seq = x.seq;
-      m.num_links = static_cast<int32_t>(x.values.size());
-      for (const json& l : x.values) {
-        m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-        m.orientation.push_back(
-            {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
+      if (ws && x.id == "alice") {
+        if (!ws->PublishPose(m)) {
+          std::printf("FAIL: alice's pose %lld not sent (not joined)\n",
+                      static_cast<long long>(m.seq));
+          return 1;
+        }
+      } else {
+        Send(lcm, kPoseChannel, m);
       }
-      Send(lcm, kPoseChannel, m);
       last_seq[x.id] = m.seq;
     } else {
       object_pose_t m{};
@@ -435,7 +530,60 @@ int Play(const std::string& url, const std::string& dir, const std::string& offl
   Send(lcm, kObjectPoseChannel, ghost);
   Expect expect;
   expect.last_seq = last_seq;
-  return Check(lcm, rx, offline, expect);
+  const int result = Check(lcm, rx, offline, expect);
+  if (!ws) return result;
+  // LCM's copies of alice's messages equal the WebSocket's, field for field.
+  int failures = 0;
+  std::lock_guard<std::mutex> lock(inbox.mutex);
+  auto by_pair = [](const auto& x, const auto& y) { return x.pair < y.pair; };
+  std::stable_sort(inbox.all_contacts.begin(), inbox.all_contacts.end(), by_pair);
+  std::stable_sort(rx.lcm_ws_contacts.begin(), rx.lcm_ws_contacts.end(), by_pair);
+  if (inbox.all_contacts.size() != rx.lcm_ws_contacts.size()) {
+    std::printf("FAIL: alice: %zu contact events over the WebSocket, %zu over LCM\n",
+                inbox.all_contacts.size(), rx.lcm_ws_contacts.size());
+    ++failures;
+  } else {
+    for (size_t i = 0; i < inbox.all_contacts.size(); ++i) {
+      if (Bytes(inbox.all_contacts[i]) != Bytes(rx.lcm_ws_contacts[i])) {
+        std::printf("FAIL: alice pair %lld: the WebSocket's contact event differs from LCM's\n",
+                    static_cast<long long>(inbox.all_contacts[i].pair));
+        ++failures;
+      }
+    }
+  }
+  auto key = [](const shared_contact_t& m) {
+    return std::make_tuple(m.pair, m.entries.empty() ? std::string() : m.entries[0].entity);
+  };
+  auto by_key = [&](const shared_contact_t& x, const shared_contact_t& y) {
+    return key(x) < key(y);
+  };
+  std::stable_sort(inbox.all_shared.begin(), inbox.all_shared.end(), by_key);
+  std::stable_sort(rx.lcm_ws_shared.begin(), rx.lcm_ws_shared.end(), by_key);
+  if (inbox.all_shared.size() != rx.lcm_ws_shared.size()) {
+    std::printf("FAIL: alice: %zu shared messages over the WebSocket, %zu over LCM\n",
+                inbox.all_shared.size(), rx.lcm_ws_shared.size());
+    ++failures;
+  } else {
+    for (size_t i = 0; i < inbox.all_shared.size(); ++i) {
+      if (Bytes(inbox.all_shared[i]) != Bytes(rx.lcm_ws_shared[i])) {
+        std::printf("FAIL: alice pair %lld: the WebSocket's shared message differs from LCM's\n",
+                    static_cast<long long>(inbox.all_shared[i].pair));
+        ++failures;
+      }
+    }
+  }
+  int alice_contacts = 0;
+  for (const auto& c : inbox.all_contacts) alice_contacts += c.result == 1;
+  std::printf(
+      "shared_world_tool: alice over the WebSocket: %zu contact events (%d contacts), %zu "
+      "shared messages, all equal to LCM's copies; %d failures\n",
+      inbox.all_contacts.size(), alice_contacts, inbox.all_shared.size(), failures);
+  if (inbox.all_contacts.size() < 50 || alice_contacts < 1) {
+    std::printf("FAIL: too few of alice's answers over the WebSocket\n");
+    ++failures;
+  }
+  ws->Leave();
+  return result == 0 && failures == 0 ? 0 : 1;
 }
 
 // Listens while `sweptccd simulate-tracker` plays DIR/stream.jsonl for alice
@@ -471,6 +619,14 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
       const auto it = offline.find({c.client_id, c.utime0, c.utime1});
       if (it == offline.end()) continue;
       for (const auto& [entity, o] : it->second) {
+        // A live client's entry that only E's silence can close (E's samples
+        // end inside the pair) may be dropped with the client when it is
+        // dropped for silence itself at the same time (a configured one
+        // stays and gets it ended_by_timeout).
+        if (c.client_id == rx.ws_id && o.contains("window") &&
+            o["window"][1].get<int64_t>() < c.utime1) {
+          continue;
+        }
         if (!entity.empty()) keys.insert({c.client_id, c.pair, entity});
       }
     }
@@ -490,9 +646,15 @@ int Check(lcm::LCM& lcm, Receiver& rx, const Offline& offline, const Expect& exp
     return !expect.ghost || !rx.rejections.empty();
   };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (!done() && std::chrono::steady_clock::now() < deadline) lcm.handleTimeout(50);
+  while (!done() && std::chrono::steady_clock::now() < deadline) {
+    lcm.handleTimeout(50);
+    g_merge();
+  }
   // Anything more (a duplicate would show now).
-  for (int i = 0; i < 10; ++i) lcm.handleTimeout(50);
+  for (int i = 0; i < 10; ++i) {
+    lcm.handleTimeout(50);
+    g_merge();
+  }
 
   int failures = 0;
   if (!done()) {
@@ -627,6 +789,9 @@ int main(int argc, char** argv) {
     if (args.size() == 2 && args[0] == "write") return Write(args[1]);
     if (args.size() == 4 && args[0] == "play") return Play(args[1], args[2], args[3]);
     if (args.size() == 4 && args[0] == "listen") return Listen(args[1], args[2], args[3]);
+    if (args.size() == 5 && args[0] == "play-ws") {
+      return Play(args[1], args[3], args[4], std::stoi(args[2]));
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "shared_world_tool: %s\n", e.what());
     return 2;

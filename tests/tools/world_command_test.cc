@@ -412,6 +412,76 @@ TEST_F(WorldCommandTest, GpuAndCpuBackendsGiveTheSameRecords) {
   }
 }
 
+// The flags `world` shares with `query` (tools/command_common.h): an output
+// that names the world file or any file it names is refused before
+// anything is written (the input intact), --max-links bounds every skeleton,
+// --gpu-device picks the EGL device (a missing one: the CPU answers, and
+// says why).
+TEST_F(WorldCommandTest, SharesQuerysOutputCheckLinkLimitAndGpuDevice) {
+  const std::string world = World();
+  const std::string world_text = testing::ReadFile(world);
+  const std::string bob = testing::ReadFile(Path("bob.jsonl"));
+  struct Clash {
+    std::string output, role;
+  };
+  const std::vector<Clash> clashes = {
+      {world, "--world input"},
+      {Path("bob.jsonl"), "--world's avatars[1] ('bob') poses input"},
+      {Path("./bar.json"), "--world's avatars[0] ('alice') skeleton input"},
+      {Path("cup.obj"), "--world's objects[0] ('cup') mesh input"},
+      {Path("floor.obj"), "--world's env[0] input"},
+  };
+  for (const Clash& c : clashes) {
+    SCOPED_TRACE(c.output);
+    const RunResult r = Run({"world", "--world", world, "--backend", "cpu", "--output", c.output});
+    ASSERT_TRUE(r.exited) << r.Describe();
+    EXPECT_EQ(r.code, 2) << r.Describe();
+    EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "not one line: " << r.err;
+    EXPECT_NE(r.err.find("--output " + c.output + " is also the " + c.role), std::string::npos)
+        << r.err;
+  }
+  EXPECT_EQ(testing::ReadFile(world), world_text);
+  EXPECT_EQ(testing::ReadFile(Path("bob.jsonl")), bob);
+
+  Write("two.json", R"({"name": "two", "links": [
+    {"name": "a", "parent": null, "a": [0, 0, 0], "b": [0.1, 0, 0], "radius": 0.1},
+    {"name": "b", "parent": "a", "a": [0, 0, 0], "b": [0.1, 0, 0], "radius": 0.1}]})");
+  Write("two.jsonl",
+        "{\"utime\": 1000000, \"links\": [[0, 0, 0, 1, 0, 0, 0], [0, 0, 0, 1, 0, 0, 0]]}\n");
+  const std::string two =
+      Write("two_world.json",
+            R"({"avatars": [{"id": "t", "skeleton": "two.json", "poses": "two.jsonl"}]})");
+  const RunResult over = Run({"world", "--world", two, "--max-links", "1"});
+  ASSERT_TRUE(over.exited) << over.Describe();
+  EXPECT_EQ(over.code, 2) << over.Describe();
+  EXPECT_NE(over.err.find("2 links, above the limit of 1"), std::string::npos) << over.err;
+  EXPECT_NE(over.err.find("--max-links"), std::string::npos) << over.err;
+  const RunResult enough = Run({"world", "--world", two, "--max-links", "2", "--backend", "cpu"});
+  ASSERT_TRUE(enough.exited && enough.code == 0) << enough.Describe();
+  const RunResult zero = Run({"world", "--world", two, "--max-links", "0"});
+  ASSERT_TRUE(zero.exited) << zero.Describe();
+  EXPECT_EQ(zero.code, 2) << zero.Describe();
+  EXPECT_NE(zero.err.find("--max-links"), std::string::npos) << zero.err;
+
+  const RunResult cpu = Run({"world", "--world", world, "--backend", "cpu"});
+  ASSERT_TRUE(cpu.exited && cpu.code == 0) << cpu.Describe();
+  const RunResult missing =
+      Run({"world", "--world", world, "--backend", "gpu", "--gpu-device", "31"});
+  ASSERT_TRUE(missing.exited && missing.code == 0) << missing.Describe();
+  EXPECT_NE(missing.err.find("EGL device 31 does not exist"), std::string::npos) << missing.err;
+  EXPECT_NE(missing.err.find("backend cpu (gpu requested but unavailable"), std::string::npos)
+      << missing.err;
+  std::vector<json> a = Records(cpu.out), b = Records(missing.out);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (json* r : {&a[i], &b[i]}) {
+      r->erase("elapsed_us");
+      r->erase("stats");
+    }
+    EXPECT_EQ(a[i], b[i]) << "record " << i;
+  }
+}
+
 TEST_F(WorldCommandTest, RefusesBadWorldsWithOneLine) {
   struct Case {
     std::string name, text, expect;

@@ -24,18 +24,14 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "msgs/text.h"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1) + 0.5)];
-}
 
 }  // namespace
 
@@ -54,14 +50,7 @@ int main(int argc, char** argv) {
     std::ifstream in(argv[3]);
     std::string line;
     if (!std::getline(in, line)) throw InputError(std::string(argv[3]) + ": no pose");
-    const nlohmann::json first = nlohmann::json::parse(line);
-    tracker_pose_t pose;
-    pose.num_links = static_cast<int32_t>(first["links"].size());
-    for (const auto& l : first["links"]) {
-      pose.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-      pose.orientation.push_back(
-          {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-    }
+    tracker_pose_t pose = TrackerPoseOfLine(line);
     const MacKey room = LoadKeyFile(argv[4]);
     const double joins_hz = std::stod(argv[5]), lifetime_s = std::stod(argv[6]);
     const double seconds = std::stod(argv[7]);
@@ -142,12 +131,13 @@ int main(int argc, char** argv) {
     for (Live& l : live) {
       if (l.client) l.client->Leave();
     }
+    const Summary join = Summarise(join_ms);
     std::printf(
         "join churn: %lld joins (%lld refused, %lld unanswered) in %.1f s, %lld poses of "
         "live clients; join round trip median %.2f ms, p99 %.2f ms, max %.2f ms\n",
         static_cast<long long>(joins), static_cast<long long>(refused),
-        static_cast<long long>(no_reply), seconds, static_cast<long long>(poses),
-        Percentile(join_ms, 0.5), Percentile(join_ms, 0.99), Percentile(join_ms, 1.0));
+        static_cast<long long>(no_reply), seconds, static_cast<long long>(poses), join.median,
+        join.p99, join.max);
     return refused + no_reply == 0 ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

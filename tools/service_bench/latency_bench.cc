@@ -69,12 +69,14 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/percentile.h"
 #include "msgs/channels.h"
 #include "msgs/signing.h"
 #include "msgs/text.h"
 #include "sweptccd/contact_event_t.hpp"
 #include "sweptccd/shared_contact_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace {
 
@@ -260,18 +262,8 @@ struct Collector {
   }
 };
 
-struct Stats {
-  size_t n = 0;
-  double median = 0, p99 = 0, max = 0;
-};
-
-Stats Summarise(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return v.empty() ? 0.0 : v[std::min(v.size() - 1, static_cast<size_t>(q * v.size()))];
-  };
-  return {v.size(), at(0.5), at(0.99), v.empty() ? 0.0 : v.back()};
-}
+using Stats = sweptccd::Summary;  // The one percentile rule (core/percentile.h).
+using sweptccd::Summarise;
 
 struct Options {
   bool room = false;
@@ -418,15 +410,8 @@ int main(int argc, char** argv) {
     std::ifstream in(argv[2]);
     std::string line;
     while (std::getline(in, line)) {
-      const auto j = nlohmann::json::parse(line);
-      sweptccd::tracker_pose_t m;
+      sweptccd::tracker_pose_t m = sweptccd::TrackerPoseOfLine(line);
       m.session = 1;
-      m.num_links = static_cast<int32_t>(j["links"].size());
-      for (const auto& l : j["links"]) {
-        m.position.push_back({l[0].get<double>(), l[1].get<double>(), l[2].get<double>()});
-        m.orientation.push_back(
-            {l[3].get<double>(), l[4].get<double>(), l[5].get<double>(), l[6].get<double>()});
-      }
       poses.push_back(m);
     }
   }

@@ -28,19 +28,21 @@
 #include <utility>
 #include <vector>
 
-#include "core/geometry/bvh.h"
-#include "core/query/ccd_query.h"
-#include "core/query/result_json.h"
-#include "tests/common/test_scale.h"
-#include "tests/core/query/backend_under_test.h"
-#include "core/scene/collision_filter.h"
-#include "core/geometry/distance.h"
-#include "core/scene/environment.h"
-#include "core/geometry/mesh.h"
-#include "mocap/mocap_import.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/geometry/bvh.h"
+#include "core/geometry/distance.h"
+#include "core/geometry/mesh.h"
+#include "core/query/capsule_culler.h"
+#include "core/query/ccd_query.h"
+#include "core/query/link_capsule.h"
+#include "core/query/result_json.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
+#include "mocap/mocap_import.h"
+#include "tests/common/test_scale.h"
+#include "tests/core/query/backend_under_test.h"
 
 namespace sweptccd {
 namespace {
@@ -541,18 +543,17 @@ TEST(RealDataTest, DanceOverTheBunny) {
   }
 }
 
-// A query reuses its thread's arrays from the last one (QueryBuffers in
-// core/query/query_run.h), so nothing may carry over: a mixed sequence on
-// one thread (skeletons of 16 and 3 links, both modes, both motion models,
-// a candidate cap of 4 so that lists overflow) gives every record,
-// statistics included, exactly as the same queries each on a new thread,
-// which starts with none.
-// The candidate test on real geometry: SegmentTriangleWithin (its early
-// refusals and acceptances) gives SegmentTriangleDistance's answer for
-// every triangle near the links' swept capsules of a dance, at 30 Hz and
-// at 15 Hz (pairs two frames apart, larger capsules), in three scenes, at
-// radii around each distance and at the capsule's own radius (every 5th
-// pair; the sanitizer build's scale takes fewer).
+// The candidate test of the backend under test on real geometry, against
+// SegmentTriangleDistance, for the links' swept capsules of a dance at 30 Hz
+// and at 15 Hz (pairs two frames apart, larger capsules), in three scenes
+// (every 5th pair; the sanitizer build's scale takes fewer). The CPU's is
+// SegmentTriangleWithin (its early refusals and acceptances), asked for
+// every triangle near a capsule at radii around the triangle's distance and
+// at the capsule's own radius: it must give the distance's answer. The
+// GPU's is the attached culler, asked for each capsule at radii around its
+// nearest triangle's distance and at its own radius: it may keep a capsule
+// that touches nothing (it is conservative) but must never clear one within
+// reach of a triangle, and it must clear some.
 TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
   struct Case {
     const char* scene;
@@ -567,11 +568,18 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
       {"bitterli_breakfast_room.ply.gz", 'y', 1, Vector3d(-0.67, 0, -1.9), -1.42 + 0.03},
   };
   int64_t checked = 0, within = 0, apart = 0, disagreements = 0;
+  int64_t gpu_capsules = 0, gpu_cleared = 0;
   std::string first;
   for (const Case& c : cases) {
     const Environment env = LoadScene({c.scene});
     MocapClip clip = LoadClip("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz", c.up_axis);
     Place(&clip, c.up, c.centre, c.sole);
+    CcdEngine engine(clip.skeleton, env,
+                     CollisionFilter(clip.skeleton.num_links(), env.num_objects()));
+    testing::AttachBackend(&engine);
+    const CapsuleCuller* culler = engine.culler();  // The GPU's; none for the CPU.
+    std::vector<LinkCapsule> capsules;
+    std::vector<double> nearest;  // Per capsule: its nearest triangle's distance.
     const size_t stride = 5 * static_cast<size_t>(testing::ScaledStride());
     for (size_t k = 0; k + 2 < clip.poses.size(); k += stride) {
       for (int step : {1, 2}) {
@@ -582,12 +590,15 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
           double growth;
           motion.SweptCapsule(l, 0, 1, &a, &b, &growth);
           const double radius = clip.skeleton.link(l).radius + growth;
+          double d_min = std::numeric_limits<double>::infinity();
           for (ObjectIndex o(0); o < env.num_objects(); ++o) {
             const TriangleBvh& bvh = env.object(o).bvh;
             bvh.QueryCapsule(a, b, 1.5 * radius, [&](uint32_t slot) {
               Vector3d ta, tb, tc;
               bvh.Triangle(slot, &ta, &tb, &tc);
               const double d = SegmentTriangleDistance(a, b, ta, tb, tc).distance;
+              d_min = std::min(d_min, d);
+              if (culler != nullptr) return;  // The GPU: asked per capsule below.
               for (double r : {radius, d, d * (1 - 1e-9), d * (1 + 1e-9), d * (1 - 1e-6),
                                d * (1 + 1e-6)}) {
                 if (!(r > 0)) continue;
@@ -605,17 +616,50 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
               }
             });
           }
+          if (culler == nullptr) continue;
+          // Every triangle within 1.5 radius was seen: d_min is exact there.
+          for (double r : {radius, d_min, d_min * (1 - 1e-9), d_min * (1 + 1e-9),
+                           d_min * (1 - 1e-6), d_min * (1 + 1e-6)}) {
+            if (!(r > 0) || !(r <= 1.5 * radius)) continue;
+            capsules.push_back(LinkCapsule{a, b, r, LinkIndex(l)});
+            nearest.push_back(d_min);
+          }
         }
+      }
+    }
+    if (culler == nullptr) continue;
+    std::vector<uint8_t> may_touch;
+    ASSERT_TRUE(culler->Cull(capsules, &may_touch)) << c.scene << ": the culler could not answer";
+    ASSERT_EQ(may_touch.size(), capsules.size());
+    for (size_t i = 0; i < capsules.size(); ++i) {
+      const bool reach = nearest[i] <= capsules[i].radius;
+      ++checked;
+      (reach ? within : apart) += 1;
+      ++gpu_capsules;
+      gpu_cleared += may_touch[i] == 0;
+      if (reach && may_touch[i] == 0 && disagreements++ == 0) {
+        char buf[512];
+        std::snprintf(buf, sizeof(buf),
+                      "%s capsule %zu link %d: nearest triangle at %.17g, radius %.17g, cleared",
+                      c.scene, i, capsules[i].link.value(), nearest[i], capsules[i].radius);
+        first = buf;
       }
     }
   }
   std::printf("[candidate test] %lld radii checked (%lld within, %lld apart)\n",
               static_cast<long long>(checked), static_cast<long long>(within),
               static_cast<long long>(apart));
-  EXPECT_GT(checked, testing::ScaledMinimum(1000000));
   EXPECT_GT(apart, checked / 10);
   EXPECT_GT(within, checked / 10);
   EXPECT_EQ(disagreements, 0) << "first: " << first;
+  if (std::string(testing::BackendName()) == "cpu") {
+    EXPECT_GT(checked, testing::ScaledMinimum(1000000));
+  } else {
+    std::printf("[candidate test] %s: %lld capsules, %lld cleared\n", testing::BackendName(),
+                static_cast<long long>(gpu_capsules), static_cast<long long>(gpu_cleared));
+    EXPECT_GT(gpu_capsules, testing::ScaledMinimum(5000));  // 10964 at full scale.
+    EXPECT_GT(gpu_cleared, gpu_capsules / 20) << "the backend under test never cleared a capsule";
+  }
 }
 
 // The walk and the dance placed in the grey-white room (y up), their soles
@@ -635,14 +679,17 @@ std::pair<MocapClip, MocapClip> WalkAndDanceInTheGreyRoom(double walk_sole, doub
 // which decides every link: the same initially_colliding, and the lowest of
 // its touching links with the same witness. Feet sunk into the floor make
 // the touching links the legs' (above link 0), with the other links near
-// the floor's and furniture's triangles.
+// the floor's and furniture's triangles. On the backend under test (the GPU
+// culls the swept tests of the links above the cutoff in per-link mode).
 TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
   const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
   const auto [walk, dance] = WalkAndDanceInTheGreyRoom(-0.03, -0.05);
   const CollisionFilter filter(kMocapNumLinks, env.num_objects());
   int checked = 0, above_zero = 0, free_or_later = 0;
+  int64_t cull_round_trips = 0;
   for (const MocapClip* clip : {&walk, &dance}) {
-    const CcdEngine engine(clip->skeleton, env, filter);
+    CcdEngine engine(clip->skeleton, env, filter);
+    testing::AttachBackend(&engine);
     QueryOptions first, per_link;
     per_link.per_link = true;
     for (size_t k = 0; k + 1 < clip->poses.size() && k < 240; k += 3) {
@@ -650,6 +697,7 @@ TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
       const Pose& p1 = clip->poses[k + 1];
       const QueryResult r = engine.Query(p0, p1, first);
       const QueryResult pl = engine.Query(p0, p1, per_link);
+      cull_round_trips += r.stats.cull_round_trips + pl.stats.cull_round_trips;
       ASSERT_EQ(r.initially_colliding, pl.initially_colliding) << "pair " << k;
       if (!pl.initially_colliding) {
         ++free_or_later;
@@ -676,8 +724,18 @@ TEST(RealDataTest, InitialContactIsTheLowestTouchingLink) {
   EXPECT_GT(checked, 40);
   EXPECT_GT(above_zero, 40);  // The cutoff falls above link 0.
   EXPECT_GT(free_or_later, 5);
+  if (std::string(testing::BackendName()) != "cpu") {
+    EXPECT_GT(cull_round_trips, 0) << "the backend under test never ran";
+  }
 }
 
+// A query reuses its thread's arrays from the last one (QueryBuffers in
+// core/query/query_run.h), so nothing may carry over: a mixed sequence on
+// one thread (skeletons of 16 and 3 links, both modes, both motion models,
+// a candidate cap of 4 so that lists overflow) gives every record,
+// statistics included, exactly as the same queries each on a new thread,
+// which starts with none. On the backend under test (with the GPU, its
+// culler answers the swept tests of both threads).
 TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
   const Environment env = LoadScene({"bitterli_grey_white_room.ply.gz"});
   const auto [walk, dance] = WalkAndDanceInTheGreyRoom(-0.01, -0.02);
@@ -703,9 +761,12 @@ TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
   };
   const CollisionFilter filter16(kMocapNumLinks, env.num_objects());
   const CollisionFilter filter3(3, env.num_objects());
-  const CcdEngine walk_engine(walk.skeleton, env, filter16);
-  const CcdEngine dance_engine(dance.skeleton, env, filter16);
-  const CcdEngine chain_engine(chain, env, filter3);
+  CcdEngine walk_engine(walk.skeleton, env, filter16);
+  CcdEngine dance_engine(dance.skeleton, env, filter16);
+  CcdEngine chain_engine(chain, env, filter3);
+  for (CcdEngine* engine : {&walk_engine, &dance_engine, &chain_engine}) {
+    testing::AttachBackend(engine);
+  }
   struct Job {
     const CcdEngine* engine;
     Pose p0, p1;
@@ -723,9 +784,11 @@ TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
     jobs.push_back({&walk_engine, walk.poses[k + 1], walk.poses[k + 2], independent});
     jobs.push_back({&dance_engine, dance.poses[3 * k + 1], dance.poses[3 * k + 2], overflow});
   }
-  auto record = [](const Job& job) {
-    return ResultToJson(0, job.p0.utime, job.p1.utime,
-                        job.engine->Query(job.p0, job.p1, job.options), job.options.per_link, 0);
+  int64_t cull_round_trips = 0;
+  auto record = [&cull_round_trips](const Job& job) {
+    const QueryResult r = job.engine->Query(job.p0, job.p1, job.options);
+    cull_round_trips += r.stats.cull_round_trips;
+    return ResultToJson(0, job.p0.utime, job.p1.utime, r, job.options.per_link, 0);
   };
   int contacts = 0, overflowed = 0;
   for (const Job& job : jobs) {
@@ -745,6 +808,9 @@ TEST(RealDataTest, ReusedQueryArraysCarryNothingFromQueryToQuery) {
   // The sequence does reach contacts and overflowing lists.
   EXPECT_GT(contacts, 20);
   EXPECT_GT(overflowed, 2);
+  if (std::string(testing::BackendName()) != "cpu") {
+    EXPECT_GT(cull_round_trips, 0) << "the backend under test never ran";
+  }
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// The shared-world engine (core/world/entity_ccd) against an independent
+// The shared-world engine (core/world/entity_query and its parts) against an independent
 // dense-sampling reference: link against link of another avatar and link
 // against a tracked object, both motion models, off-phase sampling, windows
 // that start or stop mid-pair, thin fast objects, exactly touching and
@@ -17,8 +17,6 @@
 // reference, is <= delta), and the witness itself (points, normal,
 // separation) recomputed.
 
-#include "core/world/entity_ccd.h"
-
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -36,7 +34,12 @@
 #include <vector>
 
 #include "core/geometry/distance.h"
+#include "core/world/avatar_target.h"
+#include "core/world/entity_broad_phase.h"
+#include "core/world/entity_query.h"
+#include "core/world/entity_run.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/object_target.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
@@ -48,6 +51,21 @@ namespace {
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
 using sweptccd::testing::Rng;
+
+// The views and entries of these tests' int indices (an avatar b, or an
+// object o, the other -1).
+AvatarWindow AvatarOf(const World& w, int a) { return WindowOfAvatar(w, AvatarIndex(a)); }
+ObjectWindow ObjectOf(const World& w, int o) { return WindowOfObject(w, TrackedObjectIndex(o)); }
+bool AnswerEntity(const WorldAnswerer& answerer, int a, size_t r, int b, int o, OtherAnswer* answer,
+                  int64_t* t_from, int64_t* t_to) {
+  const auto e = b >= 0 ? answerer.AnswerAvatar(AvatarIndex(a), r, AvatarIndex(b))
+                        : answerer.AnswerObject(AvatarIndex(a), r, TrackedObjectIndex(o));
+  if (!e) return false;
+  *answer = e->answer;
+  *t_from = e->t_from;
+  *t_to = e->t_to;
+  return true;
+}
 
 constexpr double kSlack = 1e-9;  // Reference rounding, metres.
 
@@ -128,14 +146,15 @@ struct Reference {
       if (b >= 0) {
         const AvatarEntity& B = w.avatars[b];
         for (int j = 0; j < B.skeleton.num_links(); ++j) {
-          if (w.IgnoresLinkPair(a, l, b, j)) continue;
+          if (w.IgnoresLinkPair(AvatarIndex(a), LinkIndex(l), AvatarIndex(b), LinkIndex(j)))
+            continue;
           Vector3d qa, qb, c1, c2;
           Segment(B.skeleton, j, xb[j], &qa, &qb);
           best = std::min(best, std::sqrt(SegmentSegmentDistanceSquared(pa, pb, qa, qb, &c1, &c2)) -
                                     ra - B.skeleton.link(j).radius);
         }
       } else {
-        if (w.IgnoresObject(a, l, o)) continue;
+        if (w.IgnoresObject(AvatarIndex(a), LinkIndex(l), TrackedObjectIndex(o))) continue;
         const ObjectEntity& O = w.objects[o];
         int k;
         double s;
@@ -181,7 +200,8 @@ void CheckPair(const World& w, int a, int b, int o, const Pose& pose0, const Pos
   if (t_from > t_to) return;
   const AvatarEntity& A = w.avatars[a];
   const PairMotion motion(A.skeleton, pose0, pose1, A.motion);
-  const auto target = b >= 0 ? MakeAvatarTarget(w, a, b) : MakeObjectTarget(w, a, o);
+  const auto target = b >= 0 ? MakeAvatarTarget(AvatarOf(w, a).who, AvatarOf(w, b))
+                             : MakeObjectTarget(AvatarOf(w, a).who, ObjectOf(w, o));
   const std::vector<Piece> pieces = SplitWindow(pose0.utime, t_from, t_to, times);
   ASSERT_FALSE(pieces.empty());
   const OtherAnswer ans =
@@ -786,8 +806,9 @@ TEST(EntityCcdLinkBoxes, NeverChangeAnAnswer) {
     if (t_from > t_to) continue;
     const std::vector<Piece> pieces = SplitWindow(p0.utime, t_from, t_to, times);
     const PairMotion motion(w.avatars[0].skeleton, p0, p1, w.avatars[0].motion);
-    const auto target = MakeAvatarTarget(w, 0, 1);
-    const auto plain_target = MakeAvatarTarget(w, 0, 1);  // Its own memos.
+    const auto target = MakeAvatarTarget(AvatarOf(w, 0).who, AvatarOf(w, 1));
+    const auto plain_target =
+        MakeAvatarTarget(AvatarOf(w, 0).who, AvatarOf(w, 1));  // Its own memos.
     const WithoutLinkBoxes plain(*plain_target);
     const OtherAnswer x =
         AnswerOther(w.avatars[0].skeleton, motion, p0.utime, p1.utime, pieces, *target, opt);
@@ -909,7 +930,7 @@ TEST(EntityCcdCases, InterpenetratingZeroLengthAndWindows) {
     const WorldAnswerer answerer(lw, QueryOptions());
     OtherAnswer ans;
     int64_t t_from = -7, t_to = -7;
-    EXPECT_FALSE(answerer.AnswerEntity(0, 0, 1, -1, &ans, &t_from, &t_to)) << times.front();
+    EXPECT_FALSE(AnswerEntity(answerer, 0, 0, 1, -1, &ans, &t_from, &t_to)) << times.front();
     EXPECT_TRUE(SplitWindow(p0.utime, std::max(p0.utime, times.front()),
                             std::min(p1.utime, times.back()), times)
                     .empty());
@@ -986,12 +1007,12 @@ TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
   EXPECT_EQ(t0.contact, 1);
   // B's rule about A's link 0 silences A's answer too.
   w.rules[1].push_back(EntityRule{0, "a", 0});
-  const auto target = MakeAvatarTarget(w, 0, 1);
+  const auto target = MakeAvatarTarget(AvatarOf(w, 0).who, AvatarOf(w, 1));
   EXPECT_TRUE(target->RootCandidates(0).empty());
   Tally t1;
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t1);
   EXPECT_EQ(t1.free, 1);
-  EXPECT_TRUE(w.IgnoresLinkPair(1, 0, 0, 0));
+  EXPECT_TRUE(w.IgnoresLinkPair(AvatarIndex(1), LinkIndex(0), AvatarIndex(0), LinkIndex(0)));
 }
 
 TEST(EntityCcdCases, SplitWindowAtSampleTimes) {
@@ -1103,7 +1124,7 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           if (b == a) continue;
           OtherAnswer via_world;
           int64_t t_from, t_to;
-          if (!answerer->AnswerEntity(a, r, b, o, &via_world, &t_from, &t_to)) continue;
+          if (!AnswerEntity(*answerer, a, r, b, o, &via_world, &t_from, &t_to)) continue;
           std::vector<int64_t> times;
           if (b >= 0) {
             for (const Pose& p : w.avatars[b].used) times.push_back(p.utime);
@@ -1113,13 +1134,15 @@ TEST(EntityCcdWorld, BroadPhaseNeverChangesAnAnswer) {
           const PairMotion motion(w.avatars[a].skeleton, rec.pose0, rec.pose1, w.avatars[a].motion);
           // The pair's box, which the answerer takes from its per-interval
           // boxes, is the one made from the pair's own motion.
-          const Aabb pair_box = answerer->PairBox(a, r);
+          const Aabb pair_box = answerer->PairBox(AvatarIndex(a), r);
           const Aabb own_box = AvatarMotionBox(w.avatars[a].skeleton, motion);
           EXPECT_TRUE(pair_box.lo == own_box.lo && pair_box.hi == own_box.hi) << seed << " " << a;
           const std::vector<Piece> pieces = SplitWindow(rec.pose0.utime, t_from, t_to, times);
           // Fresh: the target's own motions, a memo for this answer alone.
-          const auto target = b >= 0 ? MakeAvatarTarget(w, a, b, WindowScale(w.avatars[b], pieces))
-                                     : MakeObjectTarget(w, a, o, WindowScale(w.objects[o], pieces));
+          const auto target = b >= 0 ? MakeAvatarTarget(AvatarOf(w, a).who, AvatarOf(w, b),
+                                                        WindowScale(w.avatars[b], pieces))
+                                     : MakeObjectTarget(AvatarOf(w, a).who, ObjectOf(w, o),
+                                                        WindowScale(w.objects[o], pieces));
           const OtherAnswer direct = AnswerOther(w.avatars[a].skeleton, motion, rec.pose0.utime,
                                                  rec.pose1.utime, pieces, *target, eo);
           ASSERT_EQ(via_world.contact, direct.contact) << seed << " " << a << " " << r << " " << e;
@@ -1266,7 +1289,7 @@ TEST(EntityCcdWorld, EntityEndingAsThePairStarts) {
   const WorldAnswerer answerer(lw, QueryOptions());
   OtherAnswer ans;
   int64_t t_from, t_to;
-  ASSERT_TRUE(answerer.AnswerEntity(0, 0, 1, -1, &ans, &t_from, &t_to));
+  ASSERT_TRUE(AnswerEntity(answerer, 0, 0, 1, -1, &ans, &t_from, &t_to));
   EXPECT_EQ(t_from, 0);
   EXPECT_EQ(t_to, 0);
   ASSERT_TRUE(ans.contact);

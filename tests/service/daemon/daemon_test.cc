@@ -211,11 +211,12 @@ TEST(DaemonTest, RefusesFiltersItCannotResolve) {
     return "";
   };
   const std::string no_link = refusal({"elbow", "b", ""});
-  EXPECT_NE(no_link.find("ignore_entities[0].link: no link 'elbow'"), std::string::npos) << no_link;
+  EXPECT_NE(no_link.find("ignore_entities[0].link: unknown link 'elbow'"), std::string::npos)
+      << no_link;
   const std::string no_other = refusal({"0", "b", "wrist"});
-  EXPECT_NE(no_other.find("other_link: no link 'wrist'"), std::string::npos) << no_other;
+  EXPECT_NE(no_other.find("other_link: unknown link 'wrist'"), std::string::npos) << no_other;
   const std::string out_of_range = refusal({"7", "b", ""});
-  EXPECT_NE(out_of_range.find("no link '7'"), std::string::npos) << out_of_range;
+  EXPECT_NE(out_of_range.find("unknown link '7'"), std::string::npos) << out_of_range;
   const std::string unknown_by_name = refusal({"*", "someone", "wrist"});
   EXPECT_NE(unknown_by_name.find("not a configured client; give an index"), std::string::npos)
       << unknown_by_name;

@@ -341,8 +341,8 @@ TEST_F(LiveSessionTest, AJoinsEntityFiltersApplyToTheSharedWorld) {
     const char* must_contain;
   };
   const std::vector<Refused> refused = {
-      {{{"nolink", "a", ""}}, "no link 'nolink' in skeleton 'bad'"},
-      {{{"arm", "a", "nolink"}}, "other_link: no link 'nolink' in skeleton 'two'"},
+      {{{"nolink", "a", ""}}, "unknown link 'nolink' in skeleton 'bad'"},
+      {{{"arm", "a", "nolink"}}, "other_link: unknown link 'nolink' in skeleton 'two'"},
       {{{"arm", "bad id", ""}}, "breaks the id rule"},
       {{{"arm", "live1", "arm"}}, "not a configured client; give an index"},
   };

@@ -1,7 +1,9 @@
 #pragma once
-// The one percentile rule of the service's status (latency median and p99)
-// and of `sweptccd monitor`'s summary.
+// The one percentile rule of the project: the service's status (latency
+// median and p99), `sweptccd monitor`'s summary, the `world --bench` counts
+// and every benchmark table (`bench`, `world-bench`, the service benches).
 
+#include <cstddef>
 #include <vector>
 
 namespace sweptccd {
@@ -14,5 +16,16 @@ namespace sweptccd {
 /// q = 1 the largest. Returns 0 for no samples. Takes its argument by value
 /// (it is partially reordered). Precondition: 0 <= q <= 1 and no NaN sample.
 double Percentile(std::vector<double> samples, double q);
+
+/// What a benchmark table prints of a sample: its count, median and p99 (both
+/// by Percentile's rule), max and mean. No value is dropped; all zero for an
+/// empty sample.
+struct Summary {
+  size_t n = 0;
+  double median = 0, p99 = 0, max = 0, mean = 0;
+};
+
+/// The Summary of `samples`. Precondition: no NaN sample.
+Summary Summarise(std::vector<double> samples);
 
 }  // namespace sweptccd

@@ -1,0 +1,480 @@
+#include "sweptccd_client/ws_client.h"
+
+#include <atomic>
+#include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <boost/beast/websocket.hpp>
+#include <boost/beast/websocket/ssl.hpp>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <future>
+#include <mutex>
+#include <random>
+#include <thread>
+
+#include "core/errors.h"
+#include "msgs/text.h"
+#include "service/ws/json_fields.h"
+#include "service/ws/lcm_json.h"
+#include "service/ws/proof.h"
+
+namespace sweptccd {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace websocket = beast::websocket;
+namespace net = boost::asio;
+namespace ssl = net::ssl;
+using tcp = net::ip::tcp;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using PlainWs = websocket::stream<beast::tcp_stream>;
+using TlsWs = websocket::stream<beast::ssl_stream<beast::tcp_stream>>;
+
+int64_t WallUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
+  Impl(WsLiveClient* o, Options opt) : owner(o), options(std::move(opt)) {
+    std::random_device rd;
+    nonce = static_cast<int64_t>((uint64_t{rd()} << 32 | rd()) & ((uint64_t{1} << 53) - 1));
+    if (options.tls) {
+      tls.emplace(ssl::context::tls_client);
+      if (options.verify_peer) {
+        tls->set_verify_mode(ssl::verify_peer);
+        if (!options.ca_file.empty()) {
+          tls->load_verify_file(options.ca_file);
+        } else {
+          tls->set_default_verify_paths();
+        }
+      } else {
+        tls->set_verify_mode(ssl::verify_none);
+      }
+    }
+  }
+
+  WsLiveClient* owner;
+  Options options;
+  int64_t nonce = 0;
+  net::io_context ioc{1};
+  std::optional<net::executor_work_guard<net::io_context::executor_type>> work{
+      net::make_work_guard(ioc)};
+  std::optional<ssl::context> tls;
+  std::unique_ptr<PlainWs> plain;
+  std::unique_ptr<TlsWs> secure;
+  beast::flat_buffer buffer;
+  std::deque<std::string> out;
+  bool writing = false;
+  net::steady_timer backoff_timer{ioc};
+  std::chrono::milliseconds backoff{250};
+  std::thread thread;
+
+  mutable std::mutex mutex;
+  std::condition_variable cv;
+  bool connected = false;
+  bool is_joined = false;
+  bool left = false;
+  bool stopping = false;
+  int64_t session = 0;
+  int64_t instance = 0;
+  int64_t replies = 0;
+  int64_t connections = 0;
+  std::optional<JoinResult> last_reply;
+  std::string challenge;
+  uint64_t generation = 0;  // Bumped by every connection: stale handlers ignore themselves.
+
+  template <class F>
+  void With(F&& f) {
+    if (secure) {
+      f(*secure);
+    } else if (plain) {
+      f(*plain);
+    }
+  }
+
+  // I/O thread: a fresh connection, hello, join, subscribe. False on failure.
+  bool Connect() {
+    try {
+      tcp::resolver resolver(ioc);
+      const auto endpoints = resolver.resolve(options.host, std::to_string(options.port));
+      beast::tcp_stream stream(ioc);
+      stream.expires_after(std::chrono::seconds(5));
+      stream.connect(endpoints);
+      stream.socket().set_option(tcp::no_delay(true));
+      plain.reset();
+      secure.reset();
+      if (tls) {
+        secure = std::make_unique<TlsWs>(std::move(stream), *tls);
+        beast::get_lowest_layer(*secure).expires_after(std::chrono::seconds(5));
+        secure->next_layer().handshake(ssl::stream_base::client);
+      } else {
+        plain = std::make_unique<PlainWs>(std::move(stream));
+      }
+      const std::string origin = options.origin;
+      std::string hello_text;
+      With([&](auto& ws) {
+        ws.set_option(websocket::stream_base::decorator([origin](websocket::request_type& req) {
+          req.set(http::field::sec_websocket_protocol, "sweptccd.v1");
+          if (!origin.empty()) req.set(http::field::origin, origin);
+        }));
+        ws.read_message_max(64 << 20);
+        beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
+        ws.handshake(options.host + ":" + std::to_string(options.port), "/ws");
+        beast::flat_buffer b;
+        ws.read(b);
+        hello_text = beast::buffers_to_string(b.data());
+        beast::get_lowest_layer(ws).expires_never();
+        ws.text(true);
+      });
+      const nlohmann::json hello = nlohmann::json::parse(hello_text);
+      if (hello.value("type", "") != "hello") throw std::runtime_error("no hello");
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        challenge = hello.at("challenge").get<std::string>();
+        instance = hello.at("instance").get<int64_t>();
+        connected = true;
+        ++connections;
+        ++generation;
+      }
+      buffer.clear();
+      out.clear();
+      writing = false;
+      if (options.skeleton) SendJoin();
+      if (options.subscribe) {
+        nlohmann::ordered_json s;
+        s["type"] = "subscribe";
+        s["proof"] = options.room_key ? ws::ComputeProof(*options.room_key,
+                                                         ws::ProofKind::kSubscribe, challenge, "")
+                                      : "";
+        Queue(s.dump());
+      }
+      idle_ms = hello.contains("limits") ? hello["limits"].value("idle_timeout_ms", int64_t{15000})
+                                         : int64_t{15000};
+      Read(generation);
+      KeepAlive(generation);
+      return true;
+    } catch (const std::exception& e) {
+      plain.reset();
+      secure.reset();
+      std::lock_guard<std::mutex> lock(mutex);
+      connected = false;
+      last_error = e.what();
+      cv.notify_all();
+      return false;
+    }
+  }
+  std::string last_error;
+  int64_t idle_ms = 15000;
+  net::steady_timer keepalive_timer{ioc};
+
+  // A ping message every third of the door's idle timeout: a client with
+  // nothing to send (between poses, a viewer) keeps its connection.
+  void KeepAlive(uint64_t gen) {
+    keepalive_timer.expires_after(std::chrono::milliseconds(std::max<int64_t>(idle_ms / 3, 10)));
+    auto self = shared_from_this();
+    keepalive_timer.async_wait([self, gen](beast::error_code ec) {
+      if (ec || gen != self->generation) return;
+      self->Queue("{\"type\":\"ping\",\"utime\":" + std::to_string(WallUtime()) + "}");
+      self->KeepAlive(gen);
+    });
+  }
+
+  void SendJoin() {
+    join_request_t r{};
+    r.utime = WallUtime();
+    r.client_id = options.client_id;
+    r.nonce = nonce;
+    r.motion = options.motion == MotionModel::kIndependent ? join_request_t::MOTION_INDEPENDENT
+                                                           : join_request_t::MOTION_ARTICULATED;
+    r.eps_s = options.eps_s;
+    r.delta_m = options.delta_m;
+    FillJoinSkeleton(*options.skeleton, &r);
+    r.ignore = options.ignore;
+    r.num_ignore = static_cast<int32_t>(r.ignore.size());
+    for (const EntityIgnore& e : options.ignore_entities) {
+      r.ignore_entity_link.push_back(e.link);
+      r.ignore_entity.push_back(e.entity);
+      r.ignore_entity_other_link.push_back(e.other_link);
+    }
+    r.num_ignore_entities = static_cast<int32_t>(r.ignore_entity.size());
+    const std::string proof =
+        options.room_key
+            ? ws::ComputeProof(*options.room_key, ws::ProofKind::kJoin, challenge, r.client_id)
+            : "";
+    Queue(ws::ToJson(r, proof).dump());
+  }
+
+  // I/O thread.
+  void Queue(std::string text) {
+    out.push_back(std::move(text));
+    Write();
+  }
+
+  void Write() {
+    if (writing || out.empty() || (!plain && !secure)) return;
+    writing = true;
+    auto self = shared_from_this();
+    auto text = std::make_shared<std::string>(std::move(out.front()));
+    out.pop_front();
+    const uint64_t gen = generation;
+    With([&](auto& ws) {
+      ws.async_write(net::buffer(*text), [self, text, gen](beast::error_code ec, size_t) {
+        if (gen != self->generation) return;
+        self->writing = false;
+        if (ec) return;  // The read side notices and reconnects.
+        self->Write();
+      });
+    });
+  }
+
+  void Read(uint64_t gen) {
+    auto self = shared_from_this();
+    With([&](auto& ws) {
+      ws.async_read(buffer, [self, gen](beast::error_code ec, size_t) {
+        if (gen != self->generation) return;
+        if (ec) {
+          self->Dropped();
+          return;
+        }
+        const std::string text = beast::buffers_to_string(self->buffer.data());
+        self->buffer.consume(self->buffer.size());
+        self->OnMessage(text);
+        self->Read(gen);
+      });
+    });
+  }
+
+  void Dropped() {
+    bool again = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      connected = false;
+      is_joined = false;
+      ++generation;
+      again = options.reconnect && !left && !stopping;
+      cv.notify_all();
+    }
+    writing = false;
+    if (!again) return;
+    ScheduleReconnect();
+  }
+
+  void ScheduleReconnect() {
+    std::uniform_int_distribution<int> jitter(0, static_cast<int>(backoff.count() / 4));
+    static thread_local std::mt19937 rng{std::random_device{}()};
+    backoff_timer.expires_after(backoff + std::chrono::milliseconds(jitter(rng)));
+    backoff = std::min<std::chrono::milliseconds>(backoff * 2, std::chrono::seconds(4));
+    auto self = shared_from_this();
+    backoff_timer.async_wait([self](beast::error_code ec) {
+      if (ec) return;
+      {
+        std::lock_guard<std::mutex> lock(self->mutex);
+        if (self->left || self->stopping) return;
+      }
+      if (self->Connect()) {
+        self->backoff = std::chrono::milliseconds(250);
+      } else {
+        self->ScheduleReconnect();
+      }
+    });
+  }
+
+  void OnMessage(const std::string& text) {
+    WireLimits limits;
+    limits.max_links = 1 << 16;
+    nlohmann::json v = nlohmann::json::parse(text, nullptr, false);
+    if (v.is_discarded() || !v.is_object()) return;
+    const std::string type = v.value("type", "");
+    try {
+      if (type == "join_reply") {
+        join_reply_t r{};
+        ws::FromJson(v, limits, &r);
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          JoinResult result;
+          result.reason = r.reason;
+          result.message = EscapeForDisplay(r.message, 400);
+          result.session = r.session;
+          result.instance = r.instance;
+          if (result.ok()) {
+            is_joined = true;
+            session = r.session;
+            instance = r.instance;
+          }
+          last_reply = result;
+          ++replies;
+          cv.notify_all();
+        }
+        if (owner->on_join_reply_) owner->on_join_reply_(r);
+      } else if (type == "contact_event") {
+        contact_event_t e{};
+        ws::FromJson(v, limits, &e);
+        if (owner->on_contact_) owner->on_contact_(e);
+      } else if (type == "shared_contact") {
+        shared_contact_t e{};
+        ws::FromJson(v, limits, &e);
+        if (owner->on_shared_) owner->on_shared_(e);
+      } else if (type == "rejection") {
+        rejection_t e{};
+        ws::FromJson(v, limits, &e);
+        if (owner->on_rejection_) owner->on_rejection_(e);
+      } else if (type == "status") {
+        status_t e{};
+        ws::FromJson(v, limits, &e);
+        if (owner->on_status_) owner->on_status_(e);
+      } else if (type == "error") {
+        if (owner->on_error_) {
+          owner->on_error_(v.value("code", std::string()), v.value("message", std::string()));
+        }
+      }
+    } catch (const std::exception&) {
+      // A message the client cannot read is skipped (a newer server's field).
+    }
+    if (owner->on_text_) owner->on_text_(text);
+  }
+};
+
+WsLiveClient::WsLiveClient(Options options)
+    : impl_(std::make_shared<Impl>(this, std::move(options))) {
+  if (impl_->options.skeleton && !IsValidClientId(impl_->options.client_id)) {
+    throw InputError("client id '" + EscapeForDisplay(impl_->options.client_id) +
+                     "' breaks the id rule; use 1-64 characters from A-Z a-z 0-9 _ . -");
+  }
+  impl_->thread = std::thread([impl = impl_.get()] { impl->ioc.run(); });
+}
+
+WsLiveClient::~WsLiveClient() {
+  Leave();
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->stopping = true;
+  }
+  net::post(impl_->ioc, [impl = impl_.get()] {
+    impl->backoff_timer.cancel();
+    impl->keepalive_timer.cancel();
+    beast::error_code ec;
+    if (impl->plain) beast::get_lowest_layer(*impl->plain).socket().close(ec);
+    if (impl->secure) beast::get_lowest_layer(*impl->secure).socket().close(ec);
+    impl->work.reset();
+  });
+  impl_->thread.join();
+}
+
+JoinResult WsLiveClient::Join() {
+  Impl* impl = impl_.get();
+  int64_t replies_before;
+  {
+    std::lock_guard<std::mutex> lock(impl->mutex);
+    replies_before = impl->replies;
+  }
+  net::post(impl->ioc, [impl] {
+    if (!impl->Connect() && impl->options.reconnect) impl->ScheduleReconnect();
+  });
+  std::unique_lock<std::mutex> lock(impl->mutex);
+  const auto deadline =
+      Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                         std::chrono::duration<double>(impl->options.join_timeout_s));
+  if (!impl->options.skeleton) {
+    impl->cv.wait_until(lock, deadline, [&] { return impl->connected; });
+    JoinResult r;
+    r.reason = impl->connected ? 0 : -1;
+    r.instance = impl->instance;
+    r.message = impl->connected ? "" : "no connection: " + impl->last_error;
+    return r;
+  }
+  impl->cv.wait_until(lock, deadline, [&] { return impl->replies > replies_before; });
+  if (impl->replies > replies_before && impl->last_reply) return *impl->last_reply;
+  JoinResult r;
+  r.message = "no join reply within " + std::to_string(impl->options.join_timeout_s) + " s" +
+              (impl->last_error.empty() ? "" : " (" + impl->last_error + ")");
+  return r;
+}
+
+bool WsLiveClient::PublishPose(tracker_pose_t pose) {
+  Impl* impl = impl_.get();
+  {
+    std::lock_guard<std::mutex> lock(impl->mutex);
+    if (!impl->is_joined) return false;
+    pose.client_id = impl->options.client_id;
+    pose.session = impl->session;
+  }
+  pose.num_links = static_cast<int32_t>(pose.position.size());
+  auto text = std::make_shared<std::string>(ws::ToJson(pose).dump());
+  net::post(impl->ioc, [impl, text] { impl->Queue(std::move(*text)); });
+  return true;
+}
+
+bool WsLiveClient::Send(const std::string& text) {
+  Impl* impl = impl_.get();
+  {
+    std::lock_guard<std::mutex> lock(impl->mutex);
+    if (!impl->connected) return false;
+  }
+  net::post(impl->ioc, [impl, text] { impl->Queue(text); });
+  return true;
+}
+
+void WsLiveClient::Leave() {
+  Impl* impl = impl_.get();
+  leave_t leave{};
+  {
+    std::lock_guard<std::mutex> lock(impl->mutex);
+    if (impl->left) return;
+    impl->left = true;
+    if (!impl->is_joined) return;
+    impl->is_joined = false;
+    leave.utime = WallUtime();
+    leave.client_id = impl->options.client_id;
+    leave.session = impl->session;
+  }
+  auto text = std::make_shared<std::string>(ws::ToJson(leave).dump());
+  auto sent = std::make_shared<std::promise<void>>();
+  auto done = sent->get_future();
+  net::post(impl->ioc, [impl, text, sent] {
+    impl->Queue(std::move(*text));
+    sent->set_value();
+  });
+  done.wait_for(std::chrono::seconds(2));
+  // Give the leave a moment to go out before the socket closes.
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+}
+
+bool WsLiveClient::joined() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->is_joined;
+}
+
+int64_t WsLiveClient::session() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->session;
+}
+
+int64_t WsLiveClient::instance() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->instance;
+}
+
+int64_t WsLiveClient::reconnects() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return std::max<int64_t>(0, impl_->connections - 1);
+}
+
+std::string WsLiveClient::challenge() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->challenge;
+}
+
+const std::string& WsLiveClient::client_id() const { return impl_->options.client_id; }
+
+}  // namespace sweptccd
