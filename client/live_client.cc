@@ -1,4 +1,5 @@
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/tracker_pose.h"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -331,6 +332,22 @@ bool LiveClient::PublishPose(tracker_pose_t pose) {
   if (copy) key = &*copy;
   pose.client_id = options_.client_id;
   return connection_->Publish(options_.channels.pose, EncodeSigned(pose, key));
+}
+
+std::string LiveClient::PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame,
+                                          int64_t seq) {
+  const int num_links = joints.skeleton().num_links();
+  if (options_.skeleton && options_.skeleton->num_links() != num_links) {
+    return "the joint set's skeleton has " + std::to_string(num_links) +
+           " links, this client joined with " + std::to_string(options_.skeleton->num_links());
+  }
+  Pose pose;
+  if (std::string problem = joints.Convert(frame, &pose); !problem.empty()) return problem;
+  tracker_pose_t m = TrackerPoseOf(pose);
+  m.seq = seq;
+  if (!joined()) return "not joined (no session)";
+  if (!PublishPose(std::move(m))) return "not published (not joined, or LCM refused)";
+  return "";
 }
 
 void LiveClient::Leave() {

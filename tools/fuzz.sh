@@ -29,7 +29,7 @@ seed=${FUZZ_SEED:-1}
 jobs=${JOBS:-2}
 
 # Every parser of outside input.
-parsers=(fuzz_skeleton fuzz_pose fuzz_filter fuzz_config fuzz_world
+parsers=(fuzz_skeleton fuzz_pose fuzz_joint_frame fuzz_filter fuzz_config fuzz_world
          fuzz_mesh_obj fuzz_mesh_ply fuzz_mesh_stl fuzz_websocket)
 # The LCM message types that cross the wire, each decoded as the daemon and
 # the tools decode it: msgs/'s DecodeChecked<T> with the default WireLimits,

@@ -17,6 +17,7 @@
 #include "tools/query_command.h"
 #include "tools/render_command.h"
 #include "tools/simulate_tracker_command.h"
+#include "tools/skeleton_command.h"
 #include "tools/world_bench_command.h"
 #include "tools/world_command.h"
 
@@ -69,6 +70,11 @@ int main(int argc, char** argv) {
   CLI::App* import_bvh =
       app.add_subcommand("import-bvh", "BVH motion capture to a skeleton and a pose stream");
   sweptccd::AddImportBvhOptions(import_bvh, &ib);
+
+  sweptccd::SkeletonCommandOptions sk;
+  CLI::App* skeleton = app.add_subcommand(
+      "skeleton", "A SPEC skeleton from an OpenXR/WebXR/VRM joint set; joint frames to poses");
+  sweptccd::AddSkeletonOptions(skeleton, &sk);
 
   sweptccd::RenderCommandOptions rn;
   CLI::App* render =
@@ -131,6 +137,7 @@ int main(int argc, char** argv) {
   if (world_bench->parsed()) return sweptccd::RunWorldBenchCommand(wb);
   if (bench->parsed()) return sweptccd::RunBenchCommand(b);
   if (import_bvh->parsed()) return sweptccd::RunImportBvhCommand(ib);
+  if (skeleton->parsed()) return sweptccd::RunSkeletonCommand(sk);
   if (render->parsed()) return sweptccd::RunRenderCommand(rn);
   if (simulate->parsed()) return sweptccd::RunSimulateTrackerCommand(st);
   if (monitor->parsed()) return sweptccd::RunMonitorCommand(mon);

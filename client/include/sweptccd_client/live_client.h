@@ -27,6 +27,7 @@
 #include <thread>
 #include <vector>
 
+#include "core/avatar/joint_frame.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/skeleton.h"
 #include "msgs/channels.h"
@@ -175,7 +176,7 @@ class LiveClient {
     /// tolerances (0: the daemon's).
     std::optional<Skeleton> skeleton;
     MotionModel motion = MotionModel::kArticulated;
-    std::vector<std::string> ignore;  // LINK:OBJECT rules.
+    std::vector<std::string> ignore;            // LINK:OBJECT rules.
     std::vector<EntityIgnore> ignore_entities;  // The shared world's filters.
     double eps_s = 0, delta_m = 0;
     double join_timeout_s = 5;
@@ -205,6 +206,16 @@ class LiveClient {
   /// Fills client_id and session, signs and publishes `pose`. False when
   /// not joined (no session yet) or LCM refuses.
   bool PublishPose(tracker_pose_t pose);
+  /// Publishes one frame of a tracking runtime's joint poses (OpenXR, WebXR,
+  /// VRM; docs/SKELETONS.md) as the link pose of `joints`' skeleton, which
+  /// must be the skeleton this client joined with: converts it
+  /// (JointSkeleton::Convert, the one rule) and publishes it with `seq` as
+  /// PublishPose does. Returns "" when published; else nothing is published
+  /// and the one-line reason: the frame's problem (an untracked joint a
+  /// link needs, NaN, a wrong joint count, a bone off its length), a link
+  /// count that is not the joined skeleton's, not joined, or LCM refusing.
+  /// Thread-safe.
+  std::string PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame, int64_t seq);
   /// Live: publishes a leave_t and forgets the session. Idempotent.
   void Leave();
 

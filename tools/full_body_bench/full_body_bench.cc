@@ -1,0 +1,308 @@
+// The full-body avatar benchmark (issue 31): per pair, the 81-link avatar of
+// XR_META_body_tracking_full_body (84 joints, --hands full) against the
+// 16-link CMU avatar, the same clips, scenes and pairs, same run.
+//
+// The body joints follow the CMU clip's 16 links (each joint on a link's
+// segment). THE FINGERS ARE PROCEDURALLY ANIMATED, NOT CAPTURED: every hand
+// cycles reach (open), grasp (curl), hold and release, 3 s a cycle, in the
+// hand link's frame. Timings are wall-clock per pair (median, p99, max,
+// microseconds); nothing is asserted.
+//
+//   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
+//
+// --clock thread times this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
+// which leaves out time other processes held the core (on a shared machine,
+// most of a wall-clock tail).
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include "core/avatar/joint_frame.h"
+#include "core/avatar/joint_set.h"
+#include "core/errors.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/environment.h"
+#include "mocap/mocap_import.h"
+#include "tools/bench_common.h"
+
+namespace sweptccd {
+namespace {
+
+using Eigen::Vector3d;
+
+bool g_thread_clock = false;  // --clock thread: this thread's CPU time.
+
+double NowS() {
+  if (g_thread_clock) return bench::ThreadCpuSeconds();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+double SmoothStep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3 - 2 * x);
+}
+
+// Grasp cycle, 3 s: open 0-1 s (reach), curl 1-1.4 s (grasp), closed to
+// 2.2 s (hold), open 2.2-2.6 s (release), open to 3 s.
+double Curl(double t_s) {
+  const double t = std::fmod(t_s, 3.0);
+  if (t < 1.0) return 0;
+  if (t < 1.4) return SmoothStep((t - 1.0) / 0.4);
+  if (t < 2.2) return 1;
+  if (t < 2.6) return 1 - SmoothStep((t - 2.2) / 0.4);
+  return 0;
+}
+
+class FrameBuilder {
+ public:
+  FrameBuilder(const JointSet& set, const Skeleton& mocap) : set_(set), mocap_(mocap) {}
+
+  JointFrame Build(const Pose& pose) const {
+    JointFrame f;
+    f.utime = pose.utime;
+    f.joints.resize(set_.num_joints());
+    auto A = [&](const char* link) { return pose.links[Index(link)].p; };
+    auto B = [&](const char* link) {
+      const int i = Index(link);
+      return Vector3d(pose.links[i].p + pose.links[i].q * mocap_.link(i).b_L);
+    };
+    auto Q = [&](const char* link) { return pose.links[Index(link)].q; };
+    auto lerp = [](const Vector3d& a, const Vector3d& b, double s) -> Vector3d {
+      return a + s * (b - a);
+    };
+    auto put = [&](const std::string& word, const Vector3d& p, const Eigen::Quaterniond& q) {
+      const int j = set_.FindJoint("XR_FULL_BODY_JOINT_" + word + "_META");
+      if (j < 0) std::abort();
+      f.joints[j].p = p;
+      f.joints[j].q = q;
+    };
+    put("ROOT", A("pelvis"), Q("pelvis"));
+    put("HIPS", A("pelvis"), Q("pelvis"));
+    put("SPINE_LOWER", A("spine"), Q("spine"));
+    put("SPINE_MIDDLE", lerp(A("spine"), B("spine"), 0.5), Q("spine"));
+    put("SPINE_UPPER", A("chest"), Q("chest"));
+    const Vector3d chest = lerp(A("chest"), B("chest"), 0.5);
+    put("CHEST", chest, Q("chest"));
+    put("NECK", A("head"), Q("head"));
+    put("HEAD", lerp(A("head"), B("head"), 0.3), Q("head"));
+    for (const char* side : {"LEFT", "RIGHT"}) {
+      const bool left = side[0] == 'L';
+      const std::string s = side;
+      auto m = [&](const char* base) {
+        static thread_local std::string name;
+        name = std::string(base) + (left ? "_l" : "_r");
+        return name;
+      };
+      const std::string ua = m("upper_arm"), fa = m("forearm"), ha = m("hand");
+      const std::string th = m("thigh"), sh = m("shin"), fo = m("foot");
+      put(s + "_SHOULDER", lerp(chest, A(ua.c_str()), 0.3), Q(ua.c_str()));
+      put(s + "_SCAPULA", lerp(chest, A(ua.c_str()), 0.6), Q(ua.c_str()));
+      put(s + "_ARM_UPPER", A(ua.c_str()), Q(ua.c_str()));
+      put(s + "_ARM_LOWER", A(fa.c_str()), Q(fa.c_str()));
+      put(s + "_HAND_WRIST_TWIST", lerp(A(fa.c_str()), A(ha.c_str()), 0.8), Q(fa.c_str()));
+      Hand(s, A(ha.c_str()), B(ha.c_str()), Q(ha.c_str()),
+           Curl(1e-6 * pose.utime + (left ? 1.5 : 0)), put);
+      put(s + "_UPPER_LEG", A(th.c_str()), Q(th.c_str()));
+      put(s + "_LOWER_LEG", A(sh.c_str()), Q(sh.c_str()));
+      put(s + "_FOOT_ANKLE_TWIST", lerp(A(sh.c_str()), A(fo.c_str()), 0.9), Q(sh.c_str()));
+      put(s + "_FOOT_ANKLE", A(fo.c_str()), Q(fo.c_str()));
+      put(s + "_FOOT_SUBTALAR", lerp(A(fo.c_str()), B(fo.c_str()), 0.15), Q(fo.c_str()));
+      put(s + "_FOOT_TRANSVERSE", lerp(A(fo.c_str()), B(fo.c_str()), 0.55), Q(fo.c_str()));
+      put(s + "_FOOT_BALL", B(fo.c_str()), Q(fo.c_str()));
+    }
+    return f;
+  }
+
+ private:
+  int Index(const char* link) const {
+    const int i = mocap_.FindLink(link);
+    if (i < 0) std::abort();
+    return i;
+  }
+
+  // Procedural fingers in the hand link's frame: forward (wrist to the hand
+  // link's end), lateral and palm normal; each finger curls about the
+  // lateral axis by `curl` (0 open .. 1 closed).
+  template <class Put>
+  static void Hand(const std::string& s, const Vector3d& wrist, const Vector3d& end,
+                   const Eigen::Quaterniond& q, double curl, const Put& put) {
+    const Vector3d fwd = (end - wrist).normalized();
+    Vector3d lat = q * Vector3d::UnitX();
+    lat -= lat.dot(fwd) * fwd;
+    if (lat.norm() < 1e-6) lat = fwd.unitOrthogonal();
+    lat.normalize();
+    const Vector3d normal = fwd.cross(lat);
+    const std::string h = s + "_HAND_";
+    put(h + "WRIST", wrist, q);
+    put(h + "PALM", wrist + 0.05 * fwd, q);
+    struct Finger {
+      const char* name;
+      double spread;     // Along lat, metres, at the knuckle.
+      double meta;       // Wrist to knuckle, metres.
+      double bones[3];   // Proximal, intermediate, distal to the tip.
+      double angles[3];  // Full curl per joint, radians.
+    };
+    const Finger fingers[4] = {{"INDEX", 0.025, 0.085, {0.040, 0.024, 0.020}, {1.2, 1.5, 1.0}},
+                               {"MIDDLE", 0.007, 0.085, {0.045, 0.027, 0.021}, {1.2, 1.5, 1.0}},
+                               {"RING", -0.011, 0.080, {0.042, 0.026, 0.020}, {1.2, 1.5, 1.0}},
+                               {"LITTLE", -0.028, 0.072, {0.034, 0.020, 0.018}, {1.2, 1.5, 1.0}}};
+    for (const Finger& fg : fingers) {
+      const std::string n = h + fg.name;
+      put(n + "_METACARPAL", wrist + 0.015 * fwd + 0.5 * fg.spread * lat, q);
+      Vector3d p = wrist + fg.meta * fwd + fg.spread * lat;
+      put(n + "_PROXIMAL", p, q);
+      Eigen::Quaterniond bend = Eigen::Quaterniond::Identity();
+      const char* parts[3] = {"_INTERMEDIATE", "_DISTAL", "_TIP"};
+      for (int k = 0; k < 3; ++k) {
+        bend = Eigen::Quaterniond(Eigen::AngleAxisd(curl * fg.angles[k], lat)) * bend;
+        p += fg.bones[k] * (bend * fwd);
+        put(n + parts[k], p, bend * q);
+      }
+    }
+    // Thumb: from the wrist's side, along (fwd + lat), curling about the
+    // palm normal.
+    const Vector3d dir0 = (fwd + lat).normalized();
+    Vector3d p = wrist + 0.02 * fwd + 0.02 * lat;
+    put(h + "THUMB_METACARPAL", p, q);
+    const double lens[3] = {0.045, 0.032, 0.028};
+    const char* parts[3] = {"_THUMB_PROXIMAL", "_THUMB_DISTAL", "_THUMB_TIP"};
+    Eigen::Quaterniond bend = Eigen::Quaterniond::Identity();
+    for (int k = 0; k < 3; ++k) {
+      p += lens[k] * (bend * dir0);
+      put(s + "_HAND" + parts[k], p, bend * q);
+      bend = Eigen::Quaterniond(Eigen::AngleAxisd(-curl * 0.6, normal)) * bend;
+    }
+  }
+
+  const JointSet& set_;
+  const Skeleton& mocap_;
+};
+
+struct Row {
+  std::string scene, clip;
+  int links = 0, pairs = 0, contacts = 0, undecided = 0, refused = 0;
+  bench::Stats us;
+};
+
+int Main(int argc, char** argv) {
+  int max_pairs = 600;
+  double rate_hz = 120;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--pairs") max_pairs = std::atoi(argv[i + 1]);
+    if (a == "--rate") rate_hz = std::atof(argv[i + 1]);
+    if (a == "--clock") g_thread_clock = std::string(argv[i + 1]) == "thread";
+  }
+  const std::string dir = SWEPTCCD_DATA_DIR;
+  struct Scene {
+    const char* name;
+    const char* file;
+    double floor;
+    Eigen::Vector2d centre;
+  };
+  // The placements of `sweptccd bench` (tools/bench_command.cc).
+  const Scene scenes[] = {{"grey_white_room", "bitterli_grey_white_room.ply", 0.0, {2.3, -1.5}},
+                          {"breakfast_room", "bitterli_breakfast_room.ply", -1.42, {-0.67, -1.9}}};
+  const char* clips[] = {"cmu_02_01_walk.bvh", "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh",
+                         "boxing_toes.bvh"};
+  const JointSet& set = FindJointSet("meta-full-body");
+  std::vector<Row> rows;
+  for (const Scene& sc : scenes) {
+    const Environment env = Environment::LoadFiles({bench::DataFile(dir + "/env/" + sc.file)});
+    for (const char* clip_name : clips) {
+      MocapImportOptions mo;
+      mo.up_axis = 'y';
+      MocapClip clip = ImportBvhFile(bench::DataFile(dir + "/mocap/" + clip_name), mo);
+      const int step =
+          std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s * rate_hz))));
+      std::vector<Pose> poses;
+      for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
+      clip.poses = poses;
+      bench::PlaceClipOnFloor(&clip, 'y', sc.floor, sc.centre);
+      const FrameBuilder fb(set, clip.skeleton);
+      const JointFrame cal = fb.Build(clip.poses[0]);
+      JointSkeletonOptions so;
+      so.calibration = &cal;
+      so.hands = HandsOption::kFull;
+      // The clip's clavicles move the shoulder joints against the chest a
+      // little: a generous tolerance keeps those frames.
+      so.length_tolerance_m = 0.05;
+      so.length_tolerance_fraction = 0.25;
+      const JointSkeleton js = JointSkeleton::Build(set, so);
+      std::vector<std::optional<Pose>> full(clip.poses.size());
+      for (size_t k = 0; k < clip.poses.size(); ++k) {
+        Pose p;
+        if (js.Convert(fb.Build(clip.poses[k]), &p).empty()) full[k] = p;
+      }
+      const CcdEngine small(clip.skeleton, env);
+      const CcdEngine big(js.skeleton(), env);
+      QueryOptions q;
+      Row r16, r84;
+      r16.scene = r84.scene = sc.name;
+      r16.clip = r84.clip = clip_name;
+      r16.links = clip.skeleton.num_links();
+      r84.links = js.skeleton().num_links();
+      std::vector<double> t16, t84;
+      const int n = std::min<int>(max_pairs, static_cast<int>(clip.poses.size()) - 1);
+      // Warm-up, untimed, the same first pairs through both.
+      for (int k = 0; k < std::min(n, 10); ++k) {
+        (void)small.Query(clip.poses[k], clip.poses[k + 1], q);
+        if (full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q);
+      }
+      for (int k = 0; k < n; ++k) {
+        if (!full[k] || !full[k + 1]) {
+          ++r84.refused;
+          continue;
+        }
+        double a = NowS();
+        const QueryResult x = small.Query(clip.poses[k], clip.poses[k + 1], q);
+        t16.push_back(1e6 * (NowS() - a));
+        a = NowS();
+        const QueryResult y = big.Query(*full[k], *full[k + 1], q);
+        t84.push_back(1e6 * (NowS() - a));
+        ++r16.pairs;
+        ++r84.pairs;
+        r16.contacts += x.contact;
+        r84.contacts += y.contact;
+        r16.undecided += x.undecided;
+        r84.undecided += y.undecided;
+      }
+      r16.us = bench::Summarise(t16);
+      r84.us = bench::Summarise(t84);
+      rows.push_back(r16);
+      rows.push_back(r84);
+    }
+  }
+  std::printf(
+      "Full-body avatar (XR_META_body_tracking_full_body, --hands full) vs the 16-link CMU "
+      "avatar, %.0f Hz, same pairs, %s clock.\nFingers: PROCEDURALLY ANIMATED (reach, grasp, hold, "
+      "release; 3 s cycle), not captured.\n\n",
+      rate_hz, g_thread_clock ? "thread CPU" : "wall");
+  std::printf(
+      "| scene | clip | links | pairs | contact | undecided | refused | median us | p99 us "
+      "| max us |\n|---|---|---|---|---|---|---|---|---|---|\n");
+  for (const Row& r : rows) {
+    std::printf("| %s | %s | %d | %d | %d | %d | %d | %.1f | %.1f | %.1f |\n", r.scene.c_str(),
+                r.clip.c_str(), r.links, r.pairs, r.contacts, r.undecided, r.refused, r.us.median,
+                r.us.p99, r.us.max);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace sweptccd
+
+int main(int argc, char** argv) {
+  try {
+    return sweptccd::Main(argc, argv);
+  } catch (const sweptccd::InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 2;
+  }
+}
