@@ -234,6 +234,12 @@ install(FILES ${PROJECT_SOURCE_DIR}/deploy/sweptccd.yaml
 install(FILES ${PROJECT_SOURCE_DIR}/README.md ${PROJECT_SOURCE_DIR}/docs/USAGE.md ${PROJECT_SOURCE_DIR}/docs/SERVICE.md
               ${PROJECT_SOURCE_DIR}/docs/SECURITY.md
         DESTINATION ${SWEPTCCD_INSTALL_DOCDIR} COMPONENT runtime)
+# The live view of the WebSocket door (client/js, built at build time), where
+# the daemon looks for it without --ws-view-dir: PREFIX/share/sweptccd/view.
+if(TARGET sweptccd-js)
+  install(DIRECTORY ${SWEPTCCD_VIEW_DIR}/ DESTINATION ${CMAKE_INSTALL_DATAROOTDIR}/sweptccd/view
+          COMPONENT runtime)
+endif()
 # The Java classes of the message types (msgs/CMakeLists.txt), for lcm-spy.
 if(TARGET sweptccd_msgs_jar)
   get_target_property(jar sweptccd_msgs_jar JAR_FILE)

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <functional>
 #include <lcm/lcm-cpp.hpp>
 #include <map>
@@ -39,6 +40,20 @@
 namespace sweptccd {
 
 namespace {
+
+// The live view's files when --ws-view-dir is not given: the installed bundle
+// beside the executable (PREFIX/bin -> PREFIX/share/sweptccd/view), else the
+// build tree's (<build>/view).
+std::string DefaultViewDir() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const std::filesystem::path installed =
+        exe.parent_path().parent_path() / "share" / "sweptccd" / "view";
+    if (std::filesystem::is_directory(installed, ec)) return installed.string();
+  }
+  return SWEPTCCD_DEFAULT_VIEW_DIR;
+}
 
 using Clock = std::chrono::steady_clock;
 
@@ -561,7 +576,7 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
   transport->SubscribeLive(live.get());
   if (!config.websocket.listen.empty()) {
     WsDoorOptions options = config.websocket;
-    if (options.view_dir.empty()) options.view_dir = SWEPTCCD_DEFAULT_VIEW_DIR;
+    if (options.view_dir.empty()) options.view_dir = DefaultViewDir();
     WsDoorContext ctx;
     ctx.service = service.get();
     ctx.signed_mode = signed_mode;
