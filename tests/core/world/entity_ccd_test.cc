@@ -1006,7 +1006,7 @@ TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t0);
   EXPECT_EQ(t0.contact, 1);
   // B's rule about A's link 0 silences A's answer too.
-  w.rules[1].push_back(EntityRule{0, "a", 0});
+  w.rules[1].push_back(EntityRule{LinkIndex(0), "a", LinkIndex(0)});
   const auto target = MakeAvatarTarget(AvatarOf(w, 0).who, AvatarOf(w, 1));
   EXPECT_TRUE(target->RootCandidates(LinkIndex(0)).empty());
   Tally t1;
