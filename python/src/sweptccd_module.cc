@@ -218,7 +218,7 @@ class PyWorld {
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);  // WorldAnswerer is not thread-safe.
     std::vector<std::string> out;
-    for (int a = 0; a < static_cast<int>(loaded_->world.avatars.size()); ++a) {
+    for (world::AvatarIndex a(0); a < static_cast<int>(loaded_->world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded_->world.avatars[a].records.size(); ++r) {
         out.push_back(answerer_->RecordJson(a, r));
       }
