@@ -43,7 +43,7 @@ struct Segment {
 
 std::vector<Segment> AvatarAt(const Skeleton& skeleton, const PairMotion& motion, double s) {
   std::vector<Segment> out;
-  for (int i = 0; i < skeleton.num_links(); ++i) {
+  for (LinkIndex i(0); i < skeleton.num_links(); ++i) {
     Segment seg{{}, {}, skeleton.link(i).radius};
     motion.SegmentAt(i, s, &seg.a, &seg.b);
     out.push_back(seg);

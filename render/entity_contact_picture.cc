@@ -41,7 +41,7 @@ void Bracket(const std::vector<int64_t>& utimes, double t, size_t* k0, size_t* k
 void AppendAvatar(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
                   double s, std::vector<float>* vertices, std::vector<Eigen::Vector3d>* points) {
   const PairMotion motion(skeleton, pose0, pose1, model);
-  for (int l = 0; l < skeleton.num_links(); ++l) {
+  for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
     Eigen::Vector3d a, b;
     motion.SegmentAt(l, s, &a, &b);
     AppendCapsule(a, b, skeleton.link(l).radius, kCapsuleSlices, kCapsuleStacks, vertices);

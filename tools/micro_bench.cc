@@ -50,11 +50,11 @@ void BM_SweptCapsule(benchmark::State& state) {
                           MotionModel::kArticulated);
   Eigen::Vector3d a, b;
   double g;
-  int link = 0;
+  LinkIndex link(0);
   for (auto _ : state) {
     motion.SweptCapsule(link, 0.25, 0.5, &a, &b, &g);
     benchmark::DoNotOptimize(g);
-    link = (link + 1) % 16;
+    link = LinkIndex((link + 1) % 16);
   }
 }
 BENCHMARK(BM_SweptCapsule);

@@ -251,7 +251,8 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     poses_at_ends_ = std::move(storage->poses);
     segments_at_ends_ = std::move(storage->segments);
   }
-  order_.assign(skeleton.topological_order().begin(), skeleton.topological_order().end());
+  order_.clear();
+  for (int i : skeleton.topological_order()) order_.push_back(LinkIndex(i));
   Build(skeleton, pose0, pose1);
 }
 
@@ -276,7 +277,7 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     const Link& link = skeleton.link(i);
     LinkMotion& m = links_[i];
     // Every field is written below: the array may hold an earlier motion.
-    m.parent = -1;
+    m.parent = LinkIndex();
     m.depth = 1;
     m.a_L = link.a_L;
     m.b_L = link.b_L;
@@ -286,7 +287,7 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     if (model_ == MotionModel::kArticulated && link.parent >= 0) {
       const LinkPose& k0 = pose0.links[link.parent];
       const LinkPose& k1 = pose1.links[link.parent];
-      m.parent = link.parent;
+      m.parent = LinkIndex(link.parent);
       m.p0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
       m.p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
       m.q0 = (k0.q.conjugate() * x0.q).normalized();
@@ -312,9 +313,9 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
                       m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
   // Speed bounds, parents first (internal::LinkBoundsByIntervals).
-  for (int i : order_) {
+  for (LinkIndex i : order_) {
     LinkMotion& m = links_[i];
-    const internal::LinkBounds* parent = m.parent < 0 ? nullptr : &links_[m.parent].bounds;
+    const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
     const double own_speed = NormHi(m.p1 - m.p0);
     const double lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
     if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, parent, &m.bounds)) {
@@ -325,8 +326,8 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
   // Chain depth, parents first (linear time).
   int depth = 1;
-  for (int i : order_) {
-    if (links_[i].parent >= 0) links_[i].depth = links_[links_[i].parent].depth + 1;
+  for (LinkIndex i : order_) {
+    if (links_[i].parent.is_valid()) links_[i].depth = links_[links_[i].parent].depth + 1;
     depth = std::max(depth, links_[i].depth);
   }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
@@ -340,7 +341,7 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   PosesAtInto(1.0, &poses_at_ends_[2 * n]);
   segments_at_ends_.resize(6 * static_cast<size_t>(n));
   for (int k = 0; k < 3; ++k) {
-    for (int i = 0; i < n; ++i) {
+    for (LinkIndex i(0); i < n; ++i) {
       SegmentOfPose(i, poses_at_ends_[k * n + i], &segments_at_ends_[6 * i + 2 * k],
                     &segments_at_ends_[6 * i + 2 * k + 1]);
     }
@@ -379,7 +380,7 @@ LinkPose PairMotion::Compose(const LinkMotion& m, double s, const LinkPose& X_WP
   const Eigen::Vector3d c = (1 - s) * m.p0 + s * m.p1;
   const Eigen::Quaterniond r = LocalRotation(m, s);
   LinkPose out;
-  if (m.parent < 0) {
+  if (!m.parent.is_valid()) {
     out.p = c;
     out.q = r;
   } else {
@@ -395,13 +396,13 @@ void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
 }
 
 void PairMotion::PosesAtInto(double s, LinkPose* X_WL) const {
-  for (int i : order_) {
+  for (LinkIndex i : order_) {
     const LinkMotion& m = links_[i];
-    X_WL[i] = Compose(m, s, m.parent < 0 ? LinkPose() : X_WL[m.parent]);
+    X_WL[i] = Compose(m, s, !m.parent.is_valid() ? LinkPose() : X_WL[m.parent]);
   }
 }
 
-LinkPose PairMotion::PoseFromParent(int link, double s, const LinkPose& X_WP) const {
+LinkPose PairMotion::PoseFromParent(LinkIndex link, double s, const LinkPose& X_WP) const {
   if (!poses_at_ends_.empty()) {  // PoseAt's look-ups (the same bits).
     const size_t n = links_.size();
     if (s == 0.0) return poses_at_ends_[link];
@@ -411,7 +412,7 @@ LinkPose PairMotion::PoseFromParent(int link, double s, const LinkPose& X_WP) co
   return Compose(links_[link], s, X_WP);
 }
 
-LinkPose PairMotion::PoseAt(int link, double s) const {
+LinkPose PairMotion::PoseAt(LinkIndex link, double s) const {
   if (!poses_at_ends_.empty()) {
     const size_t n = links_.size();
     if (s == 0.0) return poses_at_ends_[link];
@@ -420,19 +421,20 @@ LinkPose PairMotion::PoseAt(int link, double s) const {
   }
   // Compose from the root down along the ancestors, iteratively (chains may
   // be deep). The same operations in the same order as PosesAt.
-  int chain[64];
+  LinkIndex chain[64];
   int count = 0;
-  for (int k = link; k >= 0 && count < 64; k = links_[k].parent) chain[count++] = k;
+  for (LinkIndex k = link; k.is_valid() && count < 64; k = links_[k].parent) chain[count++] = k;
   LinkPose out;
   int start = count - 1;
-  if (links_[chain[start]].parent >= 0) {
+  if (links_[chain[start]].parent.is_valid()) {
     out = PoseAt(links_[chain[start]].parent, s);  // Deeper than 64: the rest first.
   }
   for (int j = start; j >= 0; --j) out = Compose(links_[chain[j]], s, out);  // From the parent's.
   return out;
 }
 
-void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const {
+void PairMotion::SegmentAt(LinkIndex link, double s, Eigen::Vector3d* p_WA,
+                           Eigen::Vector3d* p_WB) const {
   const int k = s == 0.0 ? 0 : s == 0.5 ? 1 : s == 1.0 ? 2 : -1;
   if (k >= 0 && !segments_at_ends_.empty()) {
     *p_WA = segments_at_ends_[6 * link + 2 * k];
@@ -442,21 +444,21 @@ void PairMotion::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vec
   SegmentOfPose(link, PoseAt(link, s), p_WA, p_WB);
 }
 
-void PairMotion::SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
+void PairMotion::SegmentOfPose(LinkIndex link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
                                Eigen::Vector3d* p_WB) const {
   const Eigen::Matrix3d R = X_WL.q.toRotationMatrix();
   *p_WA = X_WL.p + R * links_[link].a_L;
   *p_WB = X_WL.p + R * links_[link].b_L;
 }
 
-double PairMotion::SweepRadius(int link, double s0, double s1) const {
+double PairMotion::SweepRadius(LinkIndex link, double s0, double s1) const {
   const LinkMotion& m = links_[link];
   // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
   return internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_, s0,
                                     s1);
 }
 
-void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
+void PairMotion::SweptCapsule(LinkIndex link, double s0, double s1, Eigen::Vector3d* p_WA,
                               Eigen::Vector3d* p_WB, double* growth) const {
   Eigen::Vector3d a0, b0, a1, b1;
   SegmentAt(link, s0, &a0, &b0);
@@ -464,20 +466,22 @@ void PairMotion::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p
   SweptCapsuleFromEnds(link, s0, s1, a0, b0, a1, b1, p_WA, p_WB, growth);
 }
 
-void PairMotion::SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
-                                      const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
-                                      const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA,
-                                      Eigen::Vector3d* p_WB, double* growth) const {
+void PairMotion::SweptCapsuleFromEnds(LinkIndex link, double s0, double s1,
+                                      const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
+                                      const Eigen::Vector3d& a1, const Eigen::Vector3d& b1,
+                                      Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                                      double* growth) const {
   Eigen::Vector3d am, bm;
   SegmentAt(link, 0.5 * (s0 + s1), &am, &bm);
   SweptCapsuleFromSegments(link, s0, s1, a0, b0, a1, b1, am, bm, p_WA, p_WB, growth);
 }
 
-void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1, const Eigen::Vector3d& a0,
-                                          const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
-                                          const Eigen::Vector3d& b1, const Eigen::Vector3d& am,
-                                          const Eigen::Vector3d& bm, Eigen::Vector3d* p_WA,
-                                          Eigen::Vector3d* p_WB, double* growth) const {
+void PairMotion::SweptCapsuleFromSegments(LinkIndex link, double s0, double s1,
+                                          const Eigen::Vector3d& a0, const Eigen::Vector3d& b0,
+                                          const Eigen::Vector3d& a1, const Eigen::Vector3d& b1,
+                                          const Eigen::Vector3d& am, const Eigen::Vector3d& bm,
+                                          Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
+                                          double* growth) const {
   const LinkMotion& m = links_[link];
   *p_WA = am;
   *p_WB = bm;
@@ -491,7 +495,7 @@ void PairMotion::SweptCapsuleFromSegments(int link, double s0, double s1, const 
   *growth = std::min(first_order, second_order);
 }
 
-double PairMotion::SecondOrderRadius(int link, double chord, double s0, double s1) const {
+double PairMotion::SecondOrderRadius(LinkIndex link, double chord, double s0, double s1) const {
   const LinkMotion& m = links_[link];
   return internal::SecondOrderGrowth(chord, m.bounds.accel, m.bounds.angular_accel,
                                      m.bounds.angular, m.extent, rounding_slack_, s0, s1);

@@ -10,6 +10,7 @@
 
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/typed_index.h"
 
 namespace sweptccd {
 
@@ -102,35 +103,35 @@ class PairMotion {
   /// construction: the swept capsule of every link over the whole pair needs
   /// exactly those, so a culled link costs O(1), not O(chain depth)). The
   /// same bits either way (the same operations in the same order).
-  LinkPose PoseAt(int link, double s) const;
+  LinkPose PoseAt(LinkIndex link, double s) const;
   /// World segment (A, B) of a link at s. At s = 0, 0.5 and 1 a look-up of
   /// the segments computed at construction (the same bits).
-  void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
+  void SegmentAt(LinkIndex link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) const;
 
   /// The link PoseAt composes `link`'s pose from (its parent with
-  /// `articulated`), or -1 when the link moves on its own.
-  int motion_parent(int link) const { return links_[link].parent; }
+  /// `articulated`), or an invalid index when the link moves on its own.
+  LinkIndex motion_parent(LinkIndex link) const { return links_[link].parent; }
   /// The pose of `link` at s given its motion parent's pose X_WP at s (as
-  /// PoseAt returns it; ignored when motion_parent(link) < 0): the same
+  /// PoseAt returns it; ignored when motion_parent(link) is invalid): the same
   /// operations in the same order as PoseAt, so the same bits. Lets a caller
   /// that needs many links at one s compose each ancestor once.
-  LinkPose PoseFromParent(int link, double s, const LinkPose& X_WP) const;
+  LinkPose PoseFromParent(LinkIndex link, double s, const LinkPose& X_WP) const;
   /// World segment (A, B) of a link at pose X_WL (as PoseAt returns it): the
   /// same bits as SegmentAt.
-  void SegmentOfPose(int link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
+  void SegmentOfPose(LinkIndex link, const LinkPose& X_WL, Eigen::Vector3d* p_WA,
                      Eigen::Vector3d* p_WB) const;
 
   /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
-  double origin_speed_bound(int link) const { return links_[link].bounds.speed; }
+  double origin_speed_bound(LinkIndex link) const { return links_[link].bounds.speed; }
   /// Upper bound on the angular speed of the link frame (radians per unit s).
-  double angular_speed_bound(int link) const { return links_[link].bounds.angular; }
+  double angular_speed_bound(LinkIndex link) const { return links_[link].bounds.angular; }
 
   /// Upper bound on how far any point of link i's segment can be, at any s in
   /// [s0, s1], from where the same point of the link is at the midpoint
   /// (s0 + s1) / 2. Outward rounded and including slack for the rounding of
   /// SegmentAt, so that the swept volume of the link over [s0, s1] lies inside
   /// the capsule around SegmentAt(midpoint) with radius radius + SweepRadius.
-  double SweepRadius(int link, double s0, double s1) const;
+  double SweepRadius(LinkIndex link, double s0, double s1) const;
 
   /// The swept bound used by queries: the segment at the midpoint of [s0, s1]
   /// and a radius growth such that the link's swept volume over [s0, s1] lies
@@ -138,18 +139,18 @@ class PairMotion {
   /// smaller of SweepRadius and a second-order bound: for every link point,
   /// |P(s) - P(mid)| <= |P(s1) - P(s0)| / 2 + (s1 - s0)^2 / 4 * max |P''|,
   /// from the chord error bound (s - s0)(s1 - s) / 2 * max |P''|.
-  void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
-                    double* growth) const;
+  void SweptCapsule(LinkIndex link, double s0, double s1, Eigen::Vector3d* p_WA,
+                    Eigen::Vector3d* p_WB, double* growth) const;
   /// As SweptCapsule, given the segments at s0 (a0, b0) and s1 (a1, b1) as
   /// SegmentAt computes them (time slicing reuses them from the parent).
-  void SweptCapsuleFromEnds(int link, double s0, double s1, const Eigen::Vector3d& a0,
+  void SweptCapsuleFromEnds(LinkIndex link, double s0, double s1, const Eigen::Vector3d& a0,
                             const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
                             const Eigen::Vector3d& b1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
                             double* growth) const;
 
   /// As SweptCapsuleFromEnds, given also the segment at the midpoint
   /// (s0 + s1) / 2 (am, bm) as SegmentAt computes it: the same bits.
-  void SweptCapsuleFromSegments(int link, double s0, double s1, const Eigen::Vector3d& a0,
+  void SweptCapsuleFromSegments(LinkIndex link, double s0, double s1, const Eigen::Vector3d& a0,
                                 const Eigen::Vector3d& b0, const Eigen::Vector3d& a1,
                                 const Eigen::Vector3d& b1, const Eigen::Vector3d& am,
                                 const Eigen::Vector3d& bm, Eigen::Vector3d* p_WA,
@@ -159,7 +160,7 @@ class PairMotion {
   /// distances that the link's two segment ends move from s0 to s1:
   /// SweptCapsuleFromSegments's second-order term (the same bits for the
   /// chord it computes). Nondecreasing in chord and in s1 - s0.
-  double SecondOrderRadius(int link, double chord, double s0, double s1) const;
+  double SecondOrderRadius(LinkIndex link, double chord, double s0, double s1) const;
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link
@@ -168,7 +169,7 @@ class PairMotion {
 
  private:
   struct LinkMotion {
-    int parent = -1;  // -1 for the root, or for every link with `independent`.
+    LinkIndex parent;  // Invalid for the root, or for every link with `independent`.
     // For a link moving on its own: the world frame. For a child with
     // `articulated`: c (position in the parent frame) and r (rotation relative
     // to the parent).
@@ -195,7 +196,7 @@ class PairMotion {
 
   MotionModel model_;
   std::vector<LinkMotion> links_;
-  std::vector<int> order_;
+  std::vector<LinkIndex> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
   // Every link's pose at s = 0 (first n), 0.5 and 1 (PosesAt), so PoseAt at
@@ -209,7 +210,7 @@ class PairMotion {
 
 struct PairMotion::Storage {
   std::vector<LinkMotion> links;
-  std::vector<int> order;
+  std::vector<LinkIndex> order;
   std::vector<LinkPose> poses;
   std::vector<Eigen::Vector3d> segments;
 };

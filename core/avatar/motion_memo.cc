@@ -40,23 +40,23 @@ MotionMemo::Slot* MotionMemo::SlotsAt(double s) {
   return slots_.data() + block * n;
 }
 
-void MotionMemo::ComposePose(Slot* slots, int link, double s) {
+void MotionMemo::ComposePose(Slot* slots, LinkIndex link, double s) {
   // Up to the first ancestor already composed (or the chain's top), then
   // down: each step is PoseAt's, from the parent's pose as PoseAt has it.
   chain_.clear();
-  for (int k = link; k >= 0 && !slots[k].have_pose; k = motion_->motion_parent(k)) {
+  for (LinkIndex k = link; k.is_valid() && !slots[k].have_pose; k = motion_->motion_parent(k)) {
     chain_.push_back(k);
   }
   for (size_t i = chain_.size(); i-- > 0;) {
-    const int k = chain_[i];
-    const int parent = motion_->motion_parent(k);
+    const LinkIndex k = chain_[i];
+    const LinkIndex parent = motion_->motion_parent(k);
     Slot& slot = slots[k];
-    slot.pose = motion_->PoseFromParent(k, s, parent >= 0 ? slots[parent].pose : LinkPose());
+    slot.pose = motion_->PoseFromParent(k, s, parent.is_valid() ? slots[parent].pose : LinkPose());
     slot.have_pose = true;
   }
 }
 
-void MotionMemo::SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) {
+void MotionMemo::SegmentAt(LinkIndex link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB) {
   if (s == 0.0 || s == 0.5 || s == 1.0) {
     motion_->SegmentAt(link, s, p_WA, p_WB);  // A look-up there (the same bits).
     return;
@@ -96,7 +96,7 @@ MotionMemo::SweptSlot* MotionMemo::SweptSlotsAt(double s0, double s1) {
   return last_swept_;
 }
 
-void MotionMemo::SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA,
+void MotionMemo::SweptCapsule(LinkIndex link, double s0, double s1, Eigen::Vector3d* p_WA,
                               Eigen::Vector3d* p_WB, double* growth) {
   SweptSlot& slot = SweptSlotsAt(s0, s1)[link];
   if (!slot.have) {

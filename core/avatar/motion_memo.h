@@ -29,12 +29,12 @@ class MotionMemo {
   void Rebind(const PairMotion& motion);
 
   /// As PairMotion::SegmentAt (the same bits).
-  void SegmentAt(int link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB);
+  void SegmentAt(LinkIndex link, double s, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB);
   /// As PairMotion::SweptCapsule (the same bits), kept per (s0, s1) by
   /// their bits like the segments (callers answering one motion against
   /// several entities ask for the same intervals again).
-  void SweptCapsule(int link, double s0, double s1, Eigen::Vector3d* p_WA, Eigen::Vector3d* p_WB,
-                    double* growth);
+  void SweptCapsule(LinkIndex link, double s0, double s1, Eigen::Vector3d* p_WA,
+                    Eigen::Vector3d* p_WB, double* growth);
 
  private:
   struct Slot {
@@ -47,7 +47,7 @@ class MotionMemo {
   // first use); valid until the next call.
   Slot* SlotsAt(double s);
   // Fills slots[link].pose, and that of each ancestor not yet there.
-  void ComposePose(Slot* slots, int link, double s);
+  void ComposePose(Slot* slots, LinkIndex link, double s);
 
   struct SweptSlot {
     Eigen::Vector3d a{0, 0, 0}, b{0, 0, 0};
@@ -74,7 +74,7 @@ class MotionMemo {
   std::unordered_map<uint64_t, size_t> times_;
   std::vector<Slot> slots_;
   size_t blocks_used_ = 0;
-  std::vector<int> chain_;  // Scratch of ComposePose.
+  std::vector<LinkIndex> chain_;  // Scratch of ComposePose.
   // (s0, s1) -> its block of num_links() swept slots, kept like times_ (at
   // most max_times_ intervals, then emptied); the last one asked for is
   // remembered, since callers ask for every link over one interval in turn.

@@ -30,12 +30,11 @@ class AvatarTarget : public OtherTarget {
     filtered_ = NamesEntity(a_, e_.who.id) || NamesEntity(e_.who, a_.id);
   }
 
-  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
     out->clear();
     out->reserve(static_cast<size_t>(e_.skeleton.num_links()));
     for (int j = 0; j < e_.skeleton.num_links(); ++j) {
-      if (!filtered_ || !IgnoresLinkPair(a_, LinkIndex(link_a), e_.who, LinkIndex(j)))
-        out->push_back(j);
+      if (!filtered_ || !IgnoresLinkPair(a_, link_a, e_.who, LinkIndex(j))) out->push_back(j);
     }
   }
 
@@ -68,7 +67,7 @@ class AvatarTarget : public OtherTarget {
     std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
     for (int j : *cands) {
       Eigen::Vector3d c1, c2;
-      const SweptLink& x = SweptOf(m, s0, s1, j, &links);
+      const SweptLink& x = SweptOf(m, s0, s1, LinkIndex(j), &links);
       if (!box_a.Overlaps(x.box)) continue;
       const double reach = radius_a + growth_a + e_.skeleton.link(j).radius + x.g + tol;
       // Then a gap on two axes, a lower bound on the distance: past the
@@ -82,7 +81,7 @@ class AvatarTarget : public OtherTarget {
     cands->resize(kept);
   }
 
-  bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+  bool Nearest(const Piece& piece, double tau, LinkIndex link_a, const Eigen::Vector3d& a,
                const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
                double search, OtherContact* out) const override {
     MotionMemo& m = MemoOf(piece.k);
@@ -94,7 +93,7 @@ class AvatarTarget : public OtherTarget {
     std::vector<InstantLink>& links = InstantLinks(piece.k, s);
     for (int j : cands) {
       Eigen::Vector3d c1, c2;
-      const InstantLink& x = InstantOf(m, s, j, &links);
+      const InstantLink& x = InstantOf(m, s, LinkIndex(j), &links);
       const Eigen::Vector3d& pa = x.a;
       const Eigen::Vector3d& pb = x.b;
       if (!box_a.Overlaps(x.box)) continue;
@@ -102,7 +101,7 @@ class AvatarTarget : public OtherTarget {
       const double sep = d - radius_a - e_.skeleton.link(j).radius;
       if (sep > search || (have && sep >= out->separation)) continue;
       have = true;
-      out->link = LinkIndex(link_a);
+      out->link = link_a;
       out->other_link = LinkIndex(j);
       out->triangle = -1;
       out->tau = tau;
@@ -132,7 +131,7 @@ class AvatarTarget : public OtherTarget {
     WidenS(&s0, &s1);
     Aabb box = Aabb::Empty();
     std::vector<SweptLink>& links = SweptLinks(piece.k, s0, s1);
-    for (int j = 0; j < e_.skeleton.num_links(); ++j) {
+    for (LinkIndex j(0); j < e_.skeleton.num_links(); ++j) {
       const SweptLink& x = SweptOf(m, s0, s1, j, &links);
       box.Grow(Aabb::OfCapsule(x.a, x.b, e_.skeleton.link(j).radius + x.g));
       if (until != nullptr && until->Overlaps(box)) break;
@@ -189,7 +188,7 @@ class AvatarTarget : public OtherTarget {
     if (links.empty()) links.resize(static_cast<size_t>(e_.skeleton.num_links()));
     return links;
   }
-  const InstantLink& InstantOf(MotionMemo& m, double s, int j,
+  const InstantLink& InstantOf(MotionMemo& m, double s, LinkIndex j,
                                std::vector<InstantLink>* links) const {
     InstantLink& x = (*links)[static_cast<size_t>(j)];
     if (!x.computed) {
@@ -209,7 +208,7 @@ class AvatarTarget : public OtherTarget {
     return links;
   }
   // B's swept capsule of link j in `links` (SweptLinks(k, s0, s1)).
-  const SweptLink& SweptOf(MotionMemo& m, double s0, double s1, int j,
+  const SweptLink& SweptOf(MotionMemo& m, double s0, double s1, LinkIndex j,
                            std::vector<SweptLink>* links) const {
     SweptLink& x = (*links)[static_cast<size_t>(j)];
     if (!x.computed) {

@@ -10,7 +10,7 @@ namespace sweptccd::world {
 Aabb AvatarMotionBox(const Skeleton& skeleton, const PairMotion& motion) {
   const double pad = BoxPad(motion.coordinate_scale());
   Aabb box = Aabb::Empty();
-  for (int l = 0; l < skeleton.num_links(); ++l) {
+  for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
     Eigen::Vector3d a, b;
     double g;
     motion.SweptCapsule(l, 0, 1, &a, &b, &g);

@@ -91,7 +91,7 @@ const std::vector<int>& EntityRun::CandidatesOf(int link, size_t piece) {
 void EntityRun::FindRoots() {
   std::vector<std::vector<int>>& roots = scratch_->roots;
   if (roots.size() < static_cast<size_t>(num_links_)) roots.resize(num_links_);
-  for (int l = 0; l < num_links_; ++l) target_.RootCandidatesInto(l, &roots[l]);
+  for (LinkIndex l(0); l < num_links_; ++l) target_.RootCandidatesInto(l, &roots[l]);
 }
 
 // Link-level broad phase (link_sweep_boxes.h): the candidates of A's link
@@ -169,7 +169,7 @@ bool EntityRun::EntityBoxesMeet() {
   Aabb box_a = Aabb::Empty();
   double s0 = SOf(tau_from_), s1 = SOf(tau_to_);
   WidenS(&s0, &s1);
-  for (int l = 0; l < num_links_; ++l) {
+  for (LinkIndex l(0); l < num_links_; ++l) {
     if (scratch_->roots[static_cast<size_t>(l)].empty()) continue;
     Eigen::Vector3d a, b;
     double g;
@@ -185,7 +185,7 @@ bool EntityRun::EntityBoxesMeet() {
 
 // Initially colliding: touching at the window's start.
 void EntityRun::CloseTouchingAtStart() {
-  for (int l = 0; l < num_links_ && Searching(); ++l) {
+  for (LinkIndex l(0); l < num_links_ && Searching(); ++l) {
     if (scratch_->roots[static_cast<size_t>(l)].empty()) continue;
     Eigen::Vector3d a, b;
     memo_a_.SegmentAt(l, SOf(tau_from_), &a, &b);
@@ -194,7 +194,7 @@ void EntityRun::CloseTouchingAtStart() {
                         CandidatesOf(l, 0), 0.0, &c) &&
         c.separation <= 0) {
       OtherBracket br;
-      br.link = LinkIndex(l);
+      br.link = l;
       br.tau_lo = tau_from_;
       br.tau_hi = std::min(tau_to_, tau_from_ + eps_us_);
       br.initially_colliding = true;
@@ -224,7 +224,7 @@ size_t EntityRun::Store(const std::vector<int>& list) {
 void EntityRun::SeedRoots() {
   scratch_->queue.clear();
   scratch_->arena.clear();
-  for (int l = 0; l < num_links_; ++l) {
+  for (LinkIndex l(0); l < num_links_; ++l) {
     if (done_[static_cast<size_t>(l)] || scratch_->roots[static_cast<size_t>(l)].empty()) continue;
     for (int p = 0; p < static_cast<int>(num_pieces_); ++p) {
       const std::vector<int>& c = CandidatesOf(l, static_cast<size_t>(p));
@@ -267,7 +267,7 @@ EntityRun::Step EntityRun::Visit(const EntityItem& item) {
   const double mid = 0.5 * (item.tau0 + item.tau1);
   if (!(mid > item.tau0 && mid < item.tau1)) {
     OtherBracket br;  // Cannot split further.
-    br.link = LinkIndex(item.link);
+    br.link = item.link;
     br.tau_lo = item.tau0;
     br.tau_hi = tau_to_;
     br.undecided = true;
@@ -298,7 +298,7 @@ bool EntityRun::TryClose(const EntityItem& item) {
   }
   if (!have || best.separation > accept_) return false;
   OtherBracket br;
-  br.link = LinkIndex(item.link);
+  br.link = item.link;
   br.tau_lo = item.tau0;
   br.tau_hi = item.tau1;
   br.has_witness = true;

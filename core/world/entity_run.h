@@ -24,7 +24,7 @@ namespace sweptccd::world {
 /// answer's candidate arena (both halves of a split share one list).
 struct EntityItem {
   double tau0, tau1;
-  int link;
+  LinkIndex link;
   int piece;
   size_t off, len;
 };

@@ -13,7 +13,7 @@ std::vector<Aabb> LinkSweepBoxes(const Skeleton& skeleton, const PairMotion& mot
   const double pad = BoxPad(motion.coordinate_scale());
   std::vector<Aabb> boxes;
   boxes.reserve(static_cast<size_t>(skeleton.num_links()));
-  for (int l = 0; l < skeleton.num_links(); ++l) {
+  for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
     Eigen::Vector3d a, b;
     double g;  // Every link point at any s is within g of (a, b) (certified).
     motion.SweptCapsule(l, 0, 1, &a, &b, &g);

@@ -20,9 +20,9 @@ class ObjectTarget : public OtherTarget {
     tol_ = EntitySlack(scale, e_.mesh.coordinate_tolerance());
   }
 
-  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
     out->clear();
-    if (bvh_.num_triangles() == 0 || IgnoresObject(a_, LinkIndex(link_a), e_.id)) return;
+    if (bvh_.num_triangles() == 0 || IgnoresObject(a_, link_a, e_.id)) return;
     out->push_back(0);
   }
 
@@ -64,7 +64,7 @@ class ObjectTarget : public OtherTarget {
     if (!hit) cands->clear();
   }
 
-  bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+  bool Nearest(const Piece& piece, double tau, LinkIndex link_a, const Eigen::Vector3d& a,
                const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
                double search, OtherContact* out) const override {
     if (cands.empty()) return false;
@@ -84,7 +84,7 @@ class ObjectTarget : public OtherTarget {
       if (sep <= search && sep < best) {
         best = sep;
         have = true;
-        out->link = LinkIndex(link_a);
+        out->link = link_a;
         out->other_link = LinkIndex();
         out->triangle = bvh_.TriangleId(slot);
         out->tau = tau;

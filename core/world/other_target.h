@@ -19,9 +19,9 @@ class OtherTarget {
   virtual ~OtherTarget() = default;
   /// Unfiltered candidates of A's link at the start, into *out (replaced;
   /// its capacity reused).
-  virtual void RootCandidatesInto(int link_a, std::vector<int>* out) const = 0;
+  virtual void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const = 0;
   /// The same, returned.
-  std::vector<int> RootCandidates(int link_a) const {
+  std::vector<int> RootCandidates(LinkIndex link_a) const {
     std::vector<int> out;
     RootCandidatesInto(link_a, &out);
     return out;
@@ -43,7 +43,7 @@ class OtherTarget {
                     std::vector<int>* cands) const = 0;
   /// The nearest candidate to A's link segment (a, b) at tau, within
   /// `search` of its capsule surface; false when none.
-  virtual bool Nearest(const Piece& piece, double tau, int link_a, const Eigen::Vector3d& a,
+  virtual bool Nearest(const Piece& piece, double tau, LinkIndex link_a, const Eigen::Vector3d& a,
                        const Eigen::Vector3d& b, double radius_a, const std::vector<int>& cands,
                        double search, OtherContact* out) const = 0;
   /// Rounding slack (metres) of this target's geometry.

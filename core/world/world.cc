@@ -16,9 +16,11 @@ bool IsValidEntityId(const std::string& id) {
 }
 
 namespace {
-bool RuleMatches(const EntityRule& r, int link, const std::string& entity, int other_link) {
-  return r.entity == entity && (r.link < 0 || r.link == link) &&
-         (r.other_link < 0 || other_link < 0 || r.other_link == other_link);
+// `other_link` invalid: an object (no links), matched by any other_link.
+bool RuleMatches(const EntityRule& r, LinkIndex link, const std::string& entity,
+                 LinkIndex other_link) {
+  return r.entity == entity && (!r.link.is_valid() || r.link == link) &&
+         (!r.other_link.is_valid() || !other_link.is_valid() || r.other_link == other_link);
 }
 }  // namespace
 
@@ -34,7 +36,7 @@ bool IgnoresLinkPair(const FilterSide& a, LinkIndex link_a, const FilterSide& b,
 
 bool IgnoresObject(const FilterSide& a, LinkIndex link_a, const std::string& object) {
   for (const EntityRule& r : a.rules) {
-    if (RuleMatches(r, link_a, object, -1)) return true;
+    if (RuleMatches(r, link_a, object, kAllLinks)) return true;
   }
   return false;
 }

@@ -75,9 +75,9 @@ struct ObjectEntity {
 /// link / other_link: -1 means every link ("*"); other_link is -1 also when
 /// the rule names no other_link.
 struct EntityRule {
-  int link = -1;
+  LinkIndex link;  // Invalid (kAllLinks): every link.
   std::string entity;
-  int other_link = -1;
+  LinkIndex other_link;  // Invalid (kAllLinks): every link of `entity`.
 };
 
 /// Who an entity is to the filters: its id and its rules (an object has

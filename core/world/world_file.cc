@@ -36,21 +36,19 @@ std::string StringField(const json& entry, const char* key, const std::string& w
   return entry[key].get<std::string>();
 }
 
-// A link of a rule, -1 for all: a JSON number is an index; text is a name
-// first, then "*", then an index (ResolveLinkKey, SPEC 8 "Filters").
-int ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string& where,
-                   const char* field) {
+// A link of a rule, kAllLinks for all: a JSON number is an index; text is a
+// name first, then "*", then an index (ResolveLinkKey, SPEC 8 "Filters").
+LinkIndex ResolveLinkKey(const json& key, const Skeleton& skeleton, const std::string& where,
+                         const char* field) {
   const std::string at = where + ": \"" + field + "\"";
   if (key.is_number_unsigned()) {
     return ResolveLinkIndex(
-               static_cast<int64_t>(std::min<uint64_t>(key.get<uint64_t>(), INT64_MAX)), skeleton,
-               at)
-        .value();
+        static_cast<int64_t>(std::min<uint64_t>(key.get<uint64_t>(), INT64_MAX)), skeleton, at);
   }
-  if (key.is_number_integer()) return ResolveLinkIndex(key.get<int64_t>(), skeleton, at).value();
+  if (key.is_number_integer()) return ResolveLinkIndex(key.get<int64_t>(), skeleton, at);
   if (!key.is_string())
     throw InputError(where + ": \"" + field + "\" must be a link name, an index or \"*\"");
-  return sweptccd::ResolveLinkKey(key.get<std::string>(), skeleton, at).value();
+  return sweptccd::ResolveLinkKey(key.get<std::string>(), skeleton, at);
 }
 
 void ReadAvatarPoses(const std::string& path, AvatarEntity* avatar) {
@@ -271,7 +269,7 @@ int ResolveEnvObject(const json& o, const WorldEntries& w, int num_objects,
 
 // An ignore rule towards another entity ({"link", "entity"[, "other_link"]});
 // its entity is cleared when it can never apply.
-EntityRule ParseEntityRule(const json& r, int link, const WorldEntries& w,
+EntityRule ParseEntityRule(const json& r, LinkIndex link, const WorldEntries& w,
                            const std::vector<AvatarEntity>& avatars, const std::string& where) {
   if (!r["entity"].is_string()) throw InputError(where + ": \"entity\" must be an id");
   EntityRule rule;
@@ -291,7 +289,7 @@ EntityRule ParseEntityRule(const json& r, int link, const WorldEntries& w,
   if (other >= 0) {
     rule.other_link = ResolveLinkKey(m, avatars[other].skeleton, where, "other_link");
   } else if (m.is_number_integer() && m.get<int64_t>() >= 0) {
-    rule.other_link = static_cast<int>(std::min<int64_t>(m.get<int64_t>(), 1 << 30));
+    rule.other_link = LinkIndex(static_cast<int>(std::min<int64_t>(m.get<int64_t>(), 1 << 30)));
   } else if (!(m.is_string())) {
     throw InputError(where + ": \"other_link\" must be a link name, an index or \"*\"");
   } else if (m.get<std::string>() != "*") {
@@ -319,11 +317,10 @@ void ParseAvatarRules(size_t i, const std::string& path, const WorldEntries& w, 
             where +
             ": a rule is {\"link\", \"object\"} or {\"link\", \"entity\"[, \"other_link\"]}");
       }
-      const int link = ResolveLinkKey(r["link"], skeleton, where, "link");
+      const LinkIndex link = ResolveLinkKey(r["link"], skeleton, where, "link");
       if (r.contains("object")) {
         const int object = ResolveEnvObject(r["object"], w, out->env.num_objects(), where);
-        filter.Ignore(link < 0 ? LinkIndex() : LinkIndex(link),
-                      object < 0 ? ObjectIndex() : ObjectIndex(object));
+        filter.Ignore(link, object < 0 ? ObjectIndex() : ObjectIndex(object));
         continue;
       }
       EntityRule rule = ParseEntityRule(r, link, w, out->world.avatars, where);

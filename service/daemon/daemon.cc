@@ -110,7 +110,7 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
                      "' breaks the id rule (1-64 of A-Z a-z 0-9 _ . -)");
   }
   world::EntityRule rule;
-  rule.link = ResolveLinkKey(r.link, own, where + ".link").value();  // kAllLinks: -1.
+  rule.link = ResolveLinkKey(r.link, own, where + ".link");  // Or kAllLinks.
   rule.entity = r.entity;
   if (r.other_link.empty()) return rule;
   if (targets.objects.count(r.entity)) {
@@ -119,9 +119,9 @@ world::EntityRule ResolveEntityRule(const EntityRuleSpec& r, const Skeleton& own
   }
   const auto other = targets.skeletons.find(r.entity);
   if (other != targets.skeletons.end()) {
-    rule.other_link = ResolveLinkKey(r.other_link, *other->second, where + ".other_link").value();
+    rule.other_link = ResolveLinkKey(r.other_link, *other->second, where + ".other_link");
   } else if (const std::optional<LinkIndex> index = LinkKeyWithoutNames(r.other_link)) {
-    rule.other_link = index->value();
+    rule.other_link = *index;
   } else {
     throw InputError(where + ".other_link: '" + EscapeForDisplay(r.other_link) +
                      "' names a link of '" + r.entity +

@@ -50,7 +50,7 @@ std::vector<std::string> ListClips() {
 // The file's text, gunzipped when it is gzip (the shipped clips are).
 std::string ReadText(const std::string& path) { return ReadFileMaybeGzip(path); }
 
-int LinkIndex(const MocapClip& clip, const std::string& name) {
+int IndexOfLink(const MocapClip& clip, const std::string& name) {
   const int i = clip.skeleton.FindLink(name);
   EXPECT_GE(i, 0) << name;
   return i;
@@ -148,7 +148,7 @@ TEST_P(mocap_every_clip, ImportsPlausibleConnectedAvatar) {
   double worst_frame = 0, worst_mid = 0;
   for (size_t k = 0; k < clip.poses.size(); ++k) {
     for (const auto& [parent, child] : kConnected) {
-      const int p = LinkIndex(clip, parent), c = LinkIndex(clip, child);
+      const int p = IndexOfLink(clip, parent), c = IndexOfLink(clip, child);
       ASSERT_EQ(skel.link(c).parent, p);
       worst_frame = std::max(
           worst_frame, (WorldA(clip, clip.poses[k], c) - WorldB(clip, clip.poses[k], p)).norm());
@@ -156,7 +156,7 @@ TEST_P(mocap_every_clip, ImportsPlausibleConnectedAvatar) {
     if (k + 1 < clip.poses.size()) {
       const PairMotion motion(skel, clip.poses[k], clip.poses[k + 1], MotionModel::kArticulated);
       for (const auto& [parent, child] : kConnected) {
-        const int p = LinkIndex(clip, parent), c = LinkIndex(clip, child);
+        const LinkIndex p(IndexOfLink(clip, parent)), c(IndexOfLink(clip, child));
         Eigen::Vector3d pa, pb, ca, cb;
         motion.SegmentAt(p, 0.5, &pa, &pb);
         motion.SegmentAt(c, 0.5, &ca, &cb);
@@ -283,12 +283,12 @@ TEST(mocap_import, HandCheckedPoseCmu0201Frame1) {
     EXPECT_EQ(pose.links[i].p, same.poses[0].links[i].p);
   }
   const double tol = 2e-6;  // The hand arithmetic carries 6 decimals in cm.
-  const int pelvis = LinkIndex(clip, "pelvis");
+  const int pelvis = IndexOfLink(clip, "pelvis");
   EXPECT_NEAR(pose.links[pelvis].p.x(), 0.556924, 1e-12);
   EXPECT_NEAR(pose.links[pelvis].p.y(), 0.848974, 1e-12);
   EXPECT_NEAR(pose.links[pelvis].p.z(), -1.60488, 1e-12);
-  const int thigh = LinkIndex(clip, "thigh_l");
-  const int shin = LinkIndex(clip, "shin_l");
+  const int thigh = IndexOfLink(clip, "thigh_l");
+  const int shin = IndexOfLink(clip, "shin_l");
   EXPECT_NEAR(pose.links[thigh].p.x(), 0.64652050, tol);
   EXPECT_NEAR(pose.links[thigh].p.y(), 0.87029111, tol);
   EXPECT_NEAR(pose.links[thigh].p.z(), -1.60063881, tol);
@@ -312,10 +312,10 @@ TEST(mocap_import, ZeroEndSitesGetFixedLengths) {
   const MocapClip clip =
       ImportBvhFile(ClipPath("cmu_05_06_dance_cartwheel_pirouettes_jete.bvh.gz"));
   EXPECT_TRUE(
-      clip.skeleton.link(LinkIndex(clip, "hand_l")).b_L.isApprox(Eigen::Vector3d(0.08, 0, 0)));
+      clip.skeleton.link(IndexOfLink(clip, "hand_l")).b_L.isApprox(Eigen::Vector3d(0.08, 0, 0)));
   EXPECT_TRUE(
-      clip.skeleton.link(LinkIndex(clip, "hand_r")).b_L.isApprox(Eigen::Vector3d(-0.08, 0, 0)));
-  EXPECT_TRUE(clip.skeleton.link(LinkIndex(clip, "head"))
+      clip.skeleton.link(IndexOfLink(clip, "hand_r")).b_L.isApprox(Eigen::Vector3d(-0.08, 0, 0)));
+  EXPECT_TRUE(clip.skeleton.link(IndexOfLink(clip, "head"))
                   .b_L.isApprox(0.15 * Eigen::Vector3d(0.10407, 1.76136, -0.12397).normalized()));
   for (int i = 0; i < 16; ++i) {
     EXPECT_GT(clip.skeleton.link(i).b_L.norm(), 0.05) << clip.skeleton.link(i).name;
@@ -399,10 +399,10 @@ TEST(mocap_import, RadiusOverrideAndTranslate) {
   options.radius_override_m["foot_l"] = 0.03;
   options.frame_count = 5;
   MocapClip clip = ImportBvhFile(ClipPath("cmu_07_01_walk.bvh.gz"), options);
-  EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "head")).radius, 0.12);
-  EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "foot_l")).radius, 0.03);
-  EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "foot_r")).radius, 0.045);
-  EXPECT_EQ(clip.skeleton.link(LinkIndex(clip, "pelvis")).radius, 0.12);
+  EXPECT_EQ(clip.skeleton.link(IndexOfLink(clip, "head")).radius, 0.12);
+  EXPECT_EQ(clip.skeleton.link(IndexOfLink(clip, "foot_l")).radius, 0.03);
+  EXPECT_EQ(clip.skeleton.link(IndexOfLink(clip, "foot_r")).radius, 0.045);
+  EXPECT_EQ(clip.skeleton.link(IndexOfLink(clip, "pelvis")).radius, 0.12);
   const MocapClip before = clip;
   const Eigen::Vector3d offset(1.5, -2.0, 0.25);
   TranslateClip(&clip, offset);
@@ -600,7 +600,7 @@ TEST(mocap_import, ExplicitUnitScale) {
   const MocapClip clip = ImportBvhText(TinyBvh(), "tiny.bvh", options);
   EXPECT_EQ(clip.unit_scale_m, 0.02);
   EXPECT_TRUE(
-      clip.skeleton.link(LinkIndex(clip, "shin_l")).b_L.isApprox(Eigen::Vector3d(0, -0.84, 0)));
+      clip.skeleton.link(IndexOfLink(clip, "shin_l")).b_L.isApprox(Eigen::Vector3d(0, -0.84, 0)));
 }
 
 // ---------------------------------------------------------------------------

@@ -477,8 +477,9 @@ TEST(SharedWorld, FiltersOfEitherAvatarApplyToTheSharedAnswers) {
   std::vector<Pose> used[2];
   std::vector<world::RigidSample> box_used;
   AvatarAnswerOptions alice_own, bob_own;
-  alice_own.rules = {world::EntityRule{1, "bob", -1}, world::EntityRule{0, "box", -1}};
-  bob_own.rules = {world::EntityRule{0, "alice", 0}};
+  alice_own.rules = {world::EntityRule{LinkIndex(1), "bob", kAllLinks},
+                     world::EntityRule{LinkIndex(0), "box", kAllLinks}};
+  bob_own.rules = {world::EntityRule{LinkIndex(0), "alice", LinkIndex(0)}};
   SharedWorld live(SharedWorldOptions{});
   live.AddAvatar("alice", Arm(), MotionModel::kArticulated, At(0), alice_own);
   live.AddAvatar("bob", Arm(), MotionModel::kArticulated, At(0), bob_own);

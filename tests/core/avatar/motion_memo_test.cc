@@ -68,7 +68,7 @@ TEST(MotionMemoTest, SegmentsAndSweptCapsulesMatchPairMotionBitForBit) {
     std::vector<double> times = {0.0, 0.5, 1.0, -0.0};
     for (int i = 0; i < 6; ++i) times.push_back(rng.U(0, 1));
     for (int ask = 0; ask < 200; ++ask) {
-      const int link = rng.I(n);
+      const LinkIndex link(rng.I(n));
       const double s0 = times[static_cast<size_t>(rng.I(static_cast<int>(times.size())))];
       Eigen::Vector3d a, b, ta, tb;
       memo.SegmentAt(link, s0, &a, &b);
@@ -109,7 +109,7 @@ TEST(MotionMemoTest, ReboundMemoAnswersForTheNewMotion) {
     ASSERT_EQ(&memo.motion(), &motions[m]);
     const int n = motions[m].num_links();
     for (int ask = 0; ask < 100; ++ask) {
-      const int link = rng.I(n);
+      const LinkIndex link(rng.I(n));
       const double s0 = times[static_cast<size_t>(rng.I(static_cast<int>(times.size())))];
       const double s1 = times[static_cast<size_t>(rng.I(static_cast<int>(times.size())))];
       const double lo = std::min(s0, s1), hi = std::max(s0, s1);
@@ -147,10 +147,10 @@ TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSegments) {
   const PairMotion &m7 = f.m7, &m4 = f.m4;
   MotionMemo memo(m7);
   Eigen::Vector3d a, b, ta, tb;
-  for (int l = 0; l < 7; ++l) memo.SegmentAt(l, 0.3, &a, &b);
+  for (LinkIndex l(0); l < 7; ++l) memo.SegmentAt(l, 0.3, &a, &b);
   memo.Rebind(m4);
   for (double s : {0.3, 0.7}) {
-    for (int l = 0; l < 4; ++l) {
+    for (LinkIndex l(0); l < 4; ++l) {
       memo.SegmentAt(l, s, &a, &b);
       m4.SegmentAt(l, s, &ta, &tb);
       EXPECT_TRUE(SameBits(a, ta) && SameBits(b, tb)) << "link " << l << " s " << s;
@@ -166,10 +166,10 @@ TEST(MotionMemoTest, ReboundToFewerLinksForgetsTheOldSweptCapsules) {
   MotionMemo memo(m7);
   Eigen::Vector3d a, b, ta, tb;
   double g, tg;
-  for (int l = 0; l < 7; ++l) memo.SweptCapsule(l, 0.3, 0.6, &a, &b, &g);
+  for (LinkIndex l(0); l < 7; ++l) memo.SweptCapsule(l, 0.3, 0.6, &a, &b, &g);
   memo.Rebind(m4);
   for (double s0 : {0.3, 0.1}) {
-    for (int l = 0; l < 4; ++l) {
+    for (LinkIndex l(0); l < 4; ++l) {
       memo.SweptCapsule(l, s0, 0.6, &a, &b, &g);
       m4.SweptCapsule(l, s0, 0.6, &ta, &tb, &tg);
       EXPECT_TRUE(SameBits(a, ta) && SameBits(b, tb) && SameBits(g, tg))

@@ -428,7 +428,7 @@ TEST(MotionTest, BothModelsReproduceTheGivenPoses) {
       std::vector<LinkPose> at0, at1;
       motion.PosesAt(0.0, &at0);
       motion.PosesAt(1.0, &at1);
-      for (int i = 0; i < motion.num_links(); ++i) {
+      for (LinkIndex i(0); i < motion.num_links(); ++i) {
         ++links_checked;
         const Pose* given[2] = {&rig.pose0, &rig.pose1};
         const std::vector<LinkPose>* got[2] = {&at0, &at1};
@@ -457,12 +457,12 @@ TEST(MotionTest, ArticulatedConnectedSkeletonStaysConnected) {
     const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, MotionModel::kArticulated);
     for (int j = 0; j <= 99; ++j) {
       const double s = j / 99.0;
-      for (int i = 0; i < motion.num_links(); ++i) {
+      for (LinkIndex i(0); i < motion.num_links(); ++i) {
         const int k = rig.skeleton.link(i).parent;
         if (k < 0) continue;
         Eigen::Vector3d child_a, child_b, parent_a, parent_b;
         motion.SegmentAt(i, s, &child_a, &child_b);
-        motion.SegmentAt(k, s, &parent_a, &parent_b);
+        motion.SegmentAt(LinkIndex(k), s, &parent_a, &parent_b);
         ++joints_checked;
         ASSERT_LT((child_a - parent_b).cwiseAbs().maxCoeff(), 1e-9)
             << RigSummary(rig, MotionModel::kArticulated) << " link " << i << " parent " << k
@@ -487,7 +487,7 @@ TEST(MotionTest, IndependentLinksMoveOnTheirOwn) {
     for (int j = 0; j < 10; ++j) {
       const double s = u01(g);
       motion.PosesAt(s, &all);
-      for (int i = 0; i < motion.num_links(); ++i) {
+      for (LinkIndex i(0); i < motion.num_links(); ++i) {
         const LinkPose& X0 = rig.pose0.links[i];
         const LinkPose& X1 = rig.pose1.links[i];
         const QL q0 = ToQL(X0.q), q1 = ToQL(X1.q);
@@ -523,7 +523,7 @@ TEST(MotionTest, ArticulatedMatchesSpecTwin) {
       for (double s : {0.0, 1.0, u01(g), u01(g), u01(g), u01(g), u01(g)}) {
         const std::vector<TwinPose> want = twin.PosesAt(s);
         motion.PosesAt(s, &all);
-        for (int i = 0; i < motion.num_links(); ++i) {
+        for (LinkIndex i(0); i < motion.num_links(); ++i) {
           const Mat3L R = RotL(want[i].q);
           const LinkPose one = motion.PoseAt(i, s);
           Eigen::Vector3d A, B;
@@ -570,7 +570,7 @@ TEST(MotionTest, NegatedQuaternionsGiveTheSameSegments) {
       const PairMotion b(rig.skeleton, n0, n1, model);
       for (int j = 0; j < 12; ++j) {
         const double s = j < 2 ? j : u01(g);
-        for (int i = 0; i < a.num_links(); ++i) {
+        for (LinkIndex i(0); i < a.num_links(); ++i) {
           Eigen::Vector3d a_a, a_b, b_a, b_b;
           a.SegmentAt(i, s, &a_a, &a_b);
           b.SegmentAt(i, s, &b_a, &b_b);
@@ -621,7 +621,7 @@ TEST(MotionTest, SweepRadiusEnclosesTheMotion) {
           break;
       }
       const double mid = 0.5 * (s0 + s1);
-      for (int i = 0; i < motion.num_links(); ++i) {
+      for (LinkIndex i(0); i < motion.num_links(); ++i) {
         const double bound = motion.SweepRadius(i, s0, s1);
         Eigen::Vector3d ma, mb;
         motion.SegmentAt(i, mid, &ma, &mb);
@@ -669,7 +669,7 @@ TEST(MotionTest, SpeedBoundsBoundFiniteDifferences) {
     const MotionModel model = RandomModel(g);
     const PairMotion motion(rig.skeleton, rig.pose0, rig.pose1, model);
     constexpr double h = 1e-3;
-    for (int i = 0; i < motion.num_links(); ++i) {
+    for (LinkIndex i(0); i < motion.num_links(); ++i) {
       const double v = motion.origin_speed_bound(i), w = motion.angular_speed_bound(i);
       ASSERT_TRUE(std::isfinite(v) && v >= 0);
       ASSERT_TRUE(std::isfinite(w) && w >= 0);
@@ -727,7 +727,7 @@ TEST(MotionTest, PoseAtEndsAndMiddleMatchPosesAtOnDeepChains) {
       std::vector<LinkPose> all;
       motion.PosesAt(s, &all);
       const double beside = s < 1 ? std::nextafter(s, 1.0) : std::nextafter(s, 0.0);
-      for (int i = 0; i < n; ++i) {
+      for (LinkIndex i(0); i < n; ++i) {
         const LinkPose one = motion.PoseAt(i, s);
         ASSERT_EQ(one.p, all[i].p) << "n " << n << " link " << i << " s " << s;
         ASSERT_EQ(one.q.coeffs(), all[i].q.coeffs()) << "n " << n << " link " << i << " s " << s;
@@ -800,7 +800,7 @@ TEST(MotionTest, CachedSinesAndSegmentsMatchFreshComputationBitForBit) {
           twin[i].q = (twin[0].q * r).normalized();
           twin[i].p = twin[0].p + twin[0].q * c;
         }
-        for (int i = 0; i < 2; ++i) {
+        for (LinkIndex i(0); i < 2; ++i) {
           const LinkPose got = motion.PoseAt(i, s);
           ASSERT_EQ(got.p, twin[i].p) << "trial " << trial << " link " << i << " s " << s;
           ASSERT_EQ(got.q.coeffs(), twin[i].q.coeffs())

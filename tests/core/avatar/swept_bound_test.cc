@@ -47,7 +47,8 @@ Case RandomCase(std::mt19937_64& rng, int num_links, int max_depth) {
       depth[i] = depth[p] + 1;
     }
     links[i].a_L = 0.3 * Eigen::Vector3d(u(rng), u(rng), u(rng));
-    links[i].b_L = unit(rng) < 0.1 ? links[i].a_L : Eigen::Vector3d(0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng));
+    links[i].b_L =
+        unit(rng) < 0.1 ? links[i].a_L : Eigen::Vector3d(0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng));
     links[i].radius = r(rng);
   }
   Case c;
@@ -82,7 +83,7 @@ void CheckEnclosure(uint64_t seed, int cases, int max_links, int max_depth, Moti
       if (k == 1) s1 = s0 + 1e-4 * unit(rng);
       if (s0 > s1) std::swap(s0, s1);
       s1 = std::min(s1, 1.0);
-      const int link = static_cast<int>(rng() % links);
+      const LinkIndex link(static_cast<int>(rng() % links));
       Eigen::Vector3d am, bm, a, b;
       double growth;
       motion.SweptCapsule(link, s0, s1, &am, &bm, &growth);
@@ -127,7 +128,7 @@ TEST(SweptBoundTest, SecondOrderIsTightOnSmallIntervals) {
   std::mt19937_64 rng(14);
   const Case c = RandomCase(rng, 8, 8);
   const PairMotion motion(c.skeleton, c.pose0, c.pose1, MotionModel::kArticulated);
-  for (int link = 0; link < 8; ++link) {
+  for (LinkIndex link(0); link < 8; ++link) {
     Eigen::Vector3d a, b, a0, b0, a1, b1;
     double growth;
     motion.SweptCapsule(link, 0.5, 0.5 + 1e-3, &a, &b, &growth);

@@ -59,7 +59,7 @@ std::string MocapPath(const std::string& file) { return kData + "/mocap/" + file
 // --- Reference (no CcdEngine) -----------------------------------------------
 
 struct RefNearest {
-  bool found = false;        // Some triangle within radius + reach.
+  bool found = false;  // Some triangle within radius + reach.
   double separation = std::numeric_limits<double>::infinity();
   int object = -1;
   uint32_t triangle = 0;
@@ -117,7 +117,7 @@ std::vector<double> SamplesBelow(double end, double near, bool include_end) {
 struct Tally {
   int pairs = 0, contact = 0, free_pairs = 0, initially = 0, onset = 0, undecided = 0;
   int per_link_checked = 0;
-  int64_t cull_round_trips = 0, cull_cleared = 0;  // The backend's culler (GPU).
+  int64_t cull_round_trips = 0, cull_cleared = 0;             // The backend's culler (GPU).
   std::vector<int> witness_objects = std::vector<int>(4, 0);  // Contact pairs per witness object.
   double query_s = 0;
 };
@@ -165,7 +165,8 @@ double LowestPoint(const Skeleton& skel, const Pose& pose, int up) {
 // The lowest point of any capsule along `up` over the clip (the soles).
 double LowestPoint(const MocapClip& clip, int up) {
   double lowest = std::numeric_limits<double>::infinity();
-  for (const Pose& pose : clip.poses) lowest = std::min(lowest, LowestPoint(clip.skeleton, pose, up));
+  for (const Pose& pose : clip.poses)
+    lowest = std::min(lowest, LowestPoint(clip.skeleton, pose, up));
   return lowest;
 }
 
@@ -222,7 +223,8 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
     SCOPED_TRACE(what);
     const auto start = std::chrono::steady_clock::now();
     const QueryResult r = engine.Query(p0, p1, options);
-    local.query_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    local.query_s +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     local.cull_round_trips += r.stats.cull_round_trips;
     local.cull_cleared += r.stats.cull_cleared;
     if (engine.culler() != nullptr) {
@@ -272,7 +274,8 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
     if (r.undecided) continue;  // Only G1 is promised.
     EXPECT_LE((r.s_hi - r.s_lo) * dt_us, eps_us * (1 + 1e-9)) << "G2";
     ASSERT_FALSE(r.contacts.empty()) << "a decided contact without a witness";
-    if (r.contacts[0].object >= 0 && r.contacts[0].object < 4) ++local.witness_objects[r.contacts[0].object];
+    if (r.contacts[0].object >= 0 && r.contacts[0].object < 4)
+      ++local.witness_objects[r.contacts[0].object];
     CheckWitness(env, filter, skel, motion, r.contacts[0], r.s_lo, r.s_hi, options.delta_m,
                  what + " witness");
 
@@ -313,11 +316,12 @@ void CheckClip(const Environment& env, const CollisionFilter& filter, const Moca
       EXPECT_EQ(b->initially_colliding, b->s_lo == 0 && Touches(env, filter, skel, motion, l, 0));
     }
   }
-  std::printf("  %-40s %3d pairs: %3d contact (%3d initially, %3d with s_lo > 0; witness on "
-              "object 0/1: %d/%d), %3d free, %d undecided, %d per-link checked, query %.3f s\n",
-              label.c_str(), local.pairs, local.contact, local.initially, local.onset,
-              local.witness_objects[0], local.witness_objects[1], local.free_pairs,
-              local.undecided, local.per_link_checked, local.query_s);
+  std::printf(
+      "  %-40s %3d pairs: %3d contact (%3d initially, %3d with s_lo > 0; witness on "
+      "object 0/1: %d/%d), %3d free, %d undecided, %d per-link checked, query %.3f s\n",
+      label.c_str(), local.pairs, local.contact, local.initially, local.onset,
+      local.witness_objects[0], local.witness_objects[1], local.free_pairs, local.undecided,
+      local.per_link_checked, local.query_s);
   tally->pairs += local.pairs;
   tally->onset += local.onset;
   tally->contact += local.contact;
@@ -372,10 +376,10 @@ Environment LoadScene(const std::vector<std::string>& files) {
 }
 
 void Report(const char* scene, const Tally& t) {
-  std::printf("%s: %d pairs, %d contact (%d initially colliding, %d with s_lo > 0), %d free, "
-              "%d undecided, query time %.2f s\n",
-              scene, t.pairs, t.contact, t.initially, t.onset, t.free_pairs, t.undecided,
-              t.query_s);
+  std::printf(
+      "%s: %d pairs, %d contact (%d initially colliding, %d with s_lo > 0), %d free, "
+      "%d undecided, query time %.2f s\n",
+      scene, t.pairs, t.contact, t.initially, t.onset, t.free_pairs, t.undecided, t.query_s);
   if (std::string(testing::BackendName()) != "cpu") {
     std::printf("%s, %s backend: %lld culler round trips, %lld intervals cleared\n", scene,
                 testing::BackendName(), static_cast<long long>(t.cull_round_trips),
@@ -419,8 +423,8 @@ TEST(RealDataTest, GreyWhiteRoom) {
     // Every dropping pair shifted so the floor is crossed mid-pair.
     MocapClip clip = LoadClip(file, 'y');
     Place(&clip, up, Vector3d(3.2, 0, -1.2), 0);
-    CheckClip(env, no_filter, clip, 0, 122, std::string(file) + ", floor crossed mid-pair",
-              &tally, Straddle{true, up, 0.0});
+    CheckClip(env, no_filter, clip, 0, 122, std::string(file) + ", floor crossed mid-pair", &tally,
+              Straddle{true, up, 0.0});
   }
   {  // Jumping in the middle of the room; landings reach 5 mm into the floor.
     MocapClip clip = LoadClip("cmu_13_41_jump.bvh.gz", 'y');
@@ -454,8 +458,8 @@ TEST(RealDataTest, MorseApartmentZUp) {
     // Every dropping pair shifted so the ground plane is crossed mid-pair.
     MocapClip clip = LoadClip(file, 'z');
     Place(&clip, up, Vector3d(-0.7, 3.5, 0), ground);
-    CheckClip(env, no_filter, clip, 0, 119, std::string(file) + ", ground crossed mid-pair",
-              &tally, Straddle{true, up, ground});
+    CheckClip(env, no_filter, clip, 0, 119, std::string(file) + ", ground crossed mid-pair", &tally,
+              Straddle{true, up, ground});
   }
   Report("morse_apartment", tally);
 }
@@ -512,8 +516,8 @@ TEST(RealDataTest, DragonInThePath) {
     MocapClip clip = LoadClip("cmu_13_41_jump.bvh.gz", 'y');
     Place(&clip, up, Vector3d(-0.6, 0, 0.9), 0);
     const CollisionFilter no_filter(kMocapNumLinks, env.num_objects());
-    CheckClip(env, no_filter, clip, 0, 91, "jump beside the dragon, floor crossed mid-pair",
-              &tally, Straddle{true, up, 0.0});
+    CheckClip(env, no_filter, clip, 0, 91, "jump beside the dragon, floor crossed mid-pair", &tally,
+              Straddle{true, up, 0.0});
   }
   Report("stanford_dragon_vrip_res2 x8", tally);
 }
@@ -585,7 +589,7 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
       for (int step : {1, 2}) {
         const PairMotion motion(clip.skeleton, clip.poses[k], clip.poses[k + step],
                                 MotionModel::kArticulated);
-        for (int l = 0; l < clip.skeleton.num_links(); ++l) {
+        for (LinkIndex l(0); l < clip.skeleton.num_links(); ++l) {
           Vector3d a, b;
           double growth;
           motion.SweptCapsule(l, 0, 1, &a, &b, &growth);
@@ -599,8 +603,8 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
               const double d = SegmentTriangleDistance(a, b, ta, tb, tc).distance;
               d_min = std::min(d_min, d);
               if (culler != nullptr) return;  // The GPU: asked per capsule below.
-              for (double r : {radius, d, d * (1 - 1e-9), d * (1 + 1e-9), d * (1 - 1e-6),
-                               d * (1 + 1e-6)}) {
+              for (double r :
+                   {radius, d, d * (1 - 1e-9), d * (1 + 1e-9), d * (1 - 1e-6), d * (1 + 1e-6)}) {
                 if (!(r > 0)) continue;
                 const bool got = SegmentTriangleWithin(a, b, ta, tb, tc, r);
                 ++checked;
@@ -610,7 +614,7 @@ TEST(RealDataTest, CandidateTestGivesTheDistancesAnswer) {
                   std::snprintf(buf, sizeof(buf),
                                 "%s pair %zu+%d link %d slot %u: distance %.17g radius %.17g "
                                 "within %d",
-                                c.scene, k, step, l, slot, d, r, got);
+                                c.scene, k, step, l.value(), slot, d, r, got);
                   first = buf;
                 }
               }

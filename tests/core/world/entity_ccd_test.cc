@@ -654,7 +654,7 @@ TEST(EntityCcdLinkBoxes, HoldEverySweptAndInstantBox) {
       if (trial == 1) s0 = 0, s1 = 1;
       if (trial == 2) s0 = 0;
       if (trial == 3) s1 = 1;
-      for (int l = 0; l < n; ++l) {
+      for (LinkIndex l(0); l < n; ++l) {
         Vector3d a, b;
         double g;
         motion.SweptCapsule(l, s0, s1, &a, &b, &g);
@@ -697,8 +697,8 @@ TEST(EntityCcdLinkBoxes, ApartMeansSeparatedAtDenseSamples) {
     motions[1] = &held[1];
     const std::vector<Aabb> boxes0 = LinkSweepBoxes(sk[0], *motions[0], 0.0);
     const std::vector<Aabb> boxes1 = LinkSweepBoxes(sk[1], *motions[1], 0.0);
-    for (int i = 0; i < sk[0].num_links(); ++i) {
-      for (int j = 0; j < sk[1].num_links(); ++j) {
+    for (LinkIndex i(0); i < sk[0].num_links(); ++i) {
+      for (LinkIndex j(0); j < sk[1].num_links(); ++j) {
         if (!BoxesApart(boxes0[i], boxes1[j])) {
           ++near;
           continue;
@@ -726,7 +726,7 @@ TEST(EntityCcdLinkBoxes, ApartMeansSeparatedAtDenseSamples) {
 class WithoutLinkBoxes : public OtherTarget {
  public:
   explicit WithoutLinkBoxes(const OtherTarget& t) : t_(t) {}
-  void RootCandidatesInto(int link_a, std::vector<int>* out) const override {
+  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
     t_.RootCandidatesInto(link_a, out);
   }
   Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
@@ -736,7 +736,7 @@ class WithoutLinkBoxes : public OtherTarget {
             double radius_a, double growth_a, std::vector<int>* cands) const override {
     t_.Cull(p, tau0, tau1, a, b, radius_a, growth_a, cands);
   }
-  bool Nearest(const Piece& p, double tau, int link_a, const Vector3d& a, const Vector3d& b,
+  bool Nearest(const Piece& p, double tau, LinkIndex link_a, const Vector3d& a, const Vector3d& b,
                double radius_a, const std::vector<int>& cands, double search,
                OtherContact* out) const override {
     return t_.Nearest(p, tau, link_a, a, b, radius_a, cands, search, out);
@@ -979,7 +979,7 @@ TEST(EntityCcdCases, AvatarAndObjectTurnAlikeThroughHalfTurns) {
     const PairMotion avatar(skeleton, p0, p1, MotionModel::kIndependent);
     const RigidMotion object(x0, x1);
     for (double s : {0.125, 0.5, 0.75}) {
-      ASSERT_EQ(avatar.PoseAt(0, s).q.coeffs(), object.RotationAt(s).coeffs())
+      ASSERT_EQ(avatar.PoseAt(LinkIndex(0), s).q.coeffs(), object.RotationAt(s).coeffs())
           << "case " << c << " s " << s;
     }
     // And the arc is SPEC 3's (the twin's, which decides the sign near 0 in
@@ -1006,9 +1006,9 @@ TEST(EntityCcdCases, FiltersApplyFromEitherAvatar) {
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t0);
   EXPECT_EQ(t0.contact, 1);
   // B's rule about A's link 0 silences A's answer too.
-  w.rules[1].push_back(EntityRule{0, "a", 0});
+  w.rules[1].push_back(EntityRule{LinkIndex(0), "a", LinkIndex(0)});
   const auto target = MakeAvatarTarget(AvatarOf(w, 0).who, AvatarOf(w, 1));
-  EXPECT_TRUE(target->RootCandidates(0).empty());
+  EXPECT_TRUE(target->RootCandidates(LinkIndex(0)).empty());
   Tally t1;
   CheckPair(w, 0, 1, -1, p0, p1, opt, &t1);
   EXPECT_EQ(t1.free, 1);
@@ -1227,7 +1227,7 @@ TEST(EntityCcdWorld, MotionBoxesHoldDenseSamples) {
     const PairMotion motion(sk, p0, p1, model);
     const Aabb box = AvatarMotionBox(sk, motion);
     for (int i = 0; i <= 400; ++i) {
-      for (int l = 0; l < sk.num_links(); ++l) {
+      for (LinkIndex l(0); l < sk.num_links(); ++l) {
         Vector3d a, b;
         motion.SegmentAt(l, i / 400.0, &a, &b);
         for (int f = 0; f <= 10; ++f) {
