@@ -21,8 +21,10 @@
 
 namespace sweptccd::internal {
 
-JointSet VrmHumanoidJointSet() {
-  namespace a = anthro;
+namespace {
+
+// The bones and their parents ("" for the root), in the specification's order.
+const std::vector<std::pair<std::string, std::string>>& VrmBones() {
   static const std::vector<std::pair<std::string, std::string>> kBones = {
       {"hips", ""},
       {"spine", "hips"},
@@ -80,6 +82,14 @@ JointSet VrmHumanoidJointSet() {
       {"rightLittleIntermediate", "rightLittleProximal"},
       {"rightLittleDistal", "rightLittleIntermediate"},
   };
+  return kBones;
+}
+
+}  // namespace
+
+JointSet VrmHumanoidJointSet() {
+  namespace a = anthro;
+  const std::vector<std::pair<std::string, std::string>>& kBones = VrmBones();
   JointSetBuilder b("vrm-humanoid", "VRM 1.0 humanoid",
                     "https://github.com/vrm-c/vrm-specification "
                     "specification/VRMC_vrm-1.0/humanoid.md",
