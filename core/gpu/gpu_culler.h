@@ -7,10 +7,11 @@
 #include <memory>
 #include <vector>
 
+#include "core/gpu/gl_context.h"
+#include "core/gpu/transfer.h"
 #include "core/query/capsule_culler.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
-#include "core/gpu/gl_context.h"
 
 namespace sweptccd::gpu {
 
@@ -18,8 +19,13 @@ namespace sweptccd::gpu {
 /// after construction; shared by every culler (client) that tests against it.
 class GpuEnvironment {
  public:
-  /// Uploads every object's hierarchy and triangles. Throws GpuError.
-  GpuEnvironment(std::shared_ptr<GlContext> context, const Environment& environment);
+  /// Uploads every object's hierarchy and triangles and makes the
+  /// swept-volume test's program and buffers; `transfer` says how capsules
+  /// and answers cross (kBest: persistent mapped buffers with a fence where
+  /// the context has them, else read-back; see core/gpu/cull_dispatch.h).
+  /// Throws GpuError.
+  GpuEnvironment(std::shared_ptr<GlContext> context, const Environment& environment,
+                 Transfer transfer = Transfer::kBest);
   /// Frees the buffers on the context's owner thread.
   ~GpuEnvironment();
   GpuEnvironment(const GpuEnvironment&) = delete;
@@ -28,6 +34,8 @@ class GpuEnvironment {
   GlContext& context() const { return *context_; }
   int num_objects() const { return num_objects_; }
   size_t uploaded_bytes() const { return uploaded_bytes_; }
+  /// How capsules and answers cross: kReadBack or kPersistent.
+  Transfer transfer() const { return transfer_; }
 
   struct Buffers;  // GL names; private to core/gpu.
   const Buffers& buffers() const { return *buffers_; }
@@ -37,6 +45,7 @@ class GpuEnvironment {
   std::unique_ptr<Buffers> buffers_;
   int num_objects_ = 0;
   size_t uploaded_bytes_ = 0;
+  Transfer transfer_ = Transfer::kReadBack;
 };
 
 /// CapsuleCuller on the GPU for one skeleton's links and one collision filter.
