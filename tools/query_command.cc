@@ -107,6 +107,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
+    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

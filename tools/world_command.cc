@@ -106,6 +106,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} records", records);
+    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

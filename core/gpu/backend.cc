@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
+
 #include "core/errors.h"
 #include "core/gpu/backend_calibration.h"
 #include "core/gpu/gpu_culler.h"
@@ -102,6 +104,33 @@ std::string Backend::State() const {
 }
 
 std::string Backend::renderer() const { return gpu() ? context_->info().renderer : std::string(); }
+
+DispatchStats Backend::dispatch_stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  DispatchStats total;
+  for (const auto& [id, upload] : uploaded_) {
+    const DispatchStats s = upload->dispatch_stats();
+    total.dispatches += s.dispatches;
+    total.requests += s.requests;
+    total.capsules += s.capsules;
+    total.largest = std::max(total.largest, s.largest);
+    total.most_requests = std::max(total.most_requests, s.most_requests);
+  }
+  return total;
+}
+
+std::string Backend::DispatchSummary() const {
+  const DispatchStats s = dispatch_stats();
+  char line[256];
+  std::snprintf(line, sizeof(line),
+                "%lld dispatches, %lld requests, %lld capsules (%.1f per dispatch, largest %lld; "
+                "up to %lld requests in one)",
+                static_cast<long long>(s.dispatches), static_cast<long long>(s.requests),
+                static_cast<long long>(s.capsules),
+                s.dispatches > 0 ? static_cast<double>(s.capsules) / s.dispatches : 0.0,
+                static_cast<long long>(s.largest), static_cast<long long>(s.most_requests));
+  return line;
+}
 
 void Backend::Attach(CcdEngine* engine) {
   SWEPTCCD_CHECK(!auto_pending_);  // ResolveAuto first (backend.h).

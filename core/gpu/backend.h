@@ -9,8 +9,9 @@
 #include <optional>
 #include <string>
 
-#include "core/query/ccd_query.h"
 #include "core/gpu/gl_context.h"
+#include "core/gpu/gpu_culler.h"
+#include "core/query/ccd_query.h"
 
 namespace sweptccd::gpu {
 
@@ -34,7 +35,7 @@ const char* BackendKindName(BackendKind kind);
 
 struct BackendOptions {
   BackendKind backend = BackendKind::kAuto;
-  int device_index = -1;         // EGL device to use; -1: the first that works.
+  int device_index = -1;          // EGL device to use; -1: the first that works.
   bool require_hardware = false;  // gpu and auto: refuse software renderers.
 };
 
@@ -76,6 +77,13 @@ class Backend {
   /// The GPU renderer, empty on the CPU.
   std::string renderer() const;
   std::shared_ptr<GlContext> context() const { return context_; }
+
+  /// The GPU's dispatches so far over the kept uploads (every engine and
+  /// thread; zeros on the CPU), and one line saying them: "N dispatches, R
+  /// requests, C capsules (C/N per dispatch, largest L; up to M requests in
+  /// one)".
+  DispatchStats dispatch_stats() const;
+  std::string DispatchSummary() const;
 
   /// Gives `engine` the GPU swept-volume test. Its environment is uploaded
   /// once and stays resident while an engine uses it (later engines on the

@@ -9,6 +9,7 @@
 #include <limits>
 #include <mutex>
 
+#include "core/gpu/cull_combiner.h"
 #include "core/gpu/cull_dispatch.h"
 #include "core/gpu/gl_api.h"
 
@@ -59,6 +60,8 @@ struct GpuEnvironment::Buffers {
   GLuint nodes = 0, tris = 0, objects = 0;
   // The program, the filters' masks and the capsule buffers (owner thread).
   std::unique_ptr<internal::CullDispatch> dispatch;
+  // Every culler's requests, from every thread, coalesced into dispatches.
+  std::unique_ptr<internal::CullCombiner> combiner;
 };
 
 GpuEnvironment::GpuEnvironment(std::shared_ptr<GlContext> context, const Environment& environment,
@@ -126,8 +129,15 @@ GpuEnvironment::GpuEnvironment(std::shared_ptr<GlContext> context, const Environ
         transfer);
     transfer_ = b.dispatch->transfer();
   });
+  b.combiner = std::make_unique<internal::CullCombiner>(context_.get(), b.dispatch.get());
   spdlog::info("GPU: environment resident, {} objects, {:.1f} MiB; capsules cross by {}",
                num_objects_, uploaded_bytes_ / 1048576.0, TransferName(transfer_));
+}
+
+DispatchStats GpuEnvironment::dispatch_stats() const { return buffers_->combiner->stats(); }
+
+void GpuEnvironment::SetGather(int requests, std::chrono::microseconds window) const {
+  buffers_->combiner->SetGather(requests, window);
 }
 
 GpuEnvironment::~GpuEnvironment() {
@@ -205,10 +215,10 @@ bool GpuCuller::Cull(const std::vector<LinkCapsule>& capsules,
     upload[i] = ToGpu(c);
   }
   for (GpuCapsule& g : upload) g.meta[1] = s.masks_offset;
-  internal::CullDispatch& dispatch = *env_->buffers().dispatch;
   std::vector<uint32_t> answers(upload.size());
   try {
-    env_->context().Run([&] { dispatch.Run(upload.data(), upload.size(), answers.data()); });
+    // With the requests of every other thread asking meanwhile: one dispatch.
+    env_->buffers().combiner->Cull(upload.data(), upload.size(), answers.data());
     for (size_t i = 0; i < upload.size(); ++i) {
       (*may_touch)[i] = answers[i] == kClearedAnswer && !unusable[i] ? 0 : 1;
     }

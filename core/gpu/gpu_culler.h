@@ -4,6 +4,8 @@
 // tolerances, so that it only ever clears what is provably separated (see
 // docs/GPU.md). The environment is uploaded once and stays resident.
 
+#include <chrono>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -14,6 +16,15 @@
 #include "core/scene/environment.h"
 
 namespace sweptccd::gpu {
+
+/// Dispatches of one resident environment (all cullers on it, all threads).
+struct DispatchStats {
+  int64_t dispatches = 0;     // Compute dispatches (round trips to the GPU).
+  int64_t requests = 0;       // Cull calls answered (the queries' round trips).
+  int64_t capsules = 0;       // Capsules tested.
+  int64_t largest = 0;        // Most capsules in one dispatch.
+  int64_t most_requests = 0;  // Most requests in one dispatch.
+};
 
 /// An environment's BVH nodes and triangles held in GPU buffers. Immutable
 /// after construction; shared by every culler (client) that tests against it.
@@ -36,6 +47,12 @@ class GpuEnvironment {
   size_t uploaded_bytes() const { return uploaded_bytes_; }
   /// How capsules and answers cross: kReadBack or kPersistent.
   Transfer transfer() const { return transfer_; }
+  /// The dispatches so far: every culler on this environment, every thread
+  /// (their requests are coalesced, core/gpu/cull_combiner.h).
+  DispatchStats dispatch_stats() const;
+  /// The thread that dispatches first waits until `requests` requests are
+  /// queued or `window` passed (default 1: never waits). Thread-safe.
+  void SetGather(int requests, std::chrono::microseconds window) const;
 
   struct Buffers;  // GL names; private to core/gpu.
   const Buffers& buffers() const { return *buffers_; }
@@ -61,7 +78,9 @@ class GpuCuller : public CapsuleCuller {
   bool Cull(const std::vector<LinkCapsule>& capsules,
             std::vector<uint8_t>* may_touch) const override;
 
-  /// Round trips made and capsules tested so far (all threads).
+  /// Requests answered (Cull calls that reached the GPU; several threads'
+  /// requests may share one dispatch: GpuEnvironment::dispatch_stats) and
+  /// capsules tested so far (all threads).
   int64_t round_trips() const;
   int64_t capsules_tested() const;
 

@@ -36,6 +36,14 @@ std::vector<std::string> WithoutElapsed(const std::string& text) {
   return out;
 }
 
+// Also without "stats" (a GPU record counts its round trips there).
+std::vector<std::string> WithoutTiming(const std::string& text) {
+  static const std::regex stats("\"stats\":\\{[^}]*\\}");
+  std::vector<std::string> out = WithoutElapsed(text);
+  for (std::string& line : out) line = std::regex_replace(line, stats, "\"stats\":{}");
+  return out;
+}
+
 int Count(const std::vector<std::string>& lines, const std::string& what) {
   int n = 0;
   for (const std::string& l : lines) n += l.find(what) != std::string::npos;
@@ -127,6 +135,33 @@ TEST_F(ThreadsCommandTest, WorldRecordsAreTheSameForAnyThreadCount) {
     ASSERT_TRUE(n.exited && n.code == 0) << n.Describe();
     EXPECT_EQ(WithoutElapsed(n.out), a) << "--threads " << threads;
   }
+}
+
+// Issue 30: the GPU backend (llvmpipe here) with several threads, their
+// swept tests coalesced into shared dispatches, gives the CPU's records with
+// one thread, for pairs and for a shared world.
+TEST_F(ThreadsCommandTest, GpuWithThreadsGivesTheCpuRecords) {
+  Import("boxing_toes.bvh.gz");
+  const std::string env = "morse_apartment.ply.gz";
+  const std::string gpu = Query(env, {"--backend", "gpu", "--threads", "4"});
+  EXPECT_NE(gpu.find("gpu_round_trips"), std::string::npos) << "the GPU never ran";
+  const std::vector<std::string> cpu =
+      WithoutTiming(Query(env, {"--backend", "cpu", "--threads", "1"}));
+  EXPECT_GE(Count(cpu, "\"contact\""), 20);
+  EXPECT_EQ(WithoutTiming(gpu), cpu);
+  EXPECT_EQ(WithoutTiming(Query(env, {"--backend", "gpu", "--threads", "3", "--per-link"})),
+            WithoutTiming(Query(env, {"--backend", "cpu", "--threads", "1", "--per-link"})));
+
+  const RunResult gen = Run({"world-bench", "--out", Path("w"), "--avatars", "4", "--objects", "2",
+                             "--seconds", "1", "--generate-only"});
+  ASSERT_TRUE(gen.exited && gen.code == 0) << gen.Describe();
+  const std::string world = Path("w/world.json");
+  const RunResult c = Run({"world", "--world", world, "--backend", "cpu", "--threads", "1"});
+  const RunResult g = Run({"world", "--world", world, "--backend", "gpu", "--threads", "4"});
+  ASSERT_TRUE(c.exited && c.code == 0) << c.Describe();
+  ASSERT_TRUE(g.exited && g.code == 0) << g.Describe();
+  EXPECT_NE(g.err.find("backend gpu"), std::string::npos) << g.err;
+  EXPECT_EQ(WithoutTiming(g.out), WithoutTiming(c.out));
 }
 
 }  // namespace

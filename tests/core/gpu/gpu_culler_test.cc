@@ -11,6 +11,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -359,6 +360,59 @@ TEST(GpuCullerTest, BothTransfersAndSharedMaskTablesGiveTheSameAnswers) {
     by_transfer[t] = answers;
   }
   EXPECT_EQ(by_transfer[0], by_transfer[1]);
+}
+
+// Issue 30: requests from many threads and several cullers (different
+// filters) on one environment are coalesced into shared dispatches, and
+// each caller gets exactly the answers it gets alone. The first round waits
+// (SetGather) until all eight threads have asked: one dispatch serves them.
+TEST(GpuCullerTest, CoalescedRequestsGiveEachCallerItsOwnAnswers) {
+  Rng rng(3031);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 300, 1.5), "soup0");
+  f.env.AddMesh(Soup(rng, Vector3d(0.3, 0, 0), 300, 1.5), "soup1");
+  CollisionFilter some(f.num_links, 2);
+  some.Ignore(LinkIndex(0), ObjectIndex(1));
+  some.Ignore(LinkIndex(2), kAllObjects);
+  auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env);
+  const GpuCuller plain(gpu_env, CollisionFilter(f.num_links, 2), f.num_links);
+  const GpuCuller filtered(gpu_env, some, f.num_links);
+  constexpr int kThreads = 8, kRounds = 25;
+  std::vector<std::vector<LinkCapsule>> caps(kThreads);
+  std::vector<std::vector<uint8_t>> alone(kThreads);
+  for (int t = 0; t < kThreads; ++t) {
+    for (int i = 0; i < 20 + 37 * t; ++i) {
+      caps[t].push_back(
+          LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
+    }
+    ASSERT_TRUE((t % 2 ? filtered : plain).Cull(caps[t], &alone[t]));
+  }
+  const DispatchStats before = gpu_env->dispatch_stats();
+  EXPECT_EQ(before.dispatches, kThreads);  // One by one: nothing to share.
+  gpu_env->SetGather(kThreads, std::chrono::seconds(20));
+  std::vector<int> wrong(kThreads, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      std::vector<uint8_t> answer;
+      for (int k = 0; k < kRounds; ++k) {
+        if (!(t % 2 ? filtered : plain).Cull(caps[t], &answer) || answer != alone[t]) ++wrong[t];
+        if (k == 0 && t == 0) gpu_env->SetGather(1, std::chrono::microseconds(0));
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (int t = 0; t < kThreads; ++t) EXPECT_EQ(wrong[t], 0) << "thread " << t;
+  const DispatchStats after = gpu_env->dispatch_stats();
+  int64_t capsules = 0;
+  for (const auto& c : caps) capsules += static_cast<int64_t>(c.size()) * kRounds;
+  EXPECT_EQ(after.requests - before.requests, kThreads * kRounds);
+  EXPECT_EQ(after.capsules - before.capsules, capsules);
+  EXPECT_EQ(after.most_requests, kThreads);  // The gathered first round.
+  EXPECT_LT(after.dispatches - before.dispatches, kThreads * kRounds);
+  EXPECT_EQ(plain.round_trips() + filtered.round_trips(), kThreads * (kRounds + 1));
+  std::printf("%d threads x %d requests: %lld dispatches\n", kThreads, kRounds,
+              static_cast<long long>(after.dispatches - before.dispatches));
 }
 
 // A lost context: the culler logs once and answers false; queries continue on
