@@ -48,7 +48,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     CcdEngine engine(skeleton, env, std::move(scene->filter));
     // The backend: says on stderr which it picked and why (a GPU that cannot
     // be had is logged and the CPU answers).
-    gpu::Backend backend(options.backend.Options());
+    gpu::BackendOptions backend_options = options.backend.Options();
+    backend_options.threads = options.threads;  // auto: calibrated on a batch of that many.
+    gpu::Backend backend(backend_options);
     // auto: a short calibration on this scene and skeleton picks the faster.
     backend.ResolveAuto(env, &skeleton, &engine.filter(), options.query);
     if (options.backend.backend != gpu::BackendKind::kCpu) {

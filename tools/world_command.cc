@@ -39,7 +39,9 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     }
     // The static-environment part runs on the chosen backend; the parts
     // between entities run on the CPU under every backend (same answers).
-    gpu::Backend backend(options.backend.Options());
+    gpu::BackendOptions backend_options = options.backend.Options();
+    backend_options.threads = options.threads;  // auto: calibrated on a batch of that many.
+    gpu::Backend backend(backend_options);
     // auto: calibrated with the first avatar's engine (the one-capsule
     // calibration skeleton when the world has no avatar).
     const CcdEngine* first = nullptr;

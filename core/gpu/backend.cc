@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cstdio>
 
 #include "core/errors.h"
@@ -29,7 +30,7 @@ const char* BackendKindName(BackendKind kind) {
   return "auto";  // Not reached: every enumerator is handled above.
 }
 
-Backend::Backend(const BackendOptions& options) {
+Backend::Backend(const BackendOptions& options) : threads_(std::max(1, options.threads)) {
   const bool automatic = options.backend == BackendKind::kAuto;
   if (options.backend == BackendKind::kCpu) {
     reason_ = "cpu (requested)";
@@ -75,12 +76,22 @@ void Backend::ResolveAuto(const Environment& environment, const Skeleton* skelet
     uploaded_.clear();
     return;
   }
+  // Per pair, or (a caller with several workers) per pair of a batch
+  // answered by that many workers, the GPU's requests sharing dispatches.
+  size_t batch = 0;
   const CalibrationTimes times =
-      TimeBackends(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options);
+      threads_ > 1
+          ? TimeBackendsBatched(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options,
+                                threads_, CalibrationBudget(), &batch)
+          : TimeBackends(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options);
   const AutoChoice choice = ChooseFaster(times.cpu_us, times.gpu_us);
   auto_figures_ = "auto: " + DescribeFigures(choice);
-  const std::string how = auto_figures_ + ", medians of " + std::to_string(times.cpu_us.size()) +
-                          " timed pairs each; " + renderer;
+  const std::string samples = threads_ > 1
+                                  ? " timed batches of " + std::to_string(batch) + " pairs on " +
+                                        std::to_string(threads_) + " threads each; "
+                                  : " timed pairs each; ";
+  const std::string how =
+      auto_figures_ + ", medians of " + std::to_string(times.cpu_us.size()) + samples + renderer;
   if (choice.kind == BackendKind::kGpu) {
     reason_ = "gpu (" + how + ")";
     return;

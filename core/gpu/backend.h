@@ -37,6 +37,9 @@ struct BackendOptions {
   BackendKind backend = BackendKind::kAuto;
   int device_index = -1;          // EGL device to use; -1: the first that works.
   bool require_hardware = false;  // gpu and auto: refuse software renderers.
+  /// Pairs the caller answers at once (`--threads`): auto calibrates on a
+  /// batch answered by this many workers when > 1 (TimeBackendsBatched).
+  int threads = 1;
 };
 
 class Backend {
@@ -96,6 +99,7 @@ class Backend {
   std::shared_ptr<GlContext> context_;
   std::string reason_;
   bool auto_pending_ = false;  // auto with a context, not yet resolved.
+  int threads_ = 1;            // BackendOptions::threads.
   std::string auto_figures_;   // "auto: cpu 41 us, gpu 380 us per pair" once resolved.
   mutable std::mutex mutex_;
   // The latest uploads by Environment::content_id() (an address can be
