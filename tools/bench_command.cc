@@ -21,6 +21,7 @@
 #include "mocap/mocap_import.h"
 #include "msgs/text.h"
 #include "tools/bench_common.h"
+#include "tools/bench_sweep.h"
 #include "tools/bullet_peer.h"
 
 namespace sweptccd {
@@ -57,6 +58,15 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
       ->check(CLI::IsMember({"gpu", "hardware", "off"}));
   app->add_option("--gpu-device", o->gpu_device, "EGL device index for the GPU backend");
   app->add_option("--markdown", o->markdown_path, "Also write the tables as Markdown");
+  app->add_flag("--sweep", o->sweep,
+                "Batch-size sweep instead of the per-pair table: pairs/s and latency per batch "
+                "for the CPU on 1 thread, on --threads threads, and the GPU (bench_sweep.h)");
+  app->add_option("--sweep-sizes", o->sweep_sizes, "Pairs per batch (default 1 16 64 256 4096)")
+      ->check(CLI::Range(1, 1000000));
+  app->add_option("--threads", o->threads,
+                  "Workers of the sweep's all-threads methods (default: the number of cores, " +
+                      std::to_string(o->threads) + ")")
+      ->check(CLI::Range(1, 1024));
   app->add_option("--max-mesh-bytes", o->mesh.max_bytes,
                   "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
       ->check(CLI::PositiveNumber);
@@ -352,6 +362,34 @@ std::string FormatTable(const std::vector<Row>& rows, bool markdown) {
 
 }  // namespace
 
+namespace {
+
+// A clip of `scene`, resampled to `rate_hz` by frame skipping and stood on
+// the scene's floor.
+MocapClip LoadClip(const std::string& dir, const std::string& clip_name, const SceneSpec& scene,
+                   double rate_hz) {
+  MocapImportOptions mo;
+  mo.up_axis = scene.up;
+  MocapClip clip = ImportBvhFile(DataFile(dir + "/mocap/" + clip_name), mo);
+  const int step = std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s * rate_hz))));
+  std::vector<Pose> poses;
+  for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
+  clip.poses = poses;
+  bench::PlaceClipOnFloor(&clip, scene.up, scene.floor, scene.centre);
+  return clip;
+}
+
+QueryOptions BenchQueryOptions(const BenchCommandOptions& options) {
+  QueryOptions q;
+  q.eps_s = options.eps_s;
+  q.delta_m = options.delta_m;
+  q.motion = *ParseMotionModel(options.motion);
+  q.per_link = options.per_link;
+  return q;
+}
+
+}  // namespace
+
 int RunBenchCommand(const BenchCommandOptions& options) {
   try {
     g_thread_clock = options.clock == "thread";
@@ -381,6 +419,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       if (!gpu_backend->gpu()) gpu_backend.reset();
     }
     std::vector<Row> rows;
+    std::vector<bench::SweepRow> sweep_rows;
     for (const SceneSpec& scene : scenes) {
       if (!options.scenes.empty() && std::find(options.scenes.begin(), options.scenes.end(),
                                                scene.name) == options.scenes.end()) {
@@ -395,6 +434,27 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       for (size_t k = 0; k < meshes.size(); ++k) env.AddMesh(meshes[k], scene.meshes[k].file);
       const double build_s = Seconds(t0, Clock::now());
       const long rss1 = ResidentKiB();
+      if (options.sweep) {  // Batches instead of the per-pair table (bench_sweep.h).
+        std::vector<MocapClip> clips;
+        std::vector<bench::SweepClip> sweep_clips;
+        for (const std::string& clip_name : options.clips) {
+          clips.push_back(LoadClip(dir, clip_name, scene, options.rate_hz));
+        }
+        for (const MocapClip& clip : clips) {
+          sweep_clips.push_back(
+              {&clip.skeleton, &clip.poses,
+               std::min<int>(options.max_pairs, static_cast<int>(clip.poses.size()) - 1)});
+        }
+        bench::SweepOptions so;
+        so.batch_sizes = options.sweep_sizes;
+        so.threads = options.threads;
+        so.query = BenchQueryOptions(options);
+        const std::vector<bench::SweepRow> rows =
+            bench::RunSweep(scene.name, env, sweep_clips, so, gpu_backend.get());
+        sweep_rows.insert(sweep_rows.end(), rows.begin(), rows.end());
+        std::fprintf(stderr, "%s: sweep done\n", scene.name.c_str());
+        continue;
+      }
       std::unique_ptr<FclPeer> fcl;
       std::unique_ptr<BulletPeer> bullet;
       if (options.peers) {
@@ -405,25 +465,12 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       std::vector<double> all_ours, all_theirs, all_gpu, all_bullet, all_fcl_ccd;
       const bool fcl_ccd = fcl && options.fcl_ccd;
       for (const std::string& clip_name : options.clips) {
-        MocapImportOptions mo;
-        mo.up_axis = scene.up;
-        MocapClip clip = ImportBvhFile(DataFile(dir + "/mocap/" + clip_name), mo);
-        // Resample to the tracker rate by frame skipping.
-        const int step =
-            std::max(1, static_cast<int>(std::lround(1.0 / (clip.frame_time_s * options.rate_hz))));
-        std::vector<Pose> poses;
-        for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
-        clip.poses = poses;
-        bench::PlaceClipOnFloor(&clip, scene.up, scene.floor, scene.centre);
+        MocapClip clip = LoadClip(dir, clip_name, scene, options.rate_hz);
         const CcdEngine engine(clip.skeleton, env);
         CcdEngine gpu_engine(clip.skeleton, env);
         if (gpu_backend) gpu_backend->Attach(&gpu_engine);
         const bool with_gpu = gpu_engine.culler() != nullptr;
-        QueryOptions q;
-        q.eps_s = options.eps_s;
-        q.delta_m = options.delta_m;
-        q.motion = *ParseMotionModel(options.motion);
-        q.per_link = options.per_link;
+        const QueryOptions q = BenchQueryOptions(options);
         Row row;
         row.scene = scene.name;
         row.clip = clip_name;
@@ -518,6 +565,26 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       all_row.bullet_us = Summarise(all_bullet);
       all_row.fcl_ccd_us = Summarise(all_fcl_ccd);
       rows.push_back(all_row);
+    }
+    if (options.sweep) {
+      std::printf(
+          "SweptCCD bench --sweep: %g Hz, eps %g s, delta %g m, motion %s%s; batches of pairs, "
+          "each answered by the CPU backend on 1 thread, the CPU backend on %d threads and the "
+          "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
+          "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
+          "batches; differ: pairs whose answer differs between the methods (must be 0); "
+          "dispatches: the GPU's, shared by the workers' requests\n\n",
+          options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
+          options.per_link ? ", per-link" : "", options.threads, options.threads,
+          gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
+      const std::string table = bench::FormatSweep(sweep_rows, true);
+      std::fputs(table.c_str(), stdout);
+      if (!options.markdown_path.empty()) {
+        std::ofstream md(options.markdown_path);
+        md << table;
+        if (!md) throw InputError(options.markdown_path + ": cannot write the Markdown table");
+      }
+      return 0;
     }
     std::printf(
         "SweptCCD bench: %g Hz, eps %g s, delta %g m, motion %s%s, %d warm-up pairs, "

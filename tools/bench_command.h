@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "core/geometry/mesh.h"
+#include "core/worker_pool.h"
 
 namespace CLI {
 class App;
@@ -21,7 +22,7 @@ struct BenchCommandOptions {
                                     "cmu_01_03_playground_climb_hang_swing.bvh",
                                     "boxing_toes.bvh"};
   std::vector<std::string> scenes;  // --scene: only these scenes (default all).
-  int max_pairs = 1000;  // Per scene and clip.
+  int max_pairs = 1000;             // Per scene and clip.
   double rate_hz = 30;
   double eps_s = 1e-4;
   double delta_m = 1e-3;
@@ -43,6 +44,9 @@ struct BenchCommandOptions {
   int gpu_device = -1;
   std::string markdown_path;  // Also write the table as Markdown here.
   MeshLoadOptions mesh;       // --max-mesh-bytes.
+  bool sweep = false;         // --sweep: the batch-size sweep (tools/bench_sweep.h).
+  std::vector<int> sweep_sizes = {1, 16, 64, 256, 4096};
+  int threads = DefaultThreadCount();  // --threads: the sweep's workers.
 };
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* options);

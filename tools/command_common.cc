@@ -37,6 +37,13 @@ void AddMaxLinksFlag(CLI::App* app, int* max_links) {
       ->check(CLI::PositiveNumber);
 }
 
+void AddThreadsFlag(CLI::App* app, int* threads) {
+  app->add_option("--threads", *threads,
+                  "Worker threads answering the pairs (default: the number of cores, " +
+                      std::to_string(*threads) + "); the records are the same for any number")
+      ->check(CLI::Range(1, kMaxThreads));
+}
+
 ResultsOutput::ResultsOutput(const std::string& path, const std::vector<NamedPath>& inputs)
     : path_(path), out_(&std::cout) {
   RefuseClashingPaths(inputs, {{"--output", path}});

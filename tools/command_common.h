@@ -1,6 +1,6 @@
 #pragma once
 // What `sweptccd query` and `sweptccd world` share, one place per rule: the
-// backend flags (--backend, --gpu-device, --require-hardware), --max-links,
+// backend flags (--backend, --gpu-device, --require-hardware), --max-links, --threads,
 // and the results output (refused when it names an input file).
 
 #include <CLI/CLI.hpp>
@@ -30,6 +30,13 @@ void AddBackendFlags(CLI::App* app, BackendFlags* flags, const std::string& back
 
 /// Adds --max-links (a positive count: the largest skeleton read).
 void AddMaxLinksFlag(CLI::App* app, int* max_links);
+
+/// The most worker threads --threads accepts.
+constexpr int kMaxThreads = 1024;
+
+/// Adds --threads (worker threads answering the pairs, 1 to kMaxThreads;
+/// *threads should hold the default, DefaultThreadCount()).
+void AddThreadsFlag(CLI::App* app, int* threads);
 
 /// Where a command writes its results (--output): standard output for an
 /// empty path, else the file. The constructor refuses (InputError) an output

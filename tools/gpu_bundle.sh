@@ -3,8 +3,12 @@
 # not Debian's packages (a rented GPU host, a container with the driver
 # mounted): the stripped binaries, every shared library they link except
 # glibc's own (libc, libm, the loader), which the host's newer glibc serves,
-# and a script that runs the GPU suites, `sweptccd bench --gpu hardware` and
-# `--backend auto` on every bundled scene there. The GL vendor library comes
+# and a script that runs the GPU suites, the round-trip micro-benchmark
+# (read-back against persistent mapped buffers), `sweptccd bench --sweep`
+# (batches of 1 to 4,096 pairs: CPU on 1 and on all threads, GPU on all
+# threads, one run), `sweptccd bench --gpu hardware` and `--backend auto` on
+# every bundled scene there, and the records of `--backend gpu --threads
+# $(nproc)` against `--backend cpu --threads 1`. The GL vendor library comes
 # from the host's driver (glvnd's EGL vendor file of NVIDIA, found under
 # /usr/local/nvidia or /usr/share/glvnd).
 #
@@ -20,7 +24,9 @@ out=${2:-.gpu}
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/lib"
 tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test"
-for b in sweptccd $tests; do strip -o "$out/bin/$b" "$build/bin/$b"; done
+for b in sweptccd sweptccd_gpu_roundtrip_bench $tests; do
+  strip -o "$out/bin/$b" "$build/bin/$b"
+done
 ldd "$out"/bin/* | awk '/=>/ { print $3 }' | sort -u |
   grep -v -E '/(libc|libm|ld-linux[^/]*)\.so' | xargs -I{} cp -L {} "$out/lib/"
 tar -C "$out" -cJf "$out/lib.tar.xz" lib
@@ -67,6 +73,17 @@ for t in gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu
 done
 wait
 cat /tmp/gpu_bundle_*_test.log > "$results/tests.txt"
+# One round trip (issue 30): read-back against persistent mapped buffers and
+# a fence, 1 to 4,096 capsules, a small scene and the 0.9 M-triangle dragon.
+for e in morse_apartment.ply.gz stanford_dragon_vrip.ply.gz; do
+  timeout 60 "$B/sweptccd_gpu_roundtrip_bench" --env "data/env/$e" --seconds 0.3
+  echo "exit $?"
+done > "$results/roundtrip.txt" 2>&1
+# Batches of pairs (issue 30): pairs/s and latency per batch for the CPU on
+# 1 thread, the CPU on every core and the GPU on every core, in one run.
+timeout 240 "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --sweep \
+  --threads "$(nproc)" --markdown "$results/sweep.md" > "$results/sweep.txt" 2>&1
+echo "exit $?" >> "$results/sweep.txt"
 # The bench alone: the CPU and GPU backends on the same pairs, wall clock.
 timeout 150 "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \
   --markdown "$results/bench.md" > "$results/bench.txt" 2>&1
@@ -81,10 +98,16 @@ for e in morse_apartment.ply.gz bitterli_breakfast_room.ply.gz \
   q=("$B/sweptccd" query --skeleton "$bundle/walk_skel.json" --poses "$bundle/walk_poses.jsonl"
     --env "data/env/$e")
   timeout 40 "${q[@]}" --backend auto --output /dev/null 2>&1 | grep 'backend'
-  timeout 40 "${q[@]}" --backend cpu 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_cpu
+  timeout 40 "${q[@]}" --backend cpu --threads 1 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_cpu
   timeout 40 "${q[@]}" --backend gpu 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu
   echo "records: cpu $(wc -l < /tmp/gpu_bundle_cpu), gpu $(wc -l < /tmp/gpu_bundle_gpu)," \
     "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu | grep -c '^>')"
+  # The GPU with every core's worker (requests coalesced), logged dispatches.
+  timeout 40 "${q[@]}" --backend gpu --threads "$(nproc)" --log-level info 2> /tmp/gpu_bundle_log |
+    sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu_threads
+  grep -E 'dispatches|capsules cross' /tmp/gpu_bundle_log
+  echo "records: gpu --threads $(nproc) $(wc -l < /tmp/gpu_bundle_gpu_threads)," \
+    "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu_threads | grep -c '^>')"
 done > "$results/auto.txt" 2>&1
 EOF
 chmod +x "$out/run.sh"

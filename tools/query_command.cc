@@ -48,7 +48,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     CcdEngine engine(skeleton, env, std::move(scene->filter));
     // The backend: says on stderr which it picked and why (a GPU that cannot
     // be had is logged and the CPU answers).
-    gpu::Backend backend(options.backend.Options());
+    gpu::BackendOptions backend_options = options.backend.Options();
+    backend_options.threads = options.threads;  // auto: calibrated on a batch of that many.
+    gpu::Backend backend(backend_options);
     // auto: a short calibration on this scene and skeleton picks the faster.
     backend.ResolveAuto(env, &skeleton, &engine.filter(), options.query);
     if (options.backend.backend != gpu::BackendKind::kCpu) {
@@ -56,24 +58,50 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     backend.Attach(&engine);
     PoseStreamReader reader(poses, skeleton.num_links());
+    // The pairs are read in chunks; a chunk's valid pairs are answered by the
+    // workers (each into its own slot), then written in input order, so the
+    // records are the same for any --threads (elapsed_us aside).
+    WorkerPool pool(options.threads);
+    const size_t chunk = 64 * static_cast<size_t>(pool.size());
+    std::vector<PairOutcome> outcomes;
+    std::vector<std::string> lines;
     int64_t pairs = 0, invalid = 0, contacts = 0;
-    while (std::optional<PairOutcome> outcome = reader.Next()) {
-      if (!outcome->valid) {
-        ++invalid;
-        *out << InvalidResultToJson(outcome->pair, outcome->utime0, outcome->utime1, outcome->error)
-             << '\n';
-        continue;
+    for (bool more = true; more;) {
+      outcomes.clear();
+      while (outcomes.size() < chunk) {
+        std::optional<PairOutcome> outcome = reader.Next();
+        if (!outcome) {
+          more = false;
+          break;
+        }
+        outcomes.push_back(std::move(*outcome));
       }
-      const auto start = std::chrono::steady_clock::now();
-      const QueryResult result = engine.Query(outcome->pose0, outcome->pose1, options.query);
-      const double elapsed_us =
-          std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
-              .count();
-      ++pairs;
-      contacts += result.contact;
-      *out << ResultToJson(outcome->pair, outcome->pose0.utime, outcome->pose1.utime, result,
-                           options.query.per_link, elapsed_us)
-           << '\n';
+      lines.assign(outcomes.size(), std::string());
+      std::vector<uint8_t> contact(outcomes.size(), 0);
+      pool.Run(outcomes.size(), [&](size_t i, int) {
+        const PairOutcome& o = outcomes[i];
+        if (!o.valid) {
+          lines[i] = InvalidResultToJson(o.pair, o.utime0, o.utime1, o.error);
+          return;
+        }
+        const auto start = std::chrono::steady_clock::now();
+        const QueryResult result = engine.Query(o.pose0, o.pose1, options.query);
+        const double elapsed_us =
+            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+                .count();
+        contact[i] = result.contact;
+        lines[i] = ResultToJson(o.pair, o.pose0.utime, o.pose1.utime, result,
+                                options.query.per_link, elapsed_us);
+      });
+      for (size_t i = 0; i < outcomes.size(); ++i) {
+        if (outcomes[i].valid) {
+          ++pairs;
+          contacts += contact[i];
+        } else {
+          ++invalid;
+        }
+        *out << lines[i] << '\n';
+      }
     }
     if (reader.bad()) throw InputError(options.poses_path + ": error while reading");
     if (!reader.first_line_error().empty()) {
@@ -81,6 +109,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
+    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

@@ -8,6 +8,7 @@
 #include "core/geometry/mesh.h"
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
+#include "core/worker_pool.h"
 #include "tools/command_common.h"
 
 namespace sweptccd {
@@ -21,8 +22,9 @@ struct QueryCommandOptions {
   std::string filter_path;
   std::vector<std::string> ignore_rules;  // LINK:OBJECT
   QueryOptions query;
-  MeshLoadOptions mesh;              // --max-mesh-bytes.
-  int max_links = kDefaultMaxLinks;  // --max-links.
+  MeshLoadOptions mesh;                // --max-mesh-bytes.
+  int max_links = kDefaultMaxLinks;    // --max-links.
+  int threads = DefaultThreadCount();  // --threads: workers answering the pairs.
 };
 
 /// Runs the command. Returns the exit status: 0 when the inputs could be

@@ -61,6 +61,7 @@ int main(int argc, char** argv) {
                    "Largest mesh file, before and after gunzip, bytes (default 1 GiB)")
       ->check(CLI::PositiveNumber);
   sweptccd::AddMaxLinksFlag(query, &q.max_links);
+  sweptccd::AddThreadsFlag(query, &q.threads);
 
   sweptccd::BenchCommandOptions b;
   CLI::App* bench = app.add_subcommand("bench", "Benchmark on real mocap and scenes");
@@ -105,6 +106,7 @@ int main(int argc, char** argv) {
   sweptccd::AddBackendFlags(world, &wo.backend,
                             "cpu, gpu or auto (static environment only; entities run on the CPU)");
   sweptccd::AddMaxLinksFlag(world, &wo.load.max_links);
+  sweptccd::AddThreadsFlag(world, &wo.threads);
   world->add_flag("--per-link", wo.query.per_link, "A bracket for every touching link");
   world->add_option("--output", wo.output_path, "Results file (default: standard output)");
   world->add_flag("--bench", wo.bench,

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -28,14 +29,23 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     ResultsOutput results(options.output_path, inputs);
     results.Open();
     std::ostream* out = &results.stream();
-    world::WorldAnswerer answerer(loaded, options.query);
+    // One answerer per worker (an answerer keeps per-record state and is not
+    // thread-safe); the records are answered in chunks by the workers and
+    // written in order, the same for any --threads.
+    WorkerPool pool(options.threads);
+    std::vector<std::unique_ptr<world::WorldAnswerer>> answerers;
+    for (int w = 0; w < pool.size(); ++w) {
+      answerers.push_back(std::make_unique<world::WorldAnswerer>(loaded, options.query));
+    }
     // The static-environment part runs on the chosen backend; the parts
     // between entities run on the CPU under every backend (same answers).
-    gpu::Backend backend(options.backend.Options());
+    gpu::BackendOptions backend_options = options.backend.Options();
+    backend_options.threads = options.threads;  // auto: calibrated on a batch of that many.
+    gpu::Backend backend(backend_options);
     // auto: calibrated with the first avatar's engine (the one-capsule
     // calibration skeleton when the world has no avatar).
     const CcdEngine* first = nullptr;
-    answerer.ForEachEngine([&](CcdEngine* engine) {
+    answerers[0]->ForEachEngine([&](CcdEngine* engine) {
       if (first == nullptr) first = engine;
     });
     backend.ResolveAuto(loaded.env, first ? &first->skeleton() : nullptr,
@@ -43,16 +53,35 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd world: backend %s\n", backend.reason().c_str());
     }
-    answerer.ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
-    int64_t records = 0, entries = 0, contacts = 0, culled = 0;
-    std::vector<double> record_us;
+    for (auto& answerer : answerers) {
+      answerer->ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
+    }
+    std::vector<std::pair<world::AvatarIndex, size_t>> all;
     for (int a = 0; a < static_cast<int>(loaded.world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
-        const auto start = std::chrono::steady_clock::now();
-        const std::string line = answerer.RecordJson(world::AvatarIndex(a), r);
-        record_us.push_back(
-            std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
-                .count());
+        all.emplace_back(world::AvatarIndex(a), r);
+      }
+    }
+    int64_t records = 0, entries = 0, contacts = 0, culled = 0;
+    std::vector<double> record_us(all.size());
+    // Runs of consecutive records go to one worker (an answerer reuses the
+    // motion of the record before), a chunk of runs at a time.
+    constexpr size_t kRun = 8;
+    const size_t chunk = kRun * 16 * static_cast<size_t>(pool.size());
+    std::vector<std::string> lines;
+    for (size_t begin = 0; begin < all.size(); begin += chunk) {
+      const size_t end = std::min(all.size(), begin + chunk);
+      lines.assign(end - begin, std::string());
+      pool.Run((end - begin + kRun - 1) / kRun, [&](size_t run, int worker) {
+        for (size_t i = begin + run * kRun; i < std::min(end, begin + (run + 1) * kRun); ++i) {
+          const auto start = std::chrono::steady_clock::now();
+          lines[i - begin] = answerers[worker]->RecordJson(all[i].first, all[i].second);
+          record_us[i] =
+              std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
+                  .count();
+        }
+      });
+      for (const std::string& line : lines) {
         ++records;
         if (!options.bench) {
           *out << line << '\n';
@@ -79,6 +108,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} records", records);
+    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

@@ -6,6 +6,7 @@
 
 #include "core/gpu/backend.h"
 #include "core/query/ccd_query.h"
+#include "core/worker_pool.h"
 #include "core/world/world_file.h"
 #include "tools/command_common.h"
 
@@ -13,13 +14,14 @@ namespace sweptccd {
 
 struct WorldCommandOptions {
   std::string world_path;
-  std::string output_path;  // Empty: standard output.
-  BackendFlags backend;     // --backend, --gpu-device, --require-hardware.
-  QueryOptions query;       // eps, delta, per-link, work limit (motion: per avatar).
+  std::string output_path;       // Empty: standard output.
+  BackendFlags backend;          // --backend, --gpu-device, --require-hardware.
+  QueryOptions query;            // eps, delta, per-link, work limit (motion: per avatar).
   world::WorldLoadOptions load;  // --max-links (load.max_links).
   /// --bench: answer every record as usual but print a table (counts and
   /// time per record) instead of the records.
   bool bench = false;
+  int threads = DefaultThreadCount();  // --threads: workers answering the records.
 };
 
 /// Runs the command. Returns 0 when the inputs could be read, 2 with a

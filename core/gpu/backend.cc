@@ -2,6 +2,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cstdio>
+
 #include "core/errors.h"
 #include "core/gpu/backend_calibration.h"
 #include "core/gpu/gpu_culler.h"
@@ -27,7 +30,7 @@ const char* BackendKindName(BackendKind kind) {
   return "auto";  // Not reached: every enumerator is handled above.
 }
 
-Backend::Backend(const BackendOptions& options) {
+Backend::Backend(const BackendOptions& options) : threads_(std::max(1, options.threads)) {
   const bool automatic = options.backend == BackendKind::kAuto;
   if (options.backend == BackendKind::kCpu) {
     reason_ = "cpu (requested)";
@@ -73,12 +76,22 @@ void Backend::ResolveAuto(const Environment& environment, const Skeleton* skelet
     uploaded_.clear();
     return;
   }
+  // Per pair, or (a caller with several workers) per pair of a batch
+  // answered by that many workers, the GPU's requests sharing dispatches.
+  size_t batch = 0;
   const CalibrationTimes times =
-      TimeBackends(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options);
+      threads_ > 1
+          ? TimeBackendsBatched(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options,
+                                threads_, CalibrationBudget(), &batch)
+          : TimeBackends(cpu_engine, gpu_engine, CalibrationPairs(sk, environment), options);
   const AutoChoice choice = ChooseFaster(times.cpu_us, times.gpu_us);
   auto_figures_ = "auto: " + DescribeFigures(choice);
-  const std::string how = auto_figures_ + ", medians of " + std::to_string(times.cpu_us.size()) +
-                          " timed pairs each; " + renderer;
+  const std::string samples = threads_ > 1
+                                  ? " timed batches of " + std::to_string(batch) + " pairs on " +
+                                        std::to_string(threads_) + " threads each; "
+                                  : " timed pairs each; ";
+  const std::string how =
+      auto_figures_ + ", medians of " + std::to_string(times.cpu_us.size()) + samples + renderer;
   if (choice.kind == BackendKind::kGpu) {
     reason_ = "gpu (" + how + ")";
     return;
@@ -102,6 +115,33 @@ std::string Backend::State() const {
 }
 
 std::string Backend::renderer() const { return gpu() ? context_->info().renderer : std::string(); }
+
+DispatchStats Backend::dispatch_stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  DispatchStats total;
+  for (const auto& [id, upload] : uploaded_) {
+    const DispatchStats s = upload->dispatch_stats();
+    total.dispatches += s.dispatches;
+    total.requests += s.requests;
+    total.capsules += s.capsules;
+    total.largest = std::max(total.largest, s.largest);
+    total.most_requests = std::max(total.most_requests, s.most_requests);
+  }
+  return total;
+}
+
+std::string Backend::DispatchSummary() const {
+  const DispatchStats s = dispatch_stats();
+  char line[256];
+  std::snprintf(line, sizeof(line),
+                "%lld dispatches, %lld requests, %lld capsules (%.1f per dispatch, largest %lld; "
+                "up to %lld requests in one)",
+                static_cast<long long>(s.dispatches), static_cast<long long>(s.requests),
+                static_cast<long long>(s.capsules),
+                s.dispatches > 0 ? static_cast<double>(s.capsules) / s.dispatches : 0.0,
+                static_cast<long long>(s.largest), static_cast<long long>(s.most_requests));
+  return line;
+}
 
 void Backend::Attach(CcdEngine* engine) {
   SWEPTCCD_CHECK(!auto_pending_);  // ResolveAuto first (backend.h).

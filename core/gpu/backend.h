@@ -9,8 +9,9 @@
 #include <optional>
 #include <string>
 
-#include "core/query/ccd_query.h"
 #include "core/gpu/gl_context.h"
+#include "core/gpu/gpu_culler.h"
+#include "core/query/ccd_query.h"
 
 namespace sweptccd::gpu {
 
@@ -34,8 +35,11 @@ const char* BackendKindName(BackendKind kind);
 
 struct BackendOptions {
   BackendKind backend = BackendKind::kAuto;
-  int device_index = -1;         // EGL device to use; -1: the first that works.
+  int device_index = -1;          // EGL device to use; -1: the first that works.
   bool require_hardware = false;  // gpu and auto: refuse software renderers.
+  /// Pairs the caller answers at once (`--threads`): auto calibrates on a
+  /// batch answered by this many workers when > 1 (TimeBackendsBatched).
+  int threads = 1;
 };
 
 class Backend {
@@ -77,6 +81,13 @@ class Backend {
   std::string renderer() const;
   std::shared_ptr<GlContext> context() const { return context_; }
 
+  /// The GPU's dispatches so far over the kept uploads (every engine and
+  /// thread; zeros on the CPU), and one line saying them: "N dispatches, R
+  /// requests, C capsules (C/N per dispatch, largest L; up to M requests in
+  /// one)".
+  DispatchStats dispatch_stats() const;
+  std::string DispatchSummary() const;
+
   /// Gives `engine` the GPU swept-volume test. Its environment is uploaded
   /// once and stays resident while an engine uses it (later engines on the
   /// same environment share the upload). No-op on the CPU. On a GPU failure the cause is logged and
@@ -88,6 +99,7 @@ class Backend {
   std::shared_ptr<GlContext> context_;
   std::string reason_;
   bool auto_pending_ = false;  // auto with a context, not yet resolved.
+  int threads_ = 1;            // BackendOptions::threads.
   std::string auto_figures_;   // "auto: cpu 41 us, gpu 380 us per pair" once resolved.
   mutable std::mutex mutex_;
   // The latest uploads by Environment::content_id() (an address can be

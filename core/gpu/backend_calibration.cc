@@ -6,6 +6,7 @@
 #include <string>
 
 #include "core/errors.h"
+#include "core/worker_pool.h"
 
 namespace sweptccd::gpu {
 
@@ -130,6 +131,45 @@ CalibrationTimes TimeBackends(const CcdEngine& cpu, const CcdEngine& gpu,
     }
   }
   return timed;
+}
+
+CalibrationTimes TimeBackendsBatched(const CcdEngine& cpu, const CcdEngine& gpu,
+                                     const std::vector<std::pair<Pose, Pose>>& pairs,
+                                     const QueryOptions& options, int threads,
+                                     const CalibrationBudget& budget, size_t* batch_pairs) {
+  using Clock = std::chrono::steady_clock;
+  if (pairs.empty()) return {};
+  QueryOptions query = options;
+  query.per_link = false;
+  WorkerPool pool(std::max(1, threads));
+  const size_t batch = std::max(pairs.size(), 4 * static_cast<size_t>(pool.size()));
+  if (batch_pairs != nullptr) *batch_pairs = batch;
+  const auto start = Clock::now();
+  auto over_budget = [&] {
+    return std::chrono::duration<double>(Clock::now() - start).count() > budget.max_seconds;
+  };
+  // One batch on one backend: microseconds per pair.
+  auto time_batch = [&](const CcdEngine& engine) {
+    const auto t0 = Clock::now();
+    pool.Run(batch, [&](size_t i, int) {
+      const auto& pair = pairs[i % pairs.size()];
+      engine.Query(pair.first, pair.second, query);
+    });
+    return std::chrono::duration<double, std::micro>(Clock::now() - t0).count() /
+           static_cast<double>(batch);
+  };
+  auto time_both = [&](bool cpu_first, CalibrationTimes* into) {
+    if (cpu_first) into->cpu_us.push_back(time_batch(cpu));
+    into->gpu_us.push_back(time_batch(gpu));
+    if (!cpu_first) into->cpu_us.push_back(time_batch(cpu));
+  };
+  CalibrationTimes warm, timed;
+  time_both(true, &warm);
+  for (int round = 0; round < std::max(1, budget.max_rounds); ++round) {
+    if (over_budget()) break;
+    time_both(round % 2 == 1, &timed);
+  }
+  return timed.cpu_us.empty() ? warm : timed;
 }
 
 }  // namespace sweptccd::gpu

@@ -78,4 +78,20 @@ CalibrationTimes TimeBackends(const CcdEngine& cpu, const CcdEngine& gpu,
                               const std::vector<std::pair<Pose, Pose>>& pairs,
                               const QueryOptions& options, const CalibrationBudget& budget = {});
 
+/// The batched calibration (issue 30), for a caller that answers many pairs
+/// at once (`--threads` > 1): each timed sample is one batch of the pairs
+/// (cycled to at least 4 x `threads` pairs) answered by `threads` workers on
+/// one backend, then on the other (alternating which goes first), divided
+/// by the batch's pair count: microseconds per pair at that concurrency,
+/// where the GPU's requests share dispatches. One untimed batch per
+/// backend, then up to max_rounds timed ones; no batch starts once
+/// max_seconds have passed (the untimed batch stands in when no timed one
+/// ran). `batch_pairs`, when not null, receives the batch size. Empty only
+/// for empty `pairs`.
+CalibrationTimes TimeBackendsBatched(const CcdEngine& cpu, const CcdEngine& gpu,
+                                     const std::vector<std::pair<Pose, Pose>>& pairs,
+                                     const QueryOptions& options, int threads,
+                                     const CalibrationBudget& budget = {},
+                                     size_t* batch_pairs = nullptr);
+
 }  // namespace sweptccd::gpu

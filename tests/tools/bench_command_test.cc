@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <iterator>
 #include <map>
 #include <regex>
@@ -128,6 +129,43 @@ TEST_F(BenchCommandTest, PrintsOursBesideBulletAndFcl) {
   ASSERT_TRUE(std::regex_search(q.out, total, std::regex("targets met: ([0-9]+) of ([0-9]+)")))
       << q.out;
   EXPECT_EQ(std::stoi(total[2]), 2);
+}
+
+// Issue 30: `bench --sweep` prints, for every batch size, the CPU on one
+// thread, the CPU on --threads threads and the GPU backend (llvmpipe here)
+// with its dispatches; every method answered every pair alike (differ 0);
+// the pairs cycle to fill at least 3 batches. Counts only, never times.
+TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
+  const RunResult r = Run({"bench", "--sweep", "--scene", "morse_apartment", "--clip",
+                           "cmu_05_06_dance_cartwheel_pirouettes_jete.bvh", "--max-pairs", "150",
+                           "--sweep-sizes", "1", "16", "64", "--threads", "3", "--no-peers"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  EXPECT_NE(r.out.find("the CPU backend on 3 threads and the GPU backend on 3 threads"),
+            std::string::npos)
+      << r.out;
+  std::istringstream in(r.out);
+  std::string line;
+  std::map<std::string, int> rows;
+  const std::regex row(
+      "\\| morse_apartment \\| ([0-9]+) \\| (cpu, 1 thread|cpu, all threads|gpu, all threads) "
+      "\\| ([0-9]+) \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| ([-0-9]+) \\| "
+      "([-0-9.]+) \\| ([-0-9.]+) \\| ([0-9]+) \\|");
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (!std::regex_match(line, m, row)) continue;
+    const int batch = std::stoi(m[1]);
+    ++rows[m[1].str() + " " + m[2].str()];
+    // 150 pairs in whole batches, at least 3 batches.
+    EXPECT_EQ(std::stoi(m[3]), std::max(150 + (batch - 150 % batch) % batch, 3 * batch)) << line;
+    EXPECT_EQ(m[7], "0") << "methods disagree: " << line;
+    if (m[2] == "gpu, all threads") {
+      EXPECT_GT(std::stoi(m[4]), 0) << "the GPU never dispatched: " << line;
+    } else {
+      EXPECT_EQ(m[4], "-") << line;
+    }
+  }
+  EXPECT_EQ(rows.size(), 9u) << r.out;
+  for (const auto& [key, n] : rows) EXPECT_EQ(n, 1) << key;
 }
 
 }  // namespace

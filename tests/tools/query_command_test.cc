@@ -849,7 +849,11 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
   // auto times both backends on the scene and keeps the faster (issue 11):
   // on this machine llvmpipe gives a context, so both figures are named,
   // whichever wins; the records are the CPU's.
-  const RunResult automatic = Run(QueryArgs(poses, {"--backend", "auto", "--per-link"}));
+  // With one thread, per pair; with several (issue 30), per pair of a batch
+  // answered by that many workers (4 x 3 = 12 pairs, the 8 calibration
+  // pairs cycled).
+  const RunResult automatic =
+      Run(QueryArgs(poses, {"--backend", "auto", "--per-link", "--threads", "1"}));
   ASSERT_TRUE(automatic.exited && automatic.code == 0) << automatic.Describe();
   EXPECT_TRUE(std::regex_search(
       automatic.err,
@@ -857,6 +861,15 @@ TEST_F(QueryCommandTest, BackendsGiveTheSameRecordsAndSayWhichRan) {
                  "pair, medians of [1-9][0-9]* timed pairs each; ")))
       << automatic.err;
   EXPECT_EQ(without_timing(ParseRecords(automatic.out)), without_timing(c));
+  const RunResult batched =
+      Run(QueryArgs(poses, {"--backend", "auto", "--per-link", "--threads", "3"}));
+  ASSERT_TRUE(batched.exited && batched.code == 0) << batched.Describe();
+  EXPECT_TRUE(std::regex_search(
+      batched.err,
+      std::regex("sweptccd query: backend (cpu|gpu) \\(auto: cpu [0-9]+ us, gpu [0-9]+ us per "
+                 "pair, medians of [1-9] timed batches of 12 pairs on 3 threads each; ")))
+      << batched.err;
+  EXPECT_EQ(without_timing(ParseRecords(batched.out)), without_timing(c));
 
   const RunResult missing = Run(QueryArgs(poses, {"--backend", "gpu", "--gpu-device", "31"}));
   ASSERT_TRUE(missing.exited && missing.code == 0) << missing.Describe();

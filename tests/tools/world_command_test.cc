@@ -397,7 +397,8 @@ TEST_F(WorldCommandTest, GpuAndCpuBackendsGiveTheSameRecords) {
   EXPECT_GE(env_contacts, 2);  // alice lies on the floor.
   // auto (issue 11): calibrated with the first avatar on this scene, both
   // figures on stderr, the same records whichever it kept.
-  const RunResult automatic = Run({"world", "--world", world, "--backend", "auto", "--per-link"});
+  const RunResult automatic =
+      Run({"world", "--world", world, "--backend", "auto", "--per-link", "--threads", "1"});
   ASSERT_TRUE(automatic.exited && automatic.code == 0) << automatic.Describe();
   EXPECT_TRUE(std::regex_search(
       automatic.err, std::regex("sweptccd world: backend (cpu|gpu) \\(auto: cpu [0-9]+ us, gpu "

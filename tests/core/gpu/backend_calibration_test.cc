@@ -140,6 +140,32 @@ TEST(BackendCalibrationTest, RoundsStopAtTheLimitsAndAlwaysMeasureOnce) {
   EXPECT_TRUE(TimeBackends(a, b, {}, QueryOptions(), budget).cpu_us.empty());
 }
 
+// Issue 30: the batched calibration: one sample per batch and backend, the
+// batch at least 4 x threads pairs (the calibration pairs cycled), the same
+// limits (rounds, the budget, the untimed batch standing in).
+TEST(BackendCalibrationTest, BatchedRoundsStopAtTheLimitsAndAlwaysMeasureOnce) {
+  const Skeleton skeleton = CalibrationSkeleton();
+  const Environment env = Box(Vector3d(0, 0, 0), Vector3d(2, 2, 2));
+  CcdEngine a(skeleton, env), b(skeleton, env);
+  const auto pairs = CalibrationPairs(skeleton, env);
+  CalibrationBudget budget;
+  budget.max_seconds = 1e9;
+  budget.max_rounds = 3;
+  size_t batch = 0;
+  CalibrationTimes t = TimeBackendsBatched(a, b, pairs, QueryOptions(), 5, budget, &batch);
+  EXPECT_EQ(batch, 20u);  // 4 x 5 > the 8 calibration pairs.
+  EXPECT_EQ(t.cpu_us.size(), 3u);
+  EXPECT_EQ(t.gpu_us.size(), 3u);
+  for (double us : t.cpu_us) EXPECT_TRUE(std::isfinite(us) && us >= 0);
+  TimeBackendsBatched(a, b, pairs, QueryOptions(), 1, budget, &batch);
+  EXPECT_EQ(batch, pairs.size());
+  budget.max_seconds = 0;  // Past the budget at once: the untimed batch stands in.
+  t = TimeBackendsBatched(a, b, pairs, QueryOptions(), 2, budget);
+  EXPECT_EQ(t.cpu_us.size(), 1u);
+  EXPECT_EQ(t.gpu_us.size(), 1u);
+  EXPECT_TRUE(TimeBackendsBatched(a, b, {}, QueryOptions(), 2, budget).cpu_us.empty());
+}
+
 // On this machine (llvmpipe) auto makes a context, calibrates, and names both
 // figures; whichever it picks, gpu(), reason(), State() and Attach agree.
 void ExpectResolvedConsistently(Backend& backend, const Skeleton& skeleton,
@@ -170,6 +196,23 @@ TEST(BackendCalibrationTest, AutoMeasuresBothBackendsOnTheScene) {
   const std::string reason = backend.reason();
   backend.ResolveAuto(env, &skeleton, nullptr, QueryOptions());
   EXPECT_EQ(backend.reason(), reason);
+}
+
+// auto with several workers calibrates on a batch and says so.
+TEST(BackendCalibrationTest, AutoWithThreadsMeasuresABatch) {
+  BackendOptions options;
+  options.backend = BackendKind::kAuto;
+  options.threads = 3;
+  Backend backend(options);
+  ASSERT_NE(backend.context(), nullptr) << "llvmpipe must give a context: " << backend.reason();
+  const Skeleton skeleton = CalibrationSkeleton();
+  const Environment env = Box(Vector3d(0, 0, 0), Vector3d(2, 2, 2));
+  backend.ResolveAuto(env, &skeleton, nullptr, QueryOptions());
+  ExpectResolvedConsistently(backend, skeleton, env);
+  EXPECT_TRUE(std::regex_search(
+      backend.reason(), std::regex("per pair, medians of [1-9] timed batches of 12 pairs on 3 "
+                                   "threads each; ")))
+      << backend.reason();
 }
 
 TEST(BackendCalibrationTest, AutoWithoutASkeletonUsesTheCalibrationCapsule) {

@@ -10,17 +10,20 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <random>
 #include <thread>
 
-#include "core/query/ccd_query.h"
-#include "core/gpu/backend.h"
 #include "core/geometry/distance.h"
 #include "core/geometry/mesh.h"
+#include "core/gpu/backend.h"
 #include "core/gpu/gl_api.h"
 #include "core/gpu/gl_context.h"
+#include "core/query/ccd_query.h"
 #include "tests/common/brute_force.h"
 #include "tests/common/random.h"
 
@@ -34,7 +37,8 @@ using testing::Rng;
 // One link from the origin of its frame to `b` (JSON array), radius 5 cm.
 Skeleton OneLinkSkeleton(const std::string& b) {
   return ParseSkeletonJson(R"({"name": "one", "links": [{"name": "a", "parent": null,
-                               "a": [0, 0, 0], "b": )" + b + R"(, "radius": 0.05}]})",
+                               "a": [0, 0, 0], "b": )" +
+                               b + R"(, "radius": 0.05}]})",
                            "test skeleton");
 }
 
@@ -50,9 +54,9 @@ TriangleMesh Soup(Rng& rng, const Vector3d& centre, int count, double half) {
     const Vector3d a = centre + rng.Box(half);
     Vector3d b = a + rng.Box(0.3), c = a + rng.Box(0.3);
     const int kind = rng.I(12);
-    if (kind == 0) c = a + 0.5 * (b - a);                        // Collinear (degenerate).
-    if (kind == 1) c = b;                                         // Two equal vertices.
-    if (kind == 2) c = a + 0.5 * (b - a) + 1e-7 * rng.Dir();      // Sliver.
+    if (kind == 0) c = a + 0.5 * (b - a);                     // Collinear (degenerate).
+    if (kind == 1) c = b;                                     // Two equal vertices.
+    if (kind == 2) c = a + 0.5 * (b - a) + 1e-7 * rng.Dir();  // Sliver.
     // Slivers whose cross product underflows in float (regression: the
     // certificate's r |n| vanished and everything was cleared).
     if (kind == 3) c = a + 0.5 * (b - a) + std::pow(10.0, -rng.U(15, 40)) * rng.Dir();
@@ -153,10 +157,11 @@ TEST(GpuCullerTest, NeverClearsATouchingCapsuleRandomized) {
     CheckBatch(f, culler, caps, centre.norm() > 0 ? "far from the origin" : "at the origin", scale,
                &clear, &cleared);
   }
-  std::printf("clear by > 1e-5 of the scale: %lld, cleared by the GPU: %lld (%.2f%%); "
-              "tangent capsules: %lld\n",
-              static_cast<long long>(clear), static_cast<long long>(cleared),
-              100.0 * cleared / std::max<int64_t>(1, clear), static_cast<long long>(tangent));
+  std::printf(
+      "clear by > 1e-5 of the scale: %lld, cleared by the GPU: %lld (%.2f%%); "
+      "tangent capsules: %lld\n",
+      static_cast<long long>(clear), static_cast<long long>(cleared),
+      100.0 * cleared / std::max<int64_t>(1, clear), static_cast<long long>(tangent));
   EXPECT_GT(tangent, 3000);
   // Nearly tight: the certificate loses only rounding margins.
   EXPECT_GE(cleared, clear * 995 / 1000);
@@ -174,7 +179,7 @@ TEST(GpuCullerTest, HandCases) {
     }
   };
   add({0, 0, 0}, {1, 0, 0}, {0, 1, 0});
-  add({5, 0, 0}, {6, 0, 0}, {7, 0, 0});  // Degenerate: a segment on the x axis.
+  add({5, 0, 0}, {6, 0, 0}, {7, 0, 0});               // Degenerate: a segment on the x axis.
   add({0, 20, 0}, {1, 20, 0}, {0.5, 20 + 1e-24, 0});  // Slivers (y rounds to 20 in float;
   add({0, 21, 0}, {1, 21, 0}, {0.5, 21, 1e-20});      // z keeps 1e-20).
   add({0.5, 19, 0}, {0.5 + 1e-12, 19, 0}, {0.5, 19 + 1e-12, 0});  // A 1e-12 m triangle.
@@ -260,7 +265,8 @@ TEST(GpuCullerTest, NonFiniteAndHugeCapsulesAreKept) {
       LinkCapsule{Vector3d(0, 0, 0), Vector3d(0, inf, 0), 0.1, LinkIndex(0)},
       LinkCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), nan, LinkIndex(0)},
       LinkCapsule{Vector3d(1e35, 0, 0), Vector3d(1e35, 0, 0), 0.1, LinkIndex(0)},
-      LinkCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1, LinkIndex(0)},  // Clear: cleared.
+      LinkCapsule{Vector3d(50, 50, 50), Vector3d(60, 60, 60), 0.1,
+                  LinkIndex(0)},  // Clear: cleared.
   };
   std::vector<uint8_t> may_touch;
   ASSERT_TRUE(culler.Cull(caps, &may_touch));
@@ -276,7 +282,8 @@ TEST(GpuCullerTest, ConcurrentCallersGetTheSerialAnswers) {
                          f.num_links);
   std::vector<LinkCapsule> caps;
   for (int i = 0; i < 500; ++i) {
-    caps.push_back(LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
+    caps.push_back(
+        LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
   }
   std::vector<uint8_t> serial;
   ASSERT_TRUE(culler.Cull(caps, &serial));
@@ -290,6 +297,122 @@ TEST(GpuCullerTest, ConcurrentCallersGetTheSerialAnswers) {
   for (std::thread& t : threads) t.join();
   for (const auto& a : answers) EXPECT_EQ(a, serial);
   EXPECT_EQ(culler.round_trips(), 41);
+}
+
+// Issue 30: the two ways capsules cross (read-back, and persistent mapped
+// buffers with a fence) give the same answers, and several filters share one
+// environment's mask buffer (each capsule names its filter's table): each
+// culler's answers are its own filter's, checked against brute force, also
+// after a culler is destroyed and its table's space reused by another.
+TEST(GpuCullerTest, BothTransfersAndSharedMaskTablesGiveTheSameAnswers) {
+  Rng rng(3030);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 300, 1.5), "soup0");
+  f.env.AddMesh(Soup(rng, Vector3d(0.5, 0, 0), 300, 1.5), "soup1");
+  std::vector<LinkCapsule> caps;
+  for (int i = 0; i < 1200; ++i) {
+    caps.push_back(
+        LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
+  }
+  std::vector<CollisionFilter> filters(3, CollisionFilter(f.num_links, 2));
+  filters[1].Ignore(LinkIndex(1), ObjectIndex(0));
+  filters[1].Ignore(LinkIndex(3), ObjectIndex(1));
+  filters[2].Ignore(LinkIndex(2), kAllObjects);
+  filters[2].Ignore(kAllLinks, ObjectIndex(1));
+  std::vector<std::vector<uint8_t>> by_transfer[2];
+  const Transfer transfers[2] = {Transfer::kReadBack, Transfer::kPersistent};
+  for (int t = 0; t < 2; ++t) {
+    auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env, transfers[t]);
+    // llvmpipe has OpenGL 4.5, NVIDIA 4.6: both ways exist.
+    EXPECT_EQ(gpu_env->transfer(), transfers[t]) << TransferName(transfers[t]);
+    // A cleared capsule must be clear of every triangle the filter keeps.
+    auto check = [&](const GpuCuller& culler, int k) {
+      std::vector<uint8_t> may_touch;
+      EXPECT_TRUE(culler.Cull(caps, &may_touch));
+      for (size_t i = 0; i < caps.size(); ++i) {
+        if (may_touch[i] != 0) continue;
+        const testing::BruteNearest n =
+            testing::BruteForceNearest(f.env, filters[k], caps[i].link, caps[i].a, caps[i].b);
+        EXPECT_FALSE(n.any && n.distance <= caps[i].radius)
+            << "filter " << k << ", capsule " << i << " touches but was cleared";
+      }
+      return may_touch;
+    };
+    std::vector<std::vector<uint8_t>> answers(3);
+    {
+      // Interleaved: tables at different offsets in one buffer.
+      const GpuCuller a(gpu_env, filters[0], f.num_links);
+      auto doomed = std::make_unique<GpuCuller>(gpu_env, filters[1], f.num_links);
+      const GpuCuller c(gpu_env, filters[2], f.num_links);
+      answers[0] = check(a, 0);
+      answers[1] = check(*doomed, 1);
+      answers[2] = check(c, 2);
+      doomed.reset();  // Its table's space is reused by the next culler.
+      const GpuCuller b(gpu_env, filters[1], f.num_links);
+      EXPECT_EQ(check(b, 1), answers[1]);
+      EXPECT_EQ(check(a, 0), answers[0]);
+      EXPECT_EQ(check(c, 2), answers[2]);
+    }
+    // The filters matter: fewer capsules kept where objects are ignored.
+    auto kept = [](const std::vector<uint8_t>& v) { return std::count(v.begin(), v.end(), 1); };
+    EXPECT_LT(kept(answers[1]), kept(answers[0]));
+    EXPECT_LT(kept(answers[2]), kept(answers[1]));
+    by_transfer[t] = answers;
+  }
+  EXPECT_EQ(by_transfer[0], by_transfer[1]);
+}
+
+// Issue 30: requests from many threads and several cullers (different
+// filters) on one environment are coalesced into shared dispatches, and
+// each caller gets exactly the answers it gets alone. The first round waits
+// (SetGather) until all eight threads have asked: one dispatch serves them.
+TEST(GpuCullerTest, CoalescedRequestsGiveEachCallerItsOwnAnswers) {
+  Rng rng(3031);
+  Fixture f;
+  f.env.AddMesh(Soup(rng, Vector3d::Zero(), 300, 1.5), "soup0");
+  f.env.AddMesh(Soup(rng, Vector3d(0.3, 0, 0), 300, 1.5), "soup1");
+  CollisionFilter some(f.num_links, 2);
+  some.Ignore(LinkIndex(0), ObjectIndex(1));
+  some.Ignore(LinkIndex(2), kAllObjects);
+  auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), f.env);
+  const GpuCuller plain(gpu_env, CollisionFilter(f.num_links, 2), f.num_links);
+  const GpuCuller filtered(gpu_env, some, f.num_links);
+  constexpr int kThreads = 8, kRounds = 25;
+  std::vector<std::vector<LinkCapsule>> caps(kThreads);
+  std::vector<std::vector<uint8_t>> alone(kThreads);
+  for (int t = 0; t < kThreads; ++t) {
+    for (int i = 0; i < 20 + 37 * t; ++i) {
+      caps[t].push_back(
+          LinkCapsule{rng.Box(2), rng.Box(2), rng.U(0, 0.1), LinkIndex(rng.I(f.num_links))});
+    }
+    ASSERT_TRUE((t % 2 ? filtered : plain).Cull(caps[t], &alone[t]));
+  }
+  const DispatchStats before = gpu_env->dispatch_stats();
+  EXPECT_EQ(before.dispatches, kThreads);  // One by one: nothing to share.
+  gpu_env->SetGather(kThreads, std::chrono::seconds(20));
+  std::vector<int> wrong(kThreads, 0);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      std::vector<uint8_t> answer;
+      for (int k = 0; k < kRounds; ++k) {
+        if (!(t % 2 ? filtered : plain).Cull(caps[t], &answer) || answer != alone[t]) ++wrong[t];
+        if (k == 0 && t == 0) gpu_env->SetGather(1, std::chrono::microseconds(0));
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (int t = 0; t < kThreads; ++t) EXPECT_EQ(wrong[t], 0) << "thread " << t;
+  const DispatchStats after = gpu_env->dispatch_stats();
+  int64_t capsules = 0;
+  for (const auto& c : caps) capsules += static_cast<int64_t>(c.size()) * kRounds;
+  EXPECT_EQ(after.requests - before.requests, kThreads * kRounds);
+  EXPECT_EQ(after.capsules - before.capsules, capsules);
+  EXPECT_EQ(after.most_requests, kThreads);  // The gathered first round.
+  EXPECT_LT(after.dispatches - before.dispatches, kThreads * kRounds);
+  EXPECT_EQ(plain.round_trips() + filtered.round_trips(), kThreads * (kRounds + 1));
+  std::printf("%d threads x %d requests: %lld dispatches\n", kThreads, kRounds,
+              static_cast<long long>(after.dispatches - before.dispatches));
 }
 
 // A lost context: the culler logs once and answers false; queries continue on
@@ -370,8 +493,8 @@ TEST(GpuBackendTest, EnvironmentsAtTheSameAddressAreNotConfused) {
     // A wall at x = k, 1 m wide; the stick moves from x = k - 0.5 to k + 0.5
     // and must hit it at s = 0.45 whatever the earlier walls were.
     TriangleMesh wall;
-    for (const Vector3d& v : {Vector3d(k, -1, -1), Vector3d(k, 2, -1), Vector3d(k, 2, 1),
-                              Vector3d(k, -1, 1)}) {
+    for (const Vector3d& v :
+         {Vector3d(k, -1, -1), Vector3d(k, 2, -1), Vector3d(k, 2, 1), Vector3d(k, -1, 1)}) {
       wall.vertices.push_back(v.cast<float>());
     }
     wall.indices = {0, 1, 2, 0, 2, 3};
@@ -446,10 +569,11 @@ TEST(GpuCullerTest, LongTraversalsAreNeverCleared) {
   EXPECT_GT(touching, 10);  // Many go through a bunny.
   EXPECT_GT(clear, 10);     // Some miss it by a visible margin,
   EXPECT_GT(cleared, 5);    // and the culler still clears some of those.
-  std::printf("bunnies: %lld of the capsules measured touch, %lld are clear by 1e-5 m, %lld of "
-              "those cleared\n",
-              static_cast<long long>(touching), static_cast<long long>(clear),
-              static_cast<long long>(cleared));
+  std::printf(
+      "bunnies: %lld of the capsules measured touch, %lld are clear by 1e-5 m, %lld of "
+      "those cleared\n",
+      static_cast<long long>(touching), static_cast<long long>(clear),
+      static_cast<long long>(cleared));
 }
 
 }  // namespace
