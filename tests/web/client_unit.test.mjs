@@ -370,3 +370,49 @@ test("a session the service forgot (unknown_client) joins again on a new connect
   c.close();
   await server.close();
 });
+
+// Room discovery (client/js/src/rooms.ts, docs/DEPLOY.md): the same shape
+// and refusals as the C++ client's room_client_test.
+test("a static room map resolves names and refuses what it cannot read", async () => {
+  const map = lib.StaticRoomMap.fromText(
+    '{"rooms": {"arcade-1": "wss://10.0.0.5:8765", "lab": "ws://[::1]:8765/ws"}}');
+  assert.equal(map.size, 2);
+  assert.equal(lib.doorUrl(await map.resolve("arcade-1")), "wss://10.0.0.5:8765/ws");
+  assert.equal(lib.doorUrl(await map.resolve("lab")), "ws://[::1]:8765/ws");
+  await assert.rejects(map.resolve("nowhere"), (e) => e instanceof lib.RoomError && !e.retryable);
+  await assert.rejects(map.resolve("bad room"), lib.RoomError);
+  for (const bad of ["[]", "{}", '{"rooms": []}', '{"rooms": {"a b": "ws://h:1"}}', '{"rooms": {"a": 5}}',
+    '{"rooms": {"a": "ws://h"}}', '{"rooms": {"a": "ws://h:0"}}', '{"rooms": {"a": "ws://u@h:1"}}', "{"]) {
+    assert.throws(() => lib.StaticRoomMap.fromText(bad), lib.RoomError, bad);
+  }
+});
+
+test("the Agones allocator resolver asks get-or-allocate and checks the answer", async () => {
+  const calls = [];
+  let answer = { status: 200, body: JSON.stringify({ gameServerName: "dragon-x7k2p", address: "10.0.3.2",
+    ports: [{ name: "metrics", port: 9464 }, { name: "websocket", port: 7011 }] }) };
+  const fetch = async (url, init) => {
+    calls.push({ url, init });
+    return { status: answer.status, text: async () => answer.body };
+  };
+  const r = new lib.AgonesAllocatorResolver({ url: "https://alloc:443/", fleetLabels: { "sweptccd.dev/scene": "dragon" }, fetch });
+  const d = await r.resolve("arcade-7");
+  assert.equal(lib.doorUrl(d), "wss://10.0.3.2:7011/ws");
+  assert.equal(d.source, "agones:dragon-x7k2p");
+  assert.equal(calls[0].url, "https://alloc:443/gameserverallocation");
+  assert.deepEqual(JSON.parse(calls[0].init.body), {
+    namespace: "default",
+    gameServerSelectors: [
+      { matchLabels: { "sweptccd.dev/room": "arcade-7" }, gameServerState: "ALLOCATED" },
+      { matchLabels: { "sweptccd.dev/scene": "dragon" }, gameServerState: "READY" }],
+    metadata: { labels: { "sweptccd.dev/room": "arcade-7" } } });
+  answer = { status: 429, body: "{}" };
+  await assert.rejects(r.resolve("arcade-7"), (e) => e.retryable && /429/.test(e.message));
+  for (const body of ["", "[]", '{"address": "10.0.3.2"}', '{"address": "a/b", "ports": [{"name": "websocket", "port": 1}]}',
+    '{"address": "10.0.3.2", "ports": [{"name": "websocket", "port": 70000}]}']) {
+    answer = { status: 200, body };
+    await assert.rejects(r.resolve("arcade-7"), lib.RoomError, body);
+  }
+  await assert.rejects(r.resolve("../x"), lib.RoomError);
+  assert.throws(() => new lib.AgonesAllocatorResolver({ url: "https://a", fleetLabels: {} }), lib.RoomError);
+});
