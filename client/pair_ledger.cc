@@ -5,6 +5,13 @@
 namespace sweptccd {
 
 bool PairLedger::Sent(const tracker_pose_t& pose) {
+  if (pose.seq <= last_seq_) {
+    // The application numbers from anew (a new stream): what was answered or
+    // pending belongs to the old one.
+    pending_.clear();
+    answered_.clear();
+  }
+  last_seq_ = pose.seq;
   pending_.push_back(pose);
   if (pending_.size() <= max_pending_) return true;
   pending_.pop_front();

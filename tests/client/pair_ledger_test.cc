@@ -53,6 +53,16 @@ TEST(PairLedgerTest, RefusedPosesFormNoPairAndTheBoundHolds) {
   EXPECT_EQ(Seqs(l.ForResend(1)), (std::vector<int64_t>{2, 3, 4}));
 }
 
+TEST(PairLedgerTest, NumberingFromAnewIsANewStream) {
+  PairLedger l;
+  for (int64_t s = 0; s < 4; ++s) l.Sent(Pose(s));
+  EXPECT_TRUE(l.Answered(3));
+  l.Sent(Pose(0));  // The application restarts its stream at 0.
+  EXPECT_EQ(Seqs(l.ForResend(1)), (std::vector<int64_t>{0}));
+  l.Sent(Pose(1));
+  EXPECT_TRUE(l.Answered(1));  // Not a repeat: a pair of the new stream.
+}
+
 TEST(PairLedgerTest, EpochFence) {
   EXPECT_FALSE(IsStaleEpoch(500, 500));
   EXPECT_TRUE(IsStaleEpoch(400, 500));  // The dead room's late event.

@@ -9,6 +9,7 @@
 // poses, and a re-sent pose keeps its seq and utime, so the new server's pair
 // (seq0, seq1) is the old one's.
 
+#include <climits>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -26,6 +27,9 @@ class PairLedger {
 
   /// A pose handed to the client (sent now or later). False when the oldest
   /// pending pose had to be forgotten (max_pending): its pair may be lost.
+  /// A seq not above the previous pose's starts a new stream (the
+  /// application numbers from anew): the old stream's poses and answers are
+  /// forgotten.
   bool Sent(const tracker_pose_t& pose);
   /// An answer (contact_event) for the pair ending at seq1: true the first
   /// time (deliver it), false for a repeat. Forgets the poses before seq1
@@ -46,6 +50,7 @@ class PairLedger {
   std::deque<tracker_pose_t> pending_;
   std::set<int64_t> answered_;
   int64_t forgotten_ = 0, repeats_ = 0;
+  int64_t last_seq_ = INT64_MIN;
 };
 
 /// The epoch fence: an event whose `instance` (the daemon run that sent it)
