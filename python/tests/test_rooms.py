@@ -92,3 +92,99 @@ def test_allocator_get_or_allocate() -> None:
     with pytest.raises(RoomError) as e:
         AgonesAllocatorResolver("http://127.0.0.1:1", {"a": "b"}, timeout_s=1).resolve("x")
     assert e.value.retryable
+
+
+def test_failover_between_two_stand_in_servers() -> None:
+    """The room's server goes silent (no status): the client takes it for
+    dead, resolves the room again (another server, a newer instance),
+    re-joins, re-sends the unanswered poses with their seq, fences a late
+    event of the old instance and drops a repeated answer: each pair reaches
+    the application once."""
+    import asyncio
+
+    import websockets.server
+
+    from sweptccd.client import LiveClient
+    from sweptccd.rooms import DoorAddress
+
+    skeleton = {"links": [{"name": "pelvis", "parent": None, "a": [0, 0, 0], "b": [0, 0.2, 0],
+                           "radius": 0.1}]}
+    received: Dict[int, List[Dict[str, Any]]] = {7: [], 9: []}
+
+    def server(instance: int, answer_upto: int) -> Any:
+        async def handler(ws: Any) -> None:
+            await ws.send(json.dumps({"type": "hello", "protocol": 1, "instance": instance,
+                                      "security": "unsigned", "challenge": "b" * 64,
+                                      "server_utime": 1, "limits": {}}))
+            first = True  # A session's first pose anchors it: no pair.
+            async for text in ws:
+                msg = json.loads(text)
+                received[instance].append(msg)
+                anchor = msg["type"] == "tracker_pose" and first
+                first = first and not anchor
+                if msg["type"] == "join_request":
+                    await ws.send(json.dumps({
+                        "type": "join_reply", "utime": 1, "client_id": msg["client_id"],
+                        "nonce": msg["nonce"], "reason": 0, "reason_name": "accepted",
+                        "message": "", "session": instance * 10, "instance": instance,
+                        "silence_timeout_ms": 5000}))
+                    await ws.send(json.dumps({"type": "status", "utime": 1,
+                                              "instance": instance, "client_id": []}))
+                    if instance == 9:  # A late event of the dead run; a repeat of pair 2.
+                        for inst, seq1 in ((7, 4), (9, 2)):
+                            await ws.send(json.dumps({
+                                "type": "contact_event", "client_id": "alice", "seq0": seq1 - 1,
+                                "seq1": seq1, "result": 0, "contacts": [], "instance": inst}))
+                if msg["type"] == "tracker_pose" and not anchor and msg["seq"] <= answer_upto:
+                    await ws.send(json.dumps({
+                        "type": "contact_event", "client_id": "alice", "seq0": msg["seq"] - 1,
+                        "seq1": msg["seq"], "result": 0, "contacts": [], "instance": instance}))
+        return handler
+
+    class Resolver:
+        port = 0
+
+        def resolve(self, room: str) -> DoorAddress:
+            return DoorAddress("127.0.0.1", self.port, False)
+
+    async def run() -> None:
+        old = await websockets.server.serve(server(7, 2), "127.0.0.1", 0,
+                                            subprotocols=["sweptccd.v1"])  # type: ignore[list-item]
+        new = await websockets.server.serve(server(9, 10**6), "127.0.0.1", 0,
+                                            subprotocols=["sweptccd.v1"])  # type: ignore[list-item]
+        resolver = Resolver()
+        resolver.port = list(old.sockets)[0].getsockname()[1]
+        client = LiveClient(None, "alice", skeleton, resolver=resolver, room="arcade-7",
+                            heartbeat_timeout=0.3, max_backoff=0.1)
+        seen: List[int] = []
+        client.on("contact", lambda e: seen.append(e["seq1"]))
+        await client.join()
+        for k in range(5):
+            assert await client.publish([[0, 1, 0]], [[1, 0, 0, 0]], utime=1000 + k)
+        for _ in range(200):
+            if len(seen) == 2:
+                break
+            await asyncio.sleep(0.01)
+        resolver.port = list(new.sockets)[0].getsockname()[1]
+        for _ in range(300):
+            if client.joined and client.session == 90:
+                break
+            await asyncio.sleep(0.01)
+        assert client.session == 90 and client.heartbeat_losses == 1
+        for k in range(5, 8):
+            assert await client.publish([[0, 1, 0]], [[1, 0, 0, 0]], utime=1000 + k)
+        for _ in range(300):
+            if len(seen) == 7:
+                break
+            await asyncio.sleep(0.01)
+        await asyncio.sleep(0.1)
+        assert seen == [1, 2, 3, 4, 5, 6, 7], seen
+        assert client.fenced_events == 1 and client.repeated_answers == 1
+        resent = [(m["seq"], m["session"], m["utime"]) for m in received[9]
+                  if m["type"] == "tracker_pose"]
+        assert resent[:3] == [(2, 90, 1002), (3, 90, 1003), (4, 90, 1004)], resent
+        await client.leave()
+        old.close()
+        new.close()
+
+    asyncio.run(run())
