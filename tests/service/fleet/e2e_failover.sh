@@ -21,7 +21,16 @@
 #   e2e_failover.sh SWEPTCCD SERVICE FAILOVER_TOOL SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../../tools/netns.sh"
-enter_private_netns "$@"
+# A private network namespace (the router) and a private mount namespace:
+# the hosts' named network namespaces (`ip netns add`) are bind mounts under
+# a /run of our own, seen by nobody else and gone with this script. As root
+# unshare -nm; otherwise a user namespace too (-rnm).
+if [ "${SWEPTCCD_IN_NETNS:-}" != 1 ]; then
+  flags=-rnm
+  if [ "$(id -u)" = 0 ]; then flags=-nm; fi
+  exec env SWEPTCCD_IN_NETNS=1 unshare $flags bash "$0" "$@"
+fi
+mount -t tmpfs -o mode=755 tmpfs /run
 sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 here=$src/tests/service/fleet
 py=/usr/bin/python3
