@@ -232,6 +232,13 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       idle_ms = hello.contains("limits") ? hello["limits"].value("idle_timeout_ms", int64_t{15000})
                                          : int64_t{15000};
       SetPace(hello.contains("limits") ? hello["limits"] : nlohmann::json::object());
+      // At least 3 status periods of this door (hello.limits.status_period_ms).
+      heartbeat_s = options.heartbeat_timeout_s;
+      if (hello.contains("limits") && hello["limits"].contains("status_period_ms") &&
+          hello["limits"]["status_period_ms"].is_number_integer()) {
+        const int64_t ms = hello["limits"]["status_period_ms"].get<int64_t>();
+        if (ms > 0 && ms <= 3600000) heartbeat_s = std::max(heartbeat_s, 3 * ms / 1000.0);
+      }
       Read(generation);
       KeepAlive(generation);
       Heartbeat(generation);
@@ -266,10 +273,11 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
   // A joined client hears its instance's status every status_period_s; none
   // for heartbeat_timeout_s: the room is taken for dead (its host may be
   // gone without a FIN), the connection abandoned, the room resolved again.
+  double heartbeat_s = 3;  // I/O thread: the timeout for this connection.
   void Heartbeat(uint64_t gen) {
     if (!(options.heartbeat_timeout_s > 0)) return;
-    const auto timeout = std::chrono::duration_cast<Clock::duration>(
-        std::chrono::duration<double>(options.heartbeat_timeout_s));
+    const auto timeout =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(heartbeat_s));
     heartbeat_timer.expires_after(
         std::max<Clock::duration>(timeout / 8, std::chrono::milliseconds(10)));
     auto self = shared_from_this();
@@ -283,8 +291,7 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       }
       if (dead) {
         self->Abandon("no status from instance " + std::to_string(self->instance) + " for " +
-                      std::to_string(self->options.heartbeat_timeout_s) +
-                      " s: room taken for dead");
+                      std::to_string(self->heartbeat_s) + " s: room taken for dead");
         return;
       }
       self->Heartbeat(gen);

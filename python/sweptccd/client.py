@@ -431,14 +431,18 @@ class LiveClient:
                         ) -> AsyncIterator[Union[str, bytes]]:
         """ws's messages until it closes, or until no status of the joined
         instance came for heartbeat_timeout (the room is dead: aborted)."""
+        limit = self.heartbeat_timeout
+        period = self.hello.get("limits", {}).get("status_period_ms")
+        if type(period) is int and 0 < period <= 3600000:
+            limit = max(limit, 3 * period / 1000)  # At least 3 of the door's status periods.
         while True:
             timeout = None
             if self.heartbeat_timeout > 0 and self.joined:
-                timeout = max(0.01, self._last_status + self.heartbeat_timeout - time.monotonic())
+                timeout = max(0.01, self._last_status + limit - time.monotonic())
             try:
                 yield await asyncio.wait_for(ws.recv(), timeout)
             except asyncio.TimeoutError:
-                if self.joined and time.monotonic() - self._last_status > self.heartbeat_timeout:
+                if self.joined and time.monotonic() - self._last_status > limit:
                     self.heartbeat_losses += 1
                     self._abort(ws)
                     return

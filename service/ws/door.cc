@@ -826,6 +826,7 @@ Frame WsDoor::Impl::Hello(const std::string& challenge) const {
   l["max_pose_rate_hz"] = ctx.max_pose_rate_hz;
   l["pose_burst"] = ctx.pose_burst;
   l["silence_timeout_ms"] = ctx.silence_timeout_ms;
+  l["status_period_ms"] = ctx.status_period_ms;
   l["idle_timeout_ms"] = idle_timeout.count();
   l["handshake_timeout_ms"] = options.handshake_timeout_ms;
   l["max_connections"] = options.max_connections;

@@ -69,8 +69,8 @@ class WsLiveClient {
     std::shared_ptr<RoomResolver> resolver;
     std::string room;
     /// A joined client without a status of its instance for this long takes
-    /// the room for dead (0: never). At least 3 of the daemon's
-    /// status_period_s (1 s by default).
+    /// the room for dead (0: never); raised to 3 status periods when the
+    /// door tells its period (hello.limits.status_period_ms).
     double heartbeat_timeout_s = 3.0;
     double connect_timeout_s = 5.0;   // TCP connect, TLS and upgrade, each.
     double max_backoff_s = 4.0;       // The reconnect backoff's cap.

@@ -298,12 +298,20 @@ export class LiveClient extends Connection<LiveClientEvents> {
     this.pump();
   }
 
+  /** The heartbeat timeout: at least 3 of the door's status periods (hello.limits.status_period_ms). */
+  private heartbeatMs(): number {
+    const period = this.hello?.limits?.status_period_ms;
+    const told = typeof period === "number" && period > 0 && period <= 3600000 ? 3 * period : 0;
+    return Math.max(this.live.heartbeatTimeoutMs, told);
+  }
+
   private startHeartbeat(): void {
     if (this.heartbeat || !(this.live.heartbeatTimeoutMs > 0)) return;
     this.heartbeat = setInterval(() => {
-      if (this.joinedValue && Date.now() - this.lastStatusMs > this.live.heartbeatTimeoutMs) {
+      const ms = this.heartbeatMs();
+      if (this.joinedValue && Date.now() - this.lastStatusMs > ms) {
         this.heartbeatLosses++;
-        this.restart(`no status for ${this.live.heartbeatTimeoutMs} ms: room taken for dead`);
+        this.restart(`no status for ${ms} ms: room taken for dead`);
       }
     }, Math.max(10, this.live.heartbeatTimeoutMs / 8));
   }
