@@ -115,7 +115,7 @@ ready_wall() { grep '"path": "/ready"' "sdk_$1.log" | head -1 | sed 's/.*"wall":
 start_room d 4
 wait_for sdk_d.log '"/ready"' || fail "D not Ready"
 "$py" "$here/agones_allocator_standin.py" 0.0.0.0 18080 "$work/gameservers" allocator.log \
-  --unhealthy-after 0.6 --stale room-d 1 &
+  --unhealthy-after 0.4 --stale room-d 1 &
 pids+=($!)
 for _ in $(seq 100); do curl -s -o /dev/null http://127.0.0.1:18080/ && break; sleep 0.05; done
 alloc() {

@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
     o.ca_file = argv[5];
     o.heartbeat_timeout_s = 0.8;  // The rooms' status_period_s is 0.2.
     o.max_backoff_s = 0.25;
-    o.connect_timeout_s = 1.0;
+    o.connect_timeout_s = 0.5;
     o.join_timeout_s = 10;
     tallies.push_back(std::make_unique<Tally>());
     Tally* t = tallies.back().get();
