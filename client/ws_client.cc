@@ -14,6 +14,7 @@
 #include <future>
 #include <mutex>
 #include <random>
+#include <set>
 #include <thread>
 
 #include "core/errors.h"
@@ -21,6 +22,7 @@
 #include "service/ws/json_fields.h"
 #include "service/ws/lcm_json.h"
 #include "service/ws/proof.h"
+#include "sweptccd_client/pair_ledger.h"
 
 namespace sweptccd {
 
@@ -46,10 +48,15 @@ int64_t WallUtime() {
 }  // namespace
 
 struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
-  Impl(WsLiveClient* o, Options opt) : owner(o), options(std::move(opt)) {
+  Impl(WsLiveClient* o, Options opt)
+      : owner(o), options(std::move(opt)), ledger(options.max_pending_poses) {
     std::random_device rd;
     nonce = static_cast<int64_t>((uint64_t{rd()} << 32 | rd()) & ((uint64_t{1} << 53) - 1));
-    if (options.tls) {
+    if (options.tls && !options.resolver) MakeTls();
+  }
+
+  void MakeTls() {
+    {
       tls.emplace(ssl::context::tls_client);
       if (options.verify_peer) {
         tls->set_verify_mode(ssl::verify_peer);
@@ -94,6 +101,32 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
   std::string challenge;
   uint64_t generation = 0;  // Bumped by every connection: stale handlers ignore themselves.
 
+  // Failover (guarded by mutex unless said otherwise).
+  PairLedger ledger;
+  std::set<std::pair<int64_t, std::string>> shared_seen;  // (seq1, entity) delivered.
+  bool ever_joined = false;
+  int64_t max_instance = 0;  // The newest instance joined: older hellos are fenced.
+  FailoverStats stats;
+  Clock::time_point last_status;  // I/O thread.
+  net::steady_timer heartbeat_timer{ioc};
+  // Re-sent poses (I/O thread): lock-step (the next one once the pair of
+  // the previous one is answered, or after kLockstepWait), so the service's
+  // latest-wins never merges them into one pair, and within the door's rate
+  // limits.
+  struct OutPose {
+    int64_t seq;
+    bool anchor;  // The first of a re-join: it forms no pair.
+    std::string text;
+  };
+  std::deque<OutPose> pose_out;
+  int64_t awaiting = -1;  // seq of the re-sent pose whose pair is awaited.
+  double tokens = 0, pose_rate = 100, pose_burst = 8;
+  Clock::time_point tokens_at;
+  bool pump_armed = false;
+  net::steady_timer pump_timer{ioc};
+  net::steady_timer lockstep_timer{ioc};
+  static constexpr std::chrono::milliseconds kLockstepWait{250};
+
   template <class F>
   void With(F&& f) {
     if (secure) {
@@ -106,17 +139,41 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
   // I/O thread: a fresh connection, hello, join, subscribe. False on failure.
   bool Connect() {
     try {
+      std::string host = options.host;
+      uint16_t port = options.port;
+      bool use_tls = options.tls;
+      if (options.resolver) {
+        DoorAddress d;
+        try {
+          d = options.resolver->Resolve(options.room);
+        } catch (const RoomError& e) {
+          std::lock_guard<std::mutex> lock(mutex);
+          ++stats.resolve_failures;
+          throw;
+        }
+        host = d.host;
+        port = d.port;
+        use_tls = d.tls;
+        if (use_tls && !tls) MakeTls();
+        std::lock_guard<std::mutex> lock(mutex);
+        stats.door = d.Url();
+      } else {
+        std::lock_guard<std::mutex> lock(mutex);
+        stats.door = DoorAddress{host, port, use_tls, "static"}.Url();
+      }
+      const auto timeout = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(options.connect_timeout_s));
       tcp::resolver resolver(ioc);
-      const auto endpoints = resolver.resolve(options.host, std::to_string(options.port));
+      const auto endpoints = resolver.resolve(host, std::to_string(port));
       beast::tcp_stream stream(ioc);
-      stream.expires_after(std::chrono::seconds(5));
+      stream.expires_after(timeout);
       stream.connect(endpoints);
       stream.socket().set_option(tcp::no_delay(true));
       plain.reset();
       secure.reset();
-      if (tls) {
+      if (use_tls) {
         secure = std::make_unique<TlsWs>(std::move(stream), *tls);
-        beast::get_lowest_layer(*secure).expires_after(std::chrono::seconds(5));
+        beast::get_lowest_layer(*secure).expires_after(timeout);
         secure->next_layer().handshake(ssl::stream_base::client);
       } else {
         plain = std::make_unique<PlainWs>(std::move(stream));
@@ -129,8 +186,8 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
           if (!origin.empty()) req.set(http::field::origin, origin);
         }));
         ws.read_message_max(64 << 20);
-        beast::get_lowest_layer(ws).expires_after(std::chrono::seconds(5));
-        ws.handshake(options.host + ":" + std::to_string(options.port), "/ws");
+        beast::get_lowest_layer(ws).expires_after(timeout);
+        ws.handshake(host + ":" + std::to_string(port), "/ws");
         beast::flat_buffer b;
         ws.read(b);
         hello_text = beast::buffers_to_string(b.data());
@@ -141,8 +198,21 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       if (hello.value("type", "") != "hello") throw std::runtime_error("no hello");
       {
         std::lock_guard<std::mutex> lock(mutex);
+        const int64_t hello_instance = hello.at("instance").get<int64_t>();
+        if (hello_instance < max_instance) {
+          // A server of an older run of this room (a stale allocation, a
+          // host back from a partition): fenced, resolve again.
+          ++stats.fenced_hellos;
+          With([](auto& ws) {
+            beast::error_code ec;
+            beast::get_lowest_layer(ws).socket().close(ec);
+          });
+          throw std::runtime_error("door " + stats.door + " runs instance " +
+                                   std::to_string(hello_instance) + ", older than instance " +
+                                   std::to_string(max_instance) + " joined already: fenced");
+        }
         challenge = hello.at("challenge").get<std::string>();
-        instance = hello.at("instance").get<int64_t>();
+        instance = hello_instance;
         connected = true;
         ++connections;
         ++generation;
@@ -161,15 +231,25 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       }
       idle_ms = hello.contains("limits") ? hello["limits"].value("idle_timeout_ms", int64_t{15000})
                                          : int64_t{15000};
+      SetPace(hello.contains("limits") ? hello["limits"] : nlohmann::json::object());
+      // At least 3 status periods of this door (hello.limits.status_period_ms).
+      heartbeat_s = options.heartbeat_timeout_s;
+      if (hello.contains("limits") && hello["limits"].contains("status_period_ms") &&
+          hello["limits"]["status_period_ms"].is_number_integer()) {
+        const int64_t ms = hello["limits"]["status_period_ms"].get<int64_t>();
+        if (ms > 0 && ms <= 3600000) heartbeat_s = std::max(heartbeat_s, 3 * ms / 1000.0);
+      }
       Read(generation);
       KeepAlive(generation);
+      Heartbeat(generation);
       return true;
     } catch (const std::exception& e) {
       plain.reset();
       secure.reset();
       std::lock_guard<std::mutex> lock(mutex);
       connected = false;
-      last_error = e.what();
+      last_error = EscapeForDisplay(e.what(), 300);
+      stats.last_error = last_error;
       cv.notify_all();
       return false;
     }
@@ -188,6 +268,130 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       self->Queue("{\"type\":\"ping\",\"utime\":" + std::to_string(WallUtime()) + "}");
       self->KeepAlive(gen);
     });
+  }
+
+  // A joined client hears its instance's status every status_period_s; none
+  // for heartbeat_timeout_s: the room is taken for dead (its host may be
+  // gone without a FIN), the connection abandoned, the room resolved again.
+  double heartbeat_s = 3;  // I/O thread: the timeout for this connection.
+  void Heartbeat(uint64_t gen) {
+    if (!(options.heartbeat_timeout_s > 0)) return;
+    const auto timeout =
+        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(heartbeat_s));
+    heartbeat_timer.expires_after(
+        std::max<Clock::duration>(timeout / 8, std::chrono::milliseconds(10)));
+    auto self = shared_from_this();
+    heartbeat_timer.async_wait([self, gen, timeout](beast::error_code ec) {
+      if (ec || gen != self->generation) return;
+      bool dead = false;
+      {
+        std::lock_guard<std::mutex> lock(self->mutex);
+        dead = self->is_joined && Clock::now() - self->last_status > timeout;
+        if (dead) ++self->stats.heartbeat_losses;
+      }
+      if (dead) {
+        self->Abandon("no status from instance " + std::to_string(self->instance) + " for " +
+                      std::to_string(self->heartbeat_s) + " s: room taken for dead");
+        return;
+      }
+      self->Heartbeat(gen);
+    });
+  }
+
+  // I/O thread: drops this connection (no close handshake: the peer may be
+  // gone) and reconnects through the resolver.
+  void Abandon(const std::string& why) {
+    bool again = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      connected = false;
+      is_joined = false;
+      ++generation;
+      last_error = why;
+      stats.last_error = why;
+      again = options.reconnect && !left && !stopping;
+      cv.notify_all();
+    }
+    With([](auto& ws) {
+      beast::error_code ec;
+      beast::get_lowest_layer(ws).socket().close(ec);
+    });
+    writing = false;
+    out.clear();
+    pose_out.clear();
+    awaiting = -1;
+    if (again) ScheduleReconnect();
+  }
+
+  // The pace of re-sent poses: under the door's message rate and the
+  // service's pose rate (hello.limits), with a margin for pings.
+  void SetPace(const nlohmann::json& limits) {
+    const double message_rate = limits.value("message_rate_hz", 480.0);
+    const double pose_limit = limits.value("max_pose_rate_hz", 240.0);
+    const double burst =
+        std::min(limits.value("message_burst", 64.0), limits.value("pose_burst", 16.0));
+    pose_rate = std::max(1.0, 0.8 * std::min(message_rate, pose_limit));
+    pose_burst = std::max(1.0, burst / 2);
+    tokens = pose_burst;
+    tokens_at = Clock::now();
+    pose_out.clear();
+    pump_armed = false;
+    awaiting = -1;
+  }
+
+  void Pump() {
+    const auto now = Clock::now();
+    tokens = std::min(pose_burst,
+                      tokens + pose_rate * std::chrono::duration<double>(now - tokens_at).count());
+    tokens_at = now;
+    while (!pose_out.empty() && awaiting < 0 && tokens >= 1) {
+      OutPose p = std::move(pose_out.front());
+      pose_out.pop_front();
+      Queue(std::move(p.text));
+      tokens -= 1;
+      if (!p.anchor) AwaitPair(p.seq);
+    }
+    if (pose_out.empty() || awaiting >= 0 || pump_armed) return;
+    pump_armed = true;
+    pump_timer.expires_after(std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>((1 - tokens) / pose_rate)));
+    auto self = shared_from_this();
+    const uint64_t gen = generation;
+    pump_timer.async_wait([self, gen](beast::error_code ec) {
+      if (ec || gen != self->generation) return;
+      self->pump_armed = false;
+      self->Pump();
+    });
+  }
+
+  void AwaitPair(int64_t seq) {
+    awaiting = seq;
+    lockstep_timer.expires_after(kLockstepWait);
+    auto self = shared_from_this();
+    const uint64_t gen = generation;
+    lockstep_timer.async_wait([self, gen, seq](beast::error_code ec) {
+      if (ec || gen != self->generation || self->awaiting != seq) return;
+      self->awaiting = -1;  // No answer (shed, suppressed rejection): go on.
+      self->Pump();
+    });
+  }
+
+  // An answer or a rejection of our pose `seq` arrived (I/O thread).
+  void PairDone(int64_t seq) {
+    if (awaiting < 0 || seq < awaiting) return;
+    awaiting = -1;
+    lockstep_timer.cancel();
+    Pump();
+  }
+
+  // A live pose: straight out, unless re-sent ones are still going out.
+  void SendLive(int64_t seq, std::string text) {
+    if (pose_out.empty() && awaiting < 0) {
+      Queue(std::move(text));
+      return;
+    }
+    pose_out.push_back({seq, false, std::move(text)});
+    Pump();
   }
 
   void SendJoin() {
@@ -274,7 +478,8 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
     std::uniform_int_distribution<int> jitter(0, static_cast<int>(backoff.count() / 4));
     static thread_local std::mt19937 rng{std::random_device{}()};
     backoff_timer.expires_after(backoff + std::chrono::milliseconds(jitter(rng)));
-    backoff = std::min<std::chrono::milliseconds>(backoff * 2, std::chrono::seconds(4));
+    backoff = std::min<std::chrono::milliseconds>(
+        backoff * 2, std::chrono::milliseconds(static_cast<int64_t>(options.max_backoff_s * 1000)));
     auto self = shared_from_this();
     backoff_timer.async_wait([self](beast::error_code ec) {
       if (ec) return;
@@ -290,6 +495,95 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
     });
   }
 
+  // Whether an event of `type` with instance `v.instance` is stale (another
+  // daemon run than this connection's): counted and dropped.
+  bool Fenced(const nlohmann::json& v) {
+    const auto it = v.find("instance");
+    if (it == v.end() || !it->is_number_integer()) return false;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!IsStaleEpoch(it->get<int64_t>(), instance)) return false;
+    ++stats.fenced_events;
+    return true;
+  }
+
+  void OnJoinReply(const join_reply_t& r) {
+    std::vector<tracker_pose_t> again;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      JoinResult result;
+      result.reason = r.reason;
+      result.message = EscapeForDisplay(r.message, 400);
+      result.session = r.session;
+      result.instance = r.instance;
+      if (result.ok()) {
+        is_joined = true;
+        ever_joined = true;
+        session = r.session;
+        instance = r.instance;
+        max_instance = std::max(max_instance, r.instance);
+        last_status = Clock::now();
+        // The poses whose pair is not answered yet, again under the new
+        // session (same seq and utime): a pair answered by nobody is
+        // answered now, one answered already is dropped when it comes again.
+        again = ledger.ForResend(r.session);
+        stats.resent_poses += static_cast<int64_t>(again.size());
+      }
+      last_reply = result;
+      ++replies;
+      cv.notify_all();
+    }
+    for (tracker_pose_t& p : again) {
+      p.num_links = static_cast<int32_t>(p.position.size());
+      pose_out.push_back({p.seq, pose_out.empty(), ws::ToJson(p).dump()});
+    }
+    if (!again.empty()) Pump();
+  }
+
+  // Whether an answer for our own pair ending at seq1 is new (deliver it).
+  bool FirstAnswer(const std::string& client_id, int64_t seq1) {
+    if (client_id != options.client_id) return true;  // A viewer's copy of another's.
+    std::lock_guard<std::mutex> lock(mutex);
+    if (ledger.Answered(seq1)) return true;
+    ++stats.repeated_answers;
+    return false;
+  }
+
+  // A pair's shared entries come in one or more messages (one entry per
+  // other entity): entries already delivered are removed; false when none is
+  // left.
+  bool FirstSharedEntries(shared_contact_t* e) {
+    if (e->client_id != options.client_id) return true;
+    std::lock_guard<std::mutex> lock(mutex);
+    std::vector<shared_entry_t> fresh;
+    for (shared_entry_t& entry : e->entries) {
+      if (shared_seen.insert({e->seq1, entry.entity}).second) fresh.push_back(std::move(entry));
+    }
+    while (shared_seen.size() > 16384) shared_seen.erase(shared_seen.begin());
+    const bool any = !fresh.empty();
+    if (fresh.size() < e->entries.size()) ++stats.repeated_answers;
+    e->entries = std::move(fresh);
+    e->num_entries = static_cast<int32_t>(e->entries.size());
+    return any;
+  }
+
+  // False: the rejection made this client re-join (unknown_client).
+  bool OnOwnRejection(const rejection_t& e) {
+    if (e.client_id != options.client_id) return true;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (e.reason != "unknown_client") {
+        ledger.Refused(e.seq);
+        return true;
+      }
+      if (!is_joined || left) return true;
+      ++stats.unknown_client_rejoins;
+    }
+    // The daemon dropped the session (silence): join again on a new
+    // connection; the refused pose is still pending and goes out again.
+    Abandon("rejection unknown_client: the daemon dropped the session; joining again");
+    return false;
+  }
+
   void OnMessage(const std::string& text) {
     WireLimits limits;
     limits.max_links = 1 << 16;
@@ -297,41 +591,33 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
     if (v.is_discarded() || !v.is_object()) return;
     const std::string type = v.value("type", "");
     try {
+      if (type != "join_reply" && Fenced(v)) return;
       if (type == "join_reply") {
         join_reply_t r{};
         ws::FromJson(v, limits, &r);
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          JoinResult result;
-          result.reason = r.reason;
-          result.message = EscapeForDisplay(r.message, 400);
-          result.session = r.session;
-          result.instance = r.instance;
-          if (result.ok()) {
-            is_joined = true;
-            session = r.session;
-            instance = r.instance;
-          }
-          last_reply = result;
-          ++replies;
-          cv.notify_all();
-        }
+        OnJoinReply(r);
         if (owner->on_join_reply_) owner->on_join_reply_(r);
       } else if (type == "contact_event") {
         contact_event_t e{};
         ws::FromJson(v, limits, &e);
+        if (e.client_id == options.client_id) PairDone(e.seq1);
+        if (!FirstAnswer(e.client_id, e.seq1)) return;
         if (owner->on_contact_) owner->on_contact_(e);
       } else if (type == "shared_contact") {
         shared_contact_t e{};
         ws::FromJson(v, limits, &e);
+        if (!FirstSharedEntries(&e)) return;
         if (owner->on_shared_) owner->on_shared_(e);
       } else if (type == "rejection") {
         rejection_t e{};
         ws::FromJson(v, limits, &e);
         if (owner->on_rejection_) owner->on_rejection_(e);
+        if (!OnOwnRejection(e)) return;
+        if (e.client_id == options.client_id) PairDone(e.seq);
       } else if (type == "status") {
         status_t e{};
         ws::FromJson(v, limits, &e);
+        last_status = Clock::now();
         if (owner->on_status_) owner->on_status_(e);
       } else if (type == "error") {
         if (owner->on_error_) {
@@ -363,6 +649,9 @@ WsLiveClient::~WsLiveClient() {
   net::post(impl_->ioc, [impl = impl_.get()] {
     impl->backoff_timer.cancel();
     impl->keepalive_timer.cancel();
+    impl->heartbeat_timer.cancel();
+    impl->pump_timer.cancel();
+    impl->lockstep_timer.cancel();
     beast::error_code ec;
     if (impl->plain) beast::get_lowest_layer(*impl->plain).socket().close(ec);
     if (impl->secure) beast::get_lowest_layer(*impl->secure).socket().close(ec);
@@ -403,15 +692,25 @@ JoinResult WsLiveClient::Join() {
 
 bool WsLiveClient::PublishPose(tracker_pose_t pose) {
   Impl* impl = impl_.get();
+  int64_t session = 0;
+  pose.num_links = static_cast<int32_t>(pose.position.size());
   {
     std::lock_guard<std::mutex> lock(impl->mutex);
-    if (!impl->is_joined) return false;
+    if (impl->left || (!impl->is_joined && !impl->ever_joined)) return false;
     pose.client_id = impl->options.client_id;
-    pose.session = impl->session;
+    impl->ledger.Sent(pose);  // Counted in failover().forgotten_poses when over the bound.
+    if (!impl->is_joined) return true;  // Re-joining: it goes out after the join.
+    session = impl->session;
   }
-  pose.num_links = static_cast<int32_t>(pose.position.size());
+  pose.session = session;
   auto text = std::make_shared<std::string>(ws::ToJson(pose).dump());
-  net::post(impl->ioc, [impl, text] { impl->Queue(std::move(*text)); });
+  net::post(impl->ioc, [impl, text, session, seq = pose.seq] {
+    {
+      std::lock_guard<std::mutex> lock(impl->mutex);
+      if (!impl->is_joined || impl->session != session) return;  // Re-sent after the re-join.
+    }
+    impl->SendLive(seq, std::move(*text));
+  });
   return true;
 }
 
@@ -476,5 +775,12 @@ std::string WsLiveClient::challenge() const {
 }
 
 const std::string& WsLiveClient::client_id() const { return impl_->options.client_id; }
+
+WsLiveClient::FailoverStats WsLiveClient::failover() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  FailoverStats s = impl_->stats;
+  s.forgotten_poses = impl_->ledger.forgotten();
+  return s;
+}
 
 }  // namespace sweptccd

@@ -124,22 +124,47 @@ class LiveClient:
     file); None in an unsigned room. motion: "articulated" or "independent".
     eps, delta: 0 for the daemon's. ignore: LINK:OBJECT rules;
     ignore_entities: dicts {"link", "entity", ["other_link"]} (SPEC 8).
-    reconnect: join again after a drop (backoff 0.25 s doubling to 4 s, plus
-    up to 25% jitter), as WEBSOCKET.md section 9 says.
+    reconnect: join again after a drop (backoff 0.25 s doubling to
+    max_backoff, 4 s, plus up to 25% jitter), as WEBSOCKET.md section 9 says.
+
+    Failover (docs/DEPLOY.md), the C++ and JavaScript clients' rules: with
+    resolver and room (sweptccd.rooms) every connection resolves the room's
+    door (url is then None); no status of the joined instance for
+    heartbeat_timeout seconds takes the room for dead; hellos of an older
+    instance and events of another instance are fenced; seq goes on across
+    re-joins and the poses whose pair is unanswered are re-sent after the
+    re-join (lock-step, same seq and utime); an answer already delivered is
+    dropped; a rejection unknown_client re-joins at once.
     """
 
-    def __init__(self, url: str, client_id: str,
+    def __init__(self, url: Optional[str], client_id: str,
                  skeleton: Union[Mapping[str, Any], str, "os.PathLike[str]"], *,
                  key: Union[str, bytes, "os.PathLike[str]", None] = None,
                  motion: str = "articulated", eps: float = 0.0, delta: float = 0.0,
                  ignore: Sequence[str] = (), ignore_entities: Sequence[Mapping[str, str]] = (),
                  nonce: Optional[int] = None, reconnect: bool = True,
-                 open_timeout: float = 10.0, queue_size: int = 4096) -> None:
+                 open_timeout: float = 10.0, queue_size: int = 4096,
+                 resolver: Any = None, room: str = "", heartbeat_timeout: float = 3.0,
+                 max_backoff: float = 4.0, max_pending: int = 4096) -> None:
         if not CLIENT_ID.match(client_id):
             raise ValueError("client_id: 1-64 of [A-Za-z0-9_.-]")
         if motion not in ("articulated", "independent"):
             raise ValueError("motion must be articulated or independent")
-        self.url = url
+        if url is None and resolver is None:
+            raise ValueError("give url, or resolver and room")
+        self.url = url or ""
+        self.resolver, self.room = resolver, room
+        self.heartbeat_timeout, self.max_backoff = heartbeat_timeout, max_backoff
+        self._max_pending = max_pending
+        self._pending: List[Message] = []  # From the last answered pose on.
+        self._answered: Dict[int, None] = {}
+        self._awaiting = -1
+        self._answer_seen = asyncio.Event()
+        self._resender: Optional["asyncio.Task[None]"] = None
+        self._max_instance = 0
+        self._last_status = 0.0
+        self.fenced_events = self.fenced_hellos = self.heartbeat_losses = 0
+        self.resent_poses = self.repeated_answers = self.forgotten_poses = 0
         self.client_id = client_id
         self.skeleton = skeleton_arrays(skeleton)
         self.num_links = len(self.skeleton["link_name"])
@@ -227,8 +252,12 @@ class LiveClient:
 
     async def rejoin(self) -> Message:
         """Drops the connection and joins again at once (same id and nonce:
-        the daemon hands the id over to the new session)."""
+        the daemon hands the id over to the new session). An explicit restart
+        of the stream: seq starts again at 0, nothing is re-sent (automatic
+        re-joins after a drop or a failover keep seq and re-send)."""
         await self._stop_reader()
+        self.seq, self._last_utime = 0, 0
+        self._pending, self._answered = [], {}
         if self._ws is not None:
             await self._ws.close(1000, "rejoin")
         return await self.join()
@@ -267,6 +296,10 @@ class LiveClient:
 
     async def _connect_and_join(self) -> None:
         self._joined_event.clear()
+        if self.resolver is not None:
+            door = await asyncio.get_running_loop().run_in_executor(
+                None, self.resolver.resolve, self.room)
+            self.url = door.url
         ws = await websockets.client.connect(
             self.url, subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
             open_timeout=self._open_timeout, max_size=1 << 22, compression=None)
@@ -274,6 +307,11 @@ class LiveClient:
         hello = await self._recv(ws, self._open_timeout)
         if hello.get("type") != "hello" or hello.get("protocol") != 1:
             raise ProtocolError(f"expected hello of protocol 1, got {_display(str(hello)[:200])}")
+        if int(hello.get("instance", 0)) < self._max_instance:
+            self.fenced_hellos += 1  # An older run of the room (a stale allocation).
+            await ws.close(1000, "fenced")
+            raise ProtocolError(f"instance {int(hello.get('instance', 0))} is older than "
+                                f"{self._max_instance} joined already: fenced")
         if self.instance and hello.get("instance") != self.instance:
             self.joins = 0  # The daemon restarted: a first join again.
         self.hello, self.instance = hello, int(hello.get("instance", 0))
@@ -299,9 +337,13 @@ class LiveClient:
             await ws.close(1000, "refused")
             raise JoinRefused(msg)
         self.session = int(msg["session"])
-        self.seq = 0
-        self._last_utime = 0
+        self.instance = int(msg.get("instance", self.instance))
+        self._max_instance = max(self._max_instance, self.instance)
+        self._last_status = time.monotonic()
         self.joins += 1
+        if self._pending:
+            self.resent_poses += len(self._pending)
+            self._resender = asyncio.ensure_future(self._resend(ws, list(self._pending)))
         self._last_reply = msg
         self._joined_event.set()
         self._emit("joined", {**msg, "rejoin": self.joins > 1})
@@ -319,12 +361,91 @@ class LiveClient:
                                 f"{_display(str(msg.get('message', '')))}")
         return msg
 
+    async def _resend(self, ws: websockets.client.WebSocketClientProtocol,
+                      poses: List[Message]) -> None:
+        """The unanswered poses under the new session, one pair at a time
+        (latest-wins would merge a burst), paced under the door's limits."""
+        limits = self.hello.get("limits", {})
+        period = 1.0 / max(1.0, 0.8 * min(float(limits.get("message_rate_hz", 480)),
+                                          float(limits.get("max_pose_rate_hz", 240))))
+        for i, pose in enumerate(poses):
+            self._answer_seen.clear()
+            self._awaiting = -1 if i == 0 else int(pose["seq"])  # The first anchors.
+            try:
+                await ws.send(json.dumps({**pose, "session": self.session}))
+            except websockets.exceptions.ConnectionClosed:
+                return
+            if self._awaiting >= 0:
+                try:
+                    await asyncio.wait_for(self._answer_seen.wait(), 0.25)
+                except asyncio.TimeoutError:
+                    pass  # Shed or suppressed: go on.
+            await asyncio.sleep(period)
+        self._awaiting = -1
+
+    def _pair_done(self, seq: int) -> None:
+        if self._awaiting >= 0 and seq >= self._awaiting:
+            self._answer_seen.set()
+
     def _dispatch(self, msg: Message) -> None:
         kind = msg.get("type")
+        instance = msg.get("instance")
+        if kind != "join_reply" and isinstance(instance, int) and instance != self.instance:
+            self.fenced_events += 1  # Another daemon run's event (WEBSOCKET.md "The epoch").
+            return
+        if kind == "status":
+            self._last_status = time.monotonic()
+        if kind == "rejection" and msg.get("client_id") == self.client_id:
+            if msg.get("reason") == "unknown_client" and self.joined and self._ws is not None:
+                self._abort(self._ws)  # The daemon dropped the session: join again.
+            else:
+                seq = msg.get("seq")
+                self._pending = [p for p in self._pending if p["seq"] != seq]
+                if isinstance(seq, int):
+                    self._pair_done(seq)
+        if kind == "contact_event" and msg.get("client_id") == self.client_id:
+            seq1 = msg.get("seq1")
+            if isinstance(seq1, int):
+                self._pair_done(seq1)
+                while self._pending and self._pending[0]["seq"] < seq1:
+                    self._pending.pop(0)
+                if seq1 in self._answered:
+                    self.repeated_answers += 1
+                    return
+                self._answered[seq1] = None
+                if len(self._answered) > 8192:
+                    del self._answered[next(iter(self._answered))]
         if kind == "contact_event" and msg.get("client_id") != self.client_id:
             return
         if kind in ("contact_event", "shared_contact", "rejection", "status", "error"):
             self._emit(str(kind), msg)
+
+    @staticmethod
+    def _abort(ws: websockets.client.WebSocketClientProtocol) -> None:
+        """Drops a connection without a close handshake (the peer may be gone)."""
+        transport = getattr(ws, "transport", None)
+        if transport is not None:
+            transport.abort()
+
+    async def _messages(self, ws: websockets.client.WebSocketClientProtocol
+                        ) -> AsyncIterator[Union[str, bytes]]:
+        """ws's messages until it closes, or until no status of the joined
+        instance came for heartbeat_timeout (the room is dead: aborted)."""
+        limit = self.heartbeat_timeout
+        period = self.hello.get("limits", {}).get("status_period_ms")
+        if type(period) is int and 0 < period <= 3600000:
+            limit = max(limit, 3 * period / 1000)  # At least 3 of the door's status periods.
+        while True:
+            timeout = None
+            if self.heartbeat_timeout > 0 and self.joined:
+                timeout = max(0.01, self._last_status + limit - time.monotonic())
+            try:
+                yield await asyncio.wait_for(ws.recv(), timeout)
+            except asyncio.TimeoutError:
+                if self.joined and time.monotonic() - self._last_status > limit:
+                    self.heartbeat_losses += 1
+                    self._abort(ws)
+                    return
 
     async def _read_forever(self) -> None:
         backoff = 0.25
@@ -332,7 +453,7 @@ class LiveClient:
             ws = self._ws
             assert ws is not None
             try:
-                async for text in ws:
+                async for text in self._messages(ws):
                     if not isinstance(text, str):
                         continue
                     msg = json.loads(text)
@@ -345,13 +466,16 @@ class LiveClient:
             except (websockets.exceptions.ConnectionClosed, OSError, ValueError):
                 pass
             self._joined_event.clear()
+            if self._resender is not None:
+                self._resender.cancel()
+                self._resender = None
             self._emit("disconnected", {"code": ws.close_code, "reason": ws.close_reason})
             if self._leaving or not self.reconnect:
                 self._queue_end()
                 return
             while not self._leaving:  # WEBSOCKET.md section 9.
                 await asyncio.sleep(backoff * (1 + 0.25 * random.random()))
-                backoff = min(4.0, backoff * 2)
+                backoff = min(self.max_backoff, backoff * 2)
                 try:
                     await self._connect_and_join()
                     break
@@ -363,6 +487,11 @@ class LiveClient:
                 except (OSError, ProtocolError, asyncio.TimeoutError,
                         websockets.exceptions.WebSocketException):
                     pass
+                except Exception as e:  # noqa: BLE001 - a RoomError from the resolver
+                    if getattr(e, "retryable", True) is False:
+                        self._join_error = e
+                        self._queue_end()
+                        return
 
     async def wait_joined(self, timeout: Optional[float] = None) -> None:
         """Waits until joined (after a drop: until joined again)."""
@@ -383,19 +512,39 @@ class LiveClient:
         if any(len(p) != 3 for p in pos) or any(len(q) != 4 for q in ori):
             raise ValueError("pose: positions have 3 numbers, orientations 4 [w, x, y, z]")
         ws = self._ws
-        if ws is None or not self.joined:
+        rejoining = (not self.joined and (self.joins > 0 or self._max_instance > 0)
+                     and not self._leaving and self.reconnect)
+        if ws is None or not (self.joined or rejoining):
             self.dropped_poses += 1
             return False
         t = utime if utime is not None else max(_now_us(), self._last_utime + 1)
         s = seq if seq is not None else self.seq
+        if s < self.seq:  # Numbered from anew: a new stream.
+            self._pending, self._answered = [], {}
+        pose = {"type": "tracker_pose", "utime": int(t), "client_id": self.client_id,
+                "session": self.session, "seq": int(s), "position": pos, "orientation": ori}
+        self._pending.append(pose)
+        if len(self._pending) > self._max_pending:
+            self._pending.pop(0)
+            self.forgotten_poses += 1
+        self.seq, self._last_utime = s + 1, int(t)
+        if rejoining or (self._resender is not None and not self._resender.done()):
+            # Sent after the re-join / behind the re-sent ones (_resend's list
+            # is a copy: add it there too).
+            if self._resender is not None and not self._resender.done():
+                await self._resender
+                if self.joined and self._ws is not None:
+                    try:
+                        await self._ws.send(json.dumps({**pose, "session": self.session}))
+                    except websockets.exceptions.ConnectionClosed:
+                        pass
+            self.sent_poses += 1
+            return True
         try:
-            await ws.send(json.dumps({"type": "tracker_pose", "utime": int(t),
-                                      "client_id": self.client_id, "session": self.session,
-                                      "seq": int(s), "position": pos, "orientation": ori}))
+            await ws.send(json.dumps(pose))
         except websockets.exceptions.ConnectionClosed:
             self.dropped_poses += 1
             return False
-        self.seq, self._last_utime = s + 1, int(t)
         self.sent_poses += 1
         return True
 

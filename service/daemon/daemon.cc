@@ -583,6 +583,7 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
     ctx.keys = door_keys;
     ctx.limits = door_limits;
     ctx.silence_timeout_ms = config.silence_timeout_ms;
+    ctx.status_period_ms = static_cast<int64_t>(std::ceil(config.status_period_s * 1000));
     ctx.max_pose_rate_hz = config.max_pose_rate_hz;
     ctx.pose_burst = ServiceOptions().pose_burst;
     ctx.shared_world = config.shared_world;

@@ -826,6 +826,7 @@ Frame WsDoor::Impl::Hello(const std::string& challenge) const {
   l["max_pose_rate_hz"] = ctx.max_pose_rate_hz;
   l["pose_burst"] = ctx.pose_burst;
   l["silence_timeout_ms"] = ctx.silence_timeout_ms;
+  l["status_period_ms"] = ctx.status_period_ms;
   l["idle_timeout_ms"] = idle_timeout.count();
   l["handshake_timeout_ms"] = options.handshake_timeout_ms;
   l["max_connections"] = options.max_connections;
@@ -1036,19 +1037,28 @@ uint16_t WsDoor::port() const { return impl_->bound_port; }
 
 int WsDoor::connections() const { return impl_->connections.load(); }
 
+// Every event a client may act on carries the daemon run (its epoch,
+// docs/WEBSOCKET.md): a client fences events of an older instance.
+template <class Event>
+Frame EpochFrame(WsDoor::Impl* impl, const Event& e) {
+  OrderedJson j = ws::ToJson(e);
+  j["instance"] = impl->ctx.service->instance();
+  return MakeFrame(j);
+}
+
 void WsDoor::PublishContact(const contact_event_t& event) {
   auto e = std::make_shared<const contact_event_t>(event);
-  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, MakeFrame(ws::ToJson(*e))); });
+  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, EpochFrame(impl, *e)); });
 }
 
 void WsDoor::PublishSharedContact(const shared_contact_t& event) {
   auto e = std::make_shared<const shared_contact_t>(event);
-  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, MakeFrame(ws::ToJson(*e))); });
+  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, EpochFrame(impl, *e)); });
 }
 
 void WsDoor::PublishRejection(const rejection_t& rejection) {
   auto e = std::make_shared<const rejection_t>(rejection);
-  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, MakeFrame(ws::ToJson(*e))); });
+  impl_->Post([impl = impl_.get(), e] { impl->Route(e->client_id, EpochFrame(impl, *e)); });
 }
 
 void WsDoor::PublishStatus(const status_t& status) {
@@ -1065,7 +1075,7 @@ void WsDoor::ForwardPose(const tracker_pose_t& pose) {
   if (impl_->subscribers.load() == 0) return;
   auto e = std::make_shared<const tracker_pose_t>(pose);
   impl_->Post([impl = impl_.get(), e] {
-    const Frame f = MakeFrame(ws::ToJson(*e));
+    const Frame f = EpochFrame(impl, *e);
     const std::string key = "pose:" + e->client_id;
     for (auto& [id, w] : impl->conns) {
       if (auto c = w.lock(); c && c->subscribed) c->SendLatest(key, f);
@@ -1077,7 +1087,7 @@ void WsDoor::ForwardObjectPose(const object_pose_t& pose) {
   if (impl_->subscribers.load() == 0) return;
   auto e = std::make_shared<const object_pose_t>(pose);
   impl_->Post([impl = impl_.get(), e] {
-    const Frame f = MakeFrame(ws::ToJson(*e));
+    const Frame f = EpochFrame(impl, *e);
     const std::string key = "object:" + e->object_id;
     for (auto& [id, w] : impl->conns) {
       if (auto c = w.lock(); c && c->subscribed) c->SendLatest(key, f);

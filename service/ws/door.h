@@ -35,6 +35,7 @@ struct WsDoorContext {
   KeyRing keys;       // The room's keys (room key: joins, subscribers; objects' keys).
   WireLimits limits;  // Field limits (max_links, max_join_links, strings...).
   int64_t silence_timeout_ms = 5000;
+  int64_t status_period_ms = 1000;  // Told in hello: clients size their heartbeat by it.
   double max_pose_rate_hz = 240;
   int pose_burst = 16;
   bool shared_world = false;

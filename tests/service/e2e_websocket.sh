@@ -90,6 +90,10 @@ upgrade() {
 # The same client instance again on a new connection: replaced.
 "$wstool" replace $port "$work/room.key" | tee "$work/replace.out"
 grep -q "^ok replace:" "$work/replace.out"
+# The C++ client after the daemon dropped its session for silence: the
+# rejection unknown_client makes it re-join; every pair answered once.
+"$wstool" silence $port "$work/room.key" "$work/arm.json" | tee "$work/silence.out"
+grep -q "^ok silence:" "$work/silence.out"
 # The C++ client across a daemon restart.
 "$wstool" reconnect $port "$work/room.key" "$work/arm.json" > "$work/reconnect.out" &
 client=$!

@@ -33,6 +33,7 @@
 #include <chrono>
 #include <cstdio>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -399,9 +400,83 @@ int Reconnect(const sweptccd::MacKey& key, const std::string& skeleton_path) {
   return g_failures.load() == 0 ? 0 : 1;
 }
 
+// WsLiveClient after the daemon dropped its session for silence (the door's
+// silence_timeout_ms, 300 ms in the script): its next pose is rejected
+// unknown_client, the client re-joins at once on a new connection and sends
+// the pending poses again; every pair is answered exactly once.
+int Silence(const sweptccd::MacKey& key, const std::string& skeleton_path) {
+  using namespace sweptccd;
+  WsLiveClient::Options o;
+  o.port = static_cast<uint16_t>(g_port);
+  o.client_id = "quiet";
+  o.room_key = key;
+  o.skeleton = LoadSkeletonFile(skeleton_path);
+  WsLiveClient client(o);
+  std::mutex mutex;
+  std::map<int64_t, int> answers;  // seq1 -> times delivered
+  std::set<int64_t> sessions;
+  client.OnJoinReply([&](const join_reply_t& r) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (r.reason == 0) sessions.insert(r.session);
+  });
+  client.OnContact([&](const contact_event_t& e) {
+    std::lock_guard<std::mutex> lock(mutex);
+    ++answers[e.seq1];
+  });
+  client.OnRejection([&](const rejection_t& r) {
+    std::printf("silence: rejection of seq %lld: %s\n", static_cast<long long>(r.seq),
+                r.reason.c_str());
+  });
+  if (!client.Join().ok()) {
+    Report(false, "silence", "first join failed");
+    return 1;
+  }
+  const int kPoses = 30;
+  for (int64_t seq = 0; seq < kPoses; ++seq) {
+    if (seq == 5) std::this_thread::sleep_for(std::chrono::milliseconds(900));
+    tracker_pose_t p{};
+    p.utime = 1000000 + seq * 20000;
+    p.seq = seq;
+    for (int l = 0; l < o.skeleton->num_links(); ++l) {
+      p.position.push_back({0, 1, 0.3 * l});
+      p.orientation.push_back({1, 0, 0, 0});
+    }
+    if (!client.PublishPose(p))
+      Report(false, "silence", "pose " + std::to_string(seq) + " refused");
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  for (int i = 0; i < 300; ++i) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (answers.size() >= kPoses - 1) break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  std::lock_guard<std::mutex> lock(mutex);
+  std::string missing;
+  for (int64_t seq1 = 1; seq1 < kPoses; ++seq1) {
+    if (!answers.count(seq1)) missing += " " + std::to_string(seq1);
+  }
+  if (!missing.empty()) std::printf("silence: pairs not answered, by seq1:%s\n", missing.c_str());
+  bool once = answers.size() == kPoses - 1;
+  for (const auto& [seq1, n] : answers) once = once && n == 1 && seq1 >= 1 && seq1 < kPoses;
+  const auto f = client.failover();
+  Report(once && f.unknown_client_rejoins >= 1 && sessions.size() >= 2, "silence",
+         std::to_string(answers.size()) + " of " + std::to_string(kPoses - 1) +
+             " pairs answered (each once: " + (once ? "yes" : "no") + "), " +
+             std::to_string(f.unknown_client_rejoins) + " re-joins on unknown_client, " +
+             std::to_string(sessions.size()) + " sessions, " + std::to_string(f.resent_poses) +
+             " poses re-sent, " + std::to_string(f.repeated_answers) + " repeats dropped");
+  return g_failures.load() == 0 ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc >= 5 && std::string(argv[1]) == "silence") {
+    g_port = std::stoi(argv[2]);
+    return Silence(sweptccd::LoadKeyFile(argv[3]), argv[4]);
+  }
   if (argc >= 4 && std::string(argv[1]) == "replace") {
     g_port = std::stoi(argv[2]);
     return Replace(sweptccd::LoadKeyFile(argv[3]));

@@ -165,7 +165,8 @@ test("joins with a valid proof, streams poses, reconnects and joins again, leave
   await until(() => contacts.length === 1);
   assert.equal(garbage.length, 1);
   // The connection drops: the client reconnects, proves again for the new
-  // challenge with the same nonce, and its seq restarts in the new session.
+  // challenge with the same nonce; in the new session it first sends pose 1
+  // again (the last answered one: it anchors the next pair), seq goes on.
   server.sockets[0].terminate();
   await until(() => joined.length === 2);
   const rejoin = server.received.find((r) => r.conn === 1).msg;
@@ -176,7 +177,8 @@ test("joins with a valid proof, streams poses, reconnects and joins again, leave
   assert.equal(client.rejoins, 1);
   assert.equal(client.publishPose(POSE), true);
   await until(() => server.received.some((r) => r.conn === 1 && r.msg.type === "tracker_pose"));
-  assert.equal(server.received.find((r) => r.conn === 1 && r.msg.type === "tracker_pose").msg.seq, 0);
+  await until(() => server.received.filter((r) => r.conn === 1 && r.msg.type === "tracker_pose").length === 2);
+  assert.deepEqual(server.received.filter((r) => r.conn === 1 && r.msg.type === "tracker_pose").map((r) => [r.msg.seq, r.msg.session]), [[1, 101], [2, 101]]);
   client.leave();
   await until(() => server.received.some((r) => r.msg.type === "leave"));
   assert.deepEqual(server.received.find((r) => r.msg.type === "leave").msg.session, 101);
@@ -369,4 +371,108 @@ test("a session the service forgot (unknown_client) joins again on a new connect
   assert.equal(server.sockets.length, 2);
   c.close();
   await server.close();
+});
+
+// Room discovery (client/js/src/rooms.ts, docs/DEPLOY.md): the same shape
+// and refusals as the C++ client's room_client_test.
+test("a static room map resolves names and refuses what it cannot read", async () => {
+  const map = lib.StaticRoomMap.fromText(
+    '{"rooms": {"arcade-1": "wss://10.0.0.5:8765", "lab": "ws://[::1]:8765/ws"}}');
+  assert.equal(map.size, 2);
+  assert.equal(lib.doorUrl(await map.resolve("arcade-1")), "wss://10.0.0.5:8765/ws");
+  assert.equal(lib.doorUrl(await map.resolve("lab")), "ws://[::1]:8765/ws");
+  await assert.rejects(map.resolve("nowhere"), (e) => e instanceof lib.RoomError && !e.retryable);
+  await assert.rejects(map.resolve("bad room"), lib.RoomError);
+  for (const bad of ["[]", "{}", '{"rooms": []}', '{"rooms": {"a b": "ws://h:1"}}', '{"rooms": {"a": 5}}',
+    '{"rooms": {"a": "ws://h"}}', '{"rooms": {"a": "ws://h:0"}}', '{"rooms": {"a": "ws://u@h:1"}}', "{"]) {
+    assert.throws(() => lib.StaticRoomMap.fromText(bad), lib.RoomError, bad);
+  }
+});
+
+test("the Agones allocator resolver asks get-or-allocate and checks the answer", async () => {
+  const calls = [];
+  let answer = { status: 200, body: JSON.stringify({ gameServerName: "dragon-x7k2p", address: "10.0.3.2",
+    ports: [{ name: "metrics", port: 9464 }, { name: "websocket", port: 7011 }] }) };
+  const fetch = async (url, init) => {
+    calls.push({ url, init });
+    return { status: answer.status, text: async () => answer.body };
+  };
+  const r = new lib.AgonesAllocatorResolver({ url: "https://alloc:443/", fleetLabels: { "sweptccd.dev/scene": "dragon" }, fetch });
+  const d = await r.resolve("arcade-7");
+  assert.equal(lib.doorUrl(d), "wss://10.0.3.2:7011/ws");
+  assert.equal(d.source, "agones:dragon-x7k2p");
+  assert.equal(calls[0].url, "https://alloc:443/gameserverallocation");
+  assert.deepEqual(JSON.parse(calls[0].init.body), {
+    namespace: "default",
+    gameServerSelectors: [
+      { matchLabels: { "sweptccd.dev/room": "arcade-7" }, gameServerState: "ALLOCATED" },
+      { matchLabels: { "sweptccd.dev/scene": "dragon" }, gameServerState: "READY" }],
+    metadata: { labels: { "sweptccd.dev/room": "arcade-7" } } });
+  answer = { status: 429, body: "{}" };
+  await assert.rejects(r.resolve("arcade-7"), (e) => e.retryable && /429/.test(e.message));
+  for (const body of ["", "[]", '{"address": "10.0.3.2"}', '{"address": "a/b", "ports": [{"name": "websocket", "port": 1}]}',
+    '{"address": "10.0.3.2", "ports": [{"name": "websocket", "port": 70000}]}']) {
+    answer = { status: 200, body };
+    await assert.rejects(r.resolve("arcade-7"), lib.RoomError, body);
+  }
+  await assert.rejects(r.resolve("../x"), lib.RoomError);
+  assert.throws(() => new lib.AgonesAllocatorResolver({ url: "https://a", fleetLabels: {} }), lib.RoomError);
+});
+
+// Failover (docs/DEPLOY.md): the room's server goes silent (no status), the
+// client takes it for dead, resolves the room again (now another server, a
+// newer instance), re-joins, re-sends the unanswered poses lock-step with
+// their seq, fences an event of the old instance and drops a repeated answer:
+// every pair reaches the application exactly once.
+test("failover: heartbeat loss, re-resolve, re-join, fence, re-send without loss or repeat", async () => {
+  const status = (sock, instance) => sock.send(JSON.stringify({ type: "status", utime: 1, instance, client_id: [] }));
+  const answer = (sock, msg, instance) => sock.send(JSON.stringify({ type: "contact_event", client_id: "alice", seq0: msg.seq - 1, seq1: msg.seq, pair: msg.seq - 1, result: 0, contacts: [], instance }));
+  let oldAlive = true;
+  const old = await standIn((sock, msg) => {
+    if (msg.type === "join_request") { accept(sock, msg, 100); status(sock, 7); }
+    // The old server answers pairs up to seq 2, then dies silently (no status, no answers, no FIN).
+    if (msg.type === "tracker_pose" && msg.seq >= 1 && msg.seq <= 2 && oldAlive) answer(sock, msg, 7);
+  });
+  const fresh = await standIn(() => {});
+  // The fresh server: hello of instance 9, unsigned; after the join a late
+  // event of the dead run and a repeat of pair 2 (neither may be delivered).
+  fresh.wss.removeAllListeners("connection");
+  fresh.wss.on("connection", (sock) => {
+    fresh.sockets.push(sock);
+    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 9, security: "unsigned", challenge: "b".repeat(64), server_utime: 1, limits: { message_rate_hz: 480, max_pose_rate_hz: 240 } }));
+    sock.on("message", (data) => {
+      const msg = JSON.parse(String(data));
+      fresh.received.push({ msg });
+      if (msg.type === "join_request") {
+        sock.send(JSON.stringify({ type: "join_reply", utime: 1, client_id: msg.client_id, nonce: msg.nonce, reason: 0, reason_name: "accepted", message: "", session: 200, instance: 9, silence_timeout_ms: 5000 }));
+        sock.send(JSON.stringify({ type: "contact_event", client_id: "alice", seq0: 3, seq1: 4, pair: 3, result: 1, contacts: [], instance: 7 }));
+        answer(sock, { seq: 2 }, 9);
+      }
+      if (msg.type === "tracker_pose" && msg.seq >= 3) answer(sock, msg, 9);
+    });
+  });
+  let target = old.url;
+  const resolver = { resolve: async () => lib.parseDoorUrl(target) };
+  const client = new lib.NodeLiveClient({ resolver, room: "arcade-7", clientId: "alice", skeleton: SKELETON, key: KEY, backoffInitialMs: 20, heartbeatTimeoutMs: 300 });
+  const seen = [];
+  client.on("contact", (c) => seen.push(c.seq1));
+  await client.connect();
+  assert.equal(client.door, old.url);
+  for (let k = 0; k < 5; k++) assert.equal(client.publishPose({ ...POSE, utime: 1000 + k }), true);
+  await until(() => seen.length === 2);
+  oldAlive = false;
+  target = fresh.url;
+  await until(() => client.heartbeatLosses === 1 && client.joined && client.session === 200);
+  assert.equal(client.door, fresh.url);
+  for (let k = 5; k < 8; k++) assert.equal(client.publishPose({ ...POSE, utime: 1000 + k }), true);
+  await until(() => seen.length === 7);
+  await new Promise((r) => setTimeout(r, 100));
+  assert.deepEqual(seen, [1, 2, 3, 4, 5, 6, 7]);
+  assert.equal(client.fencedEvents, 1);
+  assert.equal(client.repeatedAnswers, 1);
+  const resent = fresh.received.filter((r) => r.msg.type === "tracker_pose").map((r) => [r.msg.seq, r.msg.session, r.msg.utime]);
+  assert.deepEqual(resent.slice(0, 3), [[2, 200, 1002], [3, 200, 1003], [4, 200, 1004]]);
+  client.leave();
+  await old.close();
+  await fresh.close();
 });

@@ -41,6 +41,8 @@ viewer.on("contact", (e) => { if (e.client_id === "jsalice") seen.contacts++; })
 viewer.on("status", (s) => { seen.status = s; });
 await viewer.connect();
 log(`viewer subscribed (${viewer.serverHello.security}, instance ${viewer.serverHello.instance})`);
+// hello tells the daemon's status period (js_client_e2e.sh: --status-period 0.2).
+assert.equal(viewer.serverHello.limits.status_period_ms, 200);
 
 // A wrong key: bad_proof, and the client gives up at once.
 const wrong = new lib.NodeLiveClient({ url, key: "11".repeat(32), clientId: "jsmallory", skeleton, backoffInitialMs: 50 });

@@ -5,7 +5,10 @@
 // and every contact event's latency is taken from the moment its pose seq1
 // was handed to the client library to the moment the event's callback ran.
 //
-//   sweptccd_ws_latency (ws PORT | lcm URL) SKELETON POSES.jsonl CLIENTS HZ SECONDS KEY
+//   sweptccd_ws_latency (ws [HOST:]PORT | lcm URL) SKELETON POSES.jsonl CLIENTS HZ SECONDS KEY
+// (HOST: an IPv4 address of another network namespace, for
+// tools/service_bench/fleet_latency.sh; default 127.0.0.1; "tls:HOST:PORT":
+// wss:// without checking the certificate, a bench's self-signed one)
 //
 // Prints one table row: | door | clients | Hz | poses | events | p50 | p99 | max |.
 #include <algorithm>
@@ -42,7 +45,6 @@ struct Samples {
     latencies_us.push_back(std::chrono::duration<double, std::micro>(now - s[seq1]).count());
   }
 };
-
 
 }  // namespace
 
@@ -86,7 +88,16 @@ int main(int argc, char** argv) {
     JoinResult joined;
     if (door == "ws") {
       WsLiveClient::Options o;
-      o.port = static_cast<uint16_t>(std::stoi(where));
+      std::string at = where;
+      if (at.rfind("tls:", 0) == 0) {  // wss://, the bench's self-signed certificate
+        o.tls = true;
+        o.verify_peer = false;
+        at = at.substr(4);
+      }
+      const size_t colon = at.rfind(':');
+      if (colon != std::string::npos) o.host = at.substr(0, colon);
+      o.port =
+          static_cast<uint16_t>(std::stoi(at.substr(colon == std::string::npos ? 0 : colon + 1)));
       o.client_id = id;
       o.room_key = key;
       o.skeleton = skeleton;

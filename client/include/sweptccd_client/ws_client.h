@@ -6,6 +6,17 @@
 // backoff (0.25 s doubling to 4 s) and joins again with the same nonce (the
 // door hands it the id back under a new session).
 //
+// Failover (docs/DEPLOY.md, "Failover"): with a room name and a resolver
+// (room_resolver.h) every connection asks the resolver for the room's door,
+// so a re-connection finds the room's new server. A joined client that hears
+// no status of its instance for heartbeat_timeout_s takes the room for dead:
+// it closes, re-resolves and re-joins. Events of another daemon instance than
+// the joined one are dropped (fenced), and so is a hello of an instance older
+// than one already joined. Poses whose pair is not answered yet are kept and
+// sent again (same seq and utime) after a re-join, paced within the door's
+// limits; an answer for a pair already delivered is dropped. A rejection
+// `unknown_client` (the daemon dropped the session) re-joins at once.
+//
 // Threading: one I/O thread of its own runs the connection and every
 // callback; PublishPose, Leave and Send may be called from any thread.
 
@@ -26,6 +37,7 @@
 #include "sweptccd/status_t.hpp"
 #include "sweptccd/tracker_pose_t.hpp"
 #include "sweptccd_client/live_client.h"
+#include "sweptccd_client/room_resolver.h"
 
 namespace sweptccd {
 
@@ -52,6 +64,31 @@ class WsLiveClient {
     double join_timeout_s = 5;
     bool reconnect = true;   // Reconnect and re-join when the connection drops.
     bool subscribe = false;  // Also a viewer: everyone's events (send subscribe).
+    /// Room discovery: when set, every connection resolves `room` (host,
+    /// port and tls above are then ignored).
+    std::shared_ptr<RoomResolver> resolver;
+    std::string room;
+    /// A joined client without a status of its instance for this long takes
+    /// the room for dead (0: never); raised to 3 status periods when the
+    /// door tells its period (hello.limits.status_period_ms).
+    double heartbeat_timeout_s = 3.0;
+    double connect_timeout_s = 5.0;   // TCP connect, TLS and upgrade, each.
+    double max_backoff_s = 4.0;       // The reconnect backoff's cap.
+    size_t max_pending_poses = 4096;  // Unanswered poses kept for a re-join.
+  };
+
+  /// What failover did so far.
+  struct FailoverStats {
+    int64_t heartbeat_losses = 0;  // Rooms taken for dead (no status in time).
+    int64_t fenced_events = 0;     // Events of another instance, dropped.
+    int64_t fenced_hellos = 0;     // Connections to an older instance, closed.
+    int64_t repeated_answers = 0;  // Answers for pairs already delivered, dropped.
+    int64_t resent_poses = 0;      // Poses sent again after a re-join.
+    int64_t forgotten_poses = 0;   // Pending poses over max_pending_poses.
+    int64_t unknown_client_rejoins = 0;
+    int64_t resolve_failures = 0;
+    std::string last_error;  // Escaped, one line.
+    std::string door;        // The current door's URL ("" before one).
   };
 
   /// Throws InputError for a bad client id (when joining). Connects on Join()
@@ -79,7 +116,8 @@ class WsLiveClient {
   /// Connects, reads hello; with a skeleton, joins and waits for the reply
   /// (join_timeout_s). reason -1: no connection or no reply in time.
   JoinResult Join();
-  /// Fills client_id and session; queues the pose. False when not joined.
+  /// Fills client_id and session; queues the pose. False when not joined
+  /// yet or left; true while re-joining (the pose waits for the re-join).
   bool PublishPose(tracker_pose_t pose);
   /// Sends raw text (tests, attack tools). False when not connected.
   bool Send(const std::string& text);
@@ -94,6 +132,7 @@ class WsLiveClient {
   /// The current connection's challenge (hello), "" before one.
   std::string challenge() const;
   const std::string& client_id() const;
+  FailoverStats failover() const;
 
   struct Impl;
 

@@ -7,6 +7,7 @@ import { DecodeError, decodeServerMessage, encodeClientMessage, escapeForDisplay
 import { Emitter } from "./emitter.js";
 import { ProofKind, SubtleLike, makeProof, parseKey } from "./proof.js";
 import { DEFAULT_MAX_MESSAGE_BYTES, ErrorMessage, Hello, PROTOCOL_VERSION, Pong, SUBPROTOCOL, ServerMessage } from "./protocol.js";
+import { RoomError, RoomResolver, doorUrl } from "./rooms.js";
 
 /** What this library needs of a WebSocket (the browser's, or the `ws` package's). */
 export interface SocketLike {
@@ -23,8 +24,14 @@ export interface SocketLike {
 export type SocketFactory = (url: string, protocol: string) => SocketLike;
 
 export interface ConnectionOptions {
-  /** ws://host:port/ws or wss://host:port/ws */
-  url: string;
+  /** ws://host:port/ws or wss://host:port/ws (ignored with a resolver). */
+  url?: string;
+  /**
+   * Room discovery (docs/DEPLOY.md): every connection asks the resolver for
+   * `room`'s door, so a re-connection after a failover finds the new server.
+   */
+  resolver?: RoomResolver;
+  room?: string;
   /** The key that proves this connection: 64 hex digits or 32 bytes; none: unsigned (lab bench) mode. */
   key?: string | Uint8Array;
   /** Default: the global WebSocket (browsers, Node 22+); in Node use "@sweptccd/client/node". */
@@ -79,8 +86,8 @@ const FINAL_CODES = new Set(["bad_proof", "replaced"]);
 
 export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> {
   protected readonly options: Required<
-    Omit<ConnectionOptions, "key" | "createSocket" | "subtle">
-  > & { key?: Uint8Array; createSocket: SocketFactory; subtle?: SubtleLike };
+    Omit<ConnectionOptions, "key" | "createSocket" | "subtle" | "resolver" | "room">
+  > & { key?: Uint8Array; createSocket: SocketFactory; subtle?: SubtleLike; resolver?: RoomResolver; room: string };
   protected socket: SocketLike | null = null;
   protected hello: Hello | null = null;
   private stateValue: ConnectionState = "idle";
@@ -93,6 +100,14 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
   private lastSentMs = 0;
   /** Connections opened (the first and every reconnect). */
   connects = 0;
+  /** Failover (docs/DEPLOY.md): events of another instance and hellos of an older one, dropped. */
+  fencedEvents = 0;
+  fencedHellos = 0;
+  resolveFailures = 0;
+  /** The newest daemon instance joined: a hello of an older one is fenced. */
+  protected maxInstance = 0;
+  /** The door of the current connection. */
+  door = "";
 
   constructor(options: ConnectionOptions) {
     super();
@@ -103,8 +118,11 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
         if (!WS) throw new Error("no global WebSocket: in Node, import from '@sweptccd/client/node'");
         return new WS(url, protocol);
       });
+    if (!options.url && !options.resolver) throw new Error("give url, or resolver and room");
     this.options = {
-      url: options.url,
+      url: options.url ?? "",
+      resolver: options.resolver,
+      room: options.room ?? "",
       key: options.key === undefined ? undefined : parseKey(options.key),
       createSocket,
       subtle: options.subtle ?? (globalThis as unknown as { crypto?: { subtle?: SubtleLike } }).crypto?.subtle,
@@ -228,11 +246,33 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
     if (this.stopped) return;
     this.setState("connecting");
     this.hello = null;
+    if (!this.options.resolver) {
+      this.openUrl(this.options.url);
+      return;
+    }
+    this.options.resolver.resolve(this.options.room).then(
+      (d) => {
+        if (!this.stopped && this.stateValue === "connecting") this.openUrl(doorUrl(d));
+      },
+      (e) => {
+        this.resolveFailures++;
+        if (e instanceof RoomError && !e.retryable) {
+          this.fail(new FatalError(e.message, "no_room"));
+          return;
+        }
+        this.emit("protocolError", e instanceof Error ? e.message : String(e));
+        this.dropped(4001, "room not resolved");
+      },
+    );
+  }
+
+  private openUrl(url: string): void {
     let s: SocketLike;
+    this.door = url;
     try {
-      s = this.options.createSocket(this.options.url, SUBPROTOCOL);
+      s = this.options.createSocket(url, SUBPROTOCOL);
     } catch (e) {
-      this.fail(new FatalError(`cannot open ${this.options.url}: ${(e as Error).message}`, "bad_url"));
+      this.fail(new FatalError(`cannot open ${escapeForDisplay(url, 120)}: ${(e as Error).message}`, "bad_url"));
       return;
     }
     this.socket = s;
@@ -267,6 +307,12 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
         this.emit("protocolError", "a second hello: ignored");
         return;
       }
+      if (msg.instance < this.maxInstance) {
+        // A server of an older run of this room (a stale allocation): fenced.
+        this.fencedHellos++;
+        this.restart(`instance ${msg.instance} is older than instance ${this.maxInstance} joined already: fenced`);
+        return;
+      }
       if (msg.protocol !== PROTOCOL_VERSION) {
         this.fail(new FatalError(`server protocol ${msg.protocol}, this client speaks ${PROTOCOL_VERSION}`, "protocol"));
         return;
@@ -283,6 +329,11 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
     }
     if (!this.hello) {
       this.emit("protocolError", `${msg.type} before hello: ignored`);
+      return;
+    }
+    const instance = (msg as { instance?: unknown }).instance;
+    if (msg.type !== "join_reply" && typeof instance === "number" && instance !== this.hello.instance) {
+      this.fencedEvents++;  // An event of another daemon run (docs/WEBSOCKET.md, "The epoch").
       return;
     }
     if (msg.type === "pong") {

@@ -13,3 +13,4 @@ export * from "./scene_mesh.js";
 export * from "./pose_math.js";
 export * from "./xr_skeleton.js";
 export * from "./object_tracker.js";
+export * from "./rooms.js";

@@ -2,7 +2,14 @@
 // client/include/sweptccd_client/live_client.h): joins with its skeleton,
 // publishes poses, hears its contact events, shared-world contacts,
 // rejections and status, leaves; when the connection drops it reconnects
-// with backoff and joins again (the new session's seq restarts at 0).
+// with backoff and joins again under a new session.
+//
+// Failover (docs/DEPLOY.md, docs/WEBSOCKET.md section 9), as the C++
+// WsLiveClient: seq keeps counting across re-joins; no status of the joined
+// instance for heartbeatTimeoutMs: the room is taken for dead and resolved
+// again; poses whose pair is unanswered are re-sent after the re-join
+// (lock-step, paced under the door's limits); an answer for a pair already
+// delivered is dropped; events of another instance are fenced (Connection).
 
 import { Connection, ConnectionEvents, ConnectionOptions, FatalError } from "./connection.js";
 import { escapeForDisplay } from "./codec.js";
@@ -45,6 +52,10 @@ export interface LiveClientOptions extends ConnectionOptions {
   nonce?: number;
   /** Poses are dropped (latest wins) while more than this many bytes wait to be sent. Default 1 MiB. */
   maxBufferedBytes?: number;
+  /** No status of the joined instance for this long: the room is dead, ms (0: never). Default 3000. */
+  heartbeatTimeoutMs?: number;
+  /** Unanswered poses kept for a re-join. Default 4096. */
+  maxPendingPoses?: number;
 }
 
 export interface JoinedInfo {
@@ -88,7 +99,20 @@ export interface PoseInput {
 export class LiveClient extends Connection<LiveClientEvents> {
   readonly clientId: string;
   readonly skeleton: SkeletonArrays;
-  private readonly live: Required<Pick<LiveClientOptions, "motion" | "epsS" | "deltaM" | "ignore" | "ignoreEntities" | "nonce" | "maxBufferedBytes">>;
+  private readonly live: Required<Pick<LiveClientOptions, "motion" | "epsS" | "deltaM" | "ignore" | "ignoreEntities" | "nonce" | "maxBufferedBytes" | "heartbeatTimeoutMs" | "maxPendingPoses">>;
+  /** Poses from the last answered one on (re-sent after a re-join). */
+  private pending: TrackerPose[] = [];
+  private answered = new Set<number>();
+  private resend: TrackerPose[] = [];
+  private awaiting = -1;
+  private resendTimer: ReturnType<typeof setTimeout> | null = null;
+  private heartbeat: ReturnType<typeof setInterval> | null = null;
+  private lastStatusMs = 0;
+  /** Failover counters. */
+  heartbeatLosses = 0;
+  resentPoses = 0;
+  repeatedAnswers = 0;
+  forgottenPoses = 0;
   private sessionValue = 0;
   private joinedValue = false;
   private joins = 0;
@@ -114,6 +138,8 @@ export class LiveClient extends Connection<LiveClientEvents> {
       ignoreEntities: options.ignoreEntities ?? [],
       nonce: options.nonce ?? Math.floor(Math.random() * Number.MAX_SAFE_INTEGER),
       maxBufferedBytes: options.maxBufferedBytes ?? 1 << 20,
+      heartbeatTimeoutMs: options.heartbeatTimeoutMs ?? 3000,
+      maxPendingPoses: options.maxPendingPoses ?? 4096,
     };
   }
 
@@ -165,7 +191,8 @@ export class LiveClient extends Connection<LiveClientEvents> {
     if (pose.position.length !== n || pose.orientation.length !== n) {
       throw new Error(`pose: ${pose.position.length} positions / ${pose.orientation.length} orientations, the skeleton has ${n} links`);
     }
-    if (!this.joinedValue || this.bufferedAmount() > this.live.maxBufferedBytes) {
+    const rejoining = !this.joinedValue && this.joins > 0 && this.state !== "closed";
+    if ((!this.joinedValue && !rejoining) || this.bufferedAmount() > this.live.maxBufferedBytes) {
       this.droppedPoses++;
       return false;
     }
@@ -180,12 +207,27 @@ export class LiveClient extends Connection<LiveClientEvents> {
       position: pose.position,
       orientation: pose.orientation,
     };
+    if (seq < this.seq) {
+      // Numbered from anew (a new stream): the old stream's poses and answers go.
+      this.pending = [];
+      this.answered.clear();
+    }
+    this.pending.push(msg);
+    if (this.pending.length > this.live.maxPendingPoses) {
+      this.pending.shift();
+      this.forgottenPoses++;
+    }
+    this.seq = seq + 1;
+    this.lastUtime = utime;
+    if (rejoining) return true; // Sent after the re-join.
+    if (this.resend.length > 0 || this.awaiting >= 0) {
+      this.resend.push(msg); // Behind the re-sent ones.
+      return true;
+    }
     if (!this.sendMessage(msg)) {
       this.droppedPoses++;
       return false;
     }
-    this.seq = seq + 1;
-    this.lastUtime = utime;
     this.sentPoses++;
     return true;
   }
@@ -206,6 +248,72 @@ export class LiveClient extends Connection<LiveClientEvents> {
 
   protected onDrop(): void {
     this.joinedValue = false;
+    this.resend = [];
+    this.awaiting = -1;
+    if (this.resendTimer) clearTimeout(this.resendTimer);
+    this.resendTimer = null;
+  }
+
+  close(code = 1000, reason = "bye"): void {
+    if (this.heartbeat) clearInterval(this.heartbeat);
+    this.heartbeat = null;
+    if (this.resendTimer) clearTimeout(this.resendTimer);
+    this.resendTimer = null;
+    super.close(code, reason);
+  }
+
+  // Re-sent poses go one pair at a time (the service's latest-wins would
+  // merge a burst into one pair), no faster than 80 % of the door's limits.
+  private pump(): void {
+    if (this.awaiting >= 0 || this.resendTimer || this.resend.length === 0 || !this.joinedValue) return;
+    const msg = { ...this.resend.shift()!, session: this.sessionValue };
+    if (this.sendMessage(msg)) this.sentPoses++;
+    const limits = this.hello?.limits;
+    const rate = 0.8 * Math.min(limits?.message_rate_hz ?? 480, limits?.max_pose_rate_hz ?? 240);
+    this.resendTimer = setTimeout(() => {
+      this.resendTimer = null;
+      this.pump();
+    }, 1000 / Math.max(rate, 1));
+    {
+      this.awaiting = msg.seq;
+      setTimeout(() => {
+        if (this.awaiting === msg.seq) {
+          this.awaiting = -1; // No answer (shed): go on.
+          this.pump();
+        }
+      }, 250);
+    }
+  }
+
+  private pumpFirst(): void {
+    // The first re-sent pose anchors the new session's stream: no pair.
+    const first = { ...this.resend.shift()!, session: this.sessionValue };
+    if (this.sendMessage(first)) this.sentPoses++;
+    this.pump();
+  }
+
+  private pairDone(seq: number): void {
+    if (this.awaiting < 0 || seq < this.awaiting) return;
+    this.awaiting = -1;
+    this.pump();
+  }
+
+  /** The heartbeat timeout: at least 3 of the door's status periods (hello.limits.status_period_ms). */
+  private heartbeatMs(): number {
+    const period = this.hello?.limits?.status_period_ms;
+    const told = typeof period === "number" && period > 0 && period <= 3600000 ? 3 * period : 0;
+    return Math.max(this.live.heartbeatTimeoutMs, told);
+  }
+
+  private startHeartbeat(): void {
+    if (this.heartbeat || !(this.live.heartbeatTimeoutMs > 0)) return;
+    this.heartbeat = setInterval(() => {
+      const ms = this.heartbeatMs();
+      if (this.joinedValue && Date.now() - this.lastStatusMs > ms) {
+        this.heartbeatLosses++;
+        this.restart(`no status for ${ms} ms: room taken for dead`);
+      }
+    }, Math.max(10, this.live.heartbeatTimeoutMs / 8));
   }
 
   protected onMessage(msg: ServerMessage): void {
@@ -213,7 +321,16 @@ export class LiveClient extends Connection<LiveClientEvents> {
       case "join_reply":
         return this.onJoinReply(msg);
       case "contact_event":
-        if (msg.client_id === this.clientId) this.emit("contact", msg);
+        if (msg.client_id !== this.clientId) return;
+        this.pairDone(msg.seq1);
+        while (this.pending.length > 0 && this.pending[0].seq < msg.seq1) this.pending.shift();
+        if (this.answered.has(msg.seq1)) {
+          this.repeatedAnswers++; // Answered before the re-join: not twice.
+          return;
+        }
+        this.answered.add(msg.seq1);
+        if (this.answered.size > 8192) this.answered.delete(this.answered.values().next().value as number);
+        this.emit("contact", msg);
         return;
       case "shared_contact":
         this.emit("sharedContact", msg);
@@ -224,9 +341,13 @@ export class LiveClient extends Connection<LiveClientEvents> {
         // join again on a new connection (docs/WEBSOCKET.md section 3).
         if (msg.client_id === this.clientId && (msg.reason === "unknown_client" || msg.reason === "stale_session") && this.joinedValue) {
           this.restart(`the service forgot this session (${msg.reason}); joining again`);
+        } else if (msg.client_id === this.clientId) {
+          this.pending = this.pending.filter((p) => p.seq !== msg.seq);
+          this.pairDone(msg.seq);
         }
         return;
       case "status":
+        this.lastStatusMs = Date.now();
         this.emit("status", msg);
         return;
       default:
@@ -251,10 +372,19 @@ export class LiveClient extends Connection<LiveClientEvents> {
     }
     this.sessionValue = reply.session;
     this.joinedValue = true;
-    this.seq = 0;
-    this.lastUtime = 0;
+    this.maxInstance = Math.max(this.maxInstance, reply.instance);
+    this.lastStatusMs = Date.now();
     this.joins++;
     this.markReady();
+    this.startHeartbeat();
     this.emit("joined", { reply, rejoin: this.joins > 1 });
+    // The unanswered poses again, same seq and utime, under the new session.
+    this.resend = this.pending.slice();
+    this.resentPoses = 0;
+    if (this.resend.length > 0) {
+      this.resentPoses = this.resend.length;
+      this.awaiting = -1;
+      this.pumpFirst();
+    }
   }
 }

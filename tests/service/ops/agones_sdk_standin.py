@@ -5,7 +5,13 @@ answers what the sidecar answers and appends every call, one JSON line each
 ({"t": seconds since start, "wall": Unix seconds, "method", "path",
 "body"}), to LOG.
 
-  agones_sdk_standin.py HOST PORT LOG
+  agones_sdk_standin.py HOST PORT LOG [GAMESERVER_JSON NAME ADDRESS DOOR_PORT LABELS]
+
+With the optional arguments it also keeps the GameServer that the SDK
+calls change in GAMESERVER_JSON ({"name", "address", "ports": [{"name":
+"websocket", "port"}], "state", "labels", "last_health_wall"}; LABELS is
+k=v,k=v), rewritten atomically on every call, as Agones' API server would
+hold it: the allocator stand-in (tests/service/fleet/) reads it.
 
 POST /ready /health /shutdown /allocate take a JSON object (Content-Type
 application/json) and answer {}; /reserve takes {"seconds": N}; GET
@@ -15,12 +21,20 @@ is not JSON or a wrong content type: 400 (then the test sees the call too,
 with "bad": true).
 """
 import json
+import os
 import sys
 import threading
 import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 HOST, PORT, LOG = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+GS_FILE = sys.argv[4] if len(sys.argv) > 8 else None
+GS = {}
+if GS_FILE:
+    GS = {"name": sys.argv[5], "address": sys.argv[6],
+          "ports": [{"name": "websocket", "port": int(sys.argv[7])}],
+          "labels": dict(kv.split("=", 1) for kv in sys.argv[8].split(",") if kv),
+          "last_health_wall": 0}
 START = time.monotonic()
 LOCK = threading.Lock()
 STATE = {"state": "Scheduled", "labels": {}, "annotations": {}}
@@ -34,6 +48,17 @@ def record(entry):
     entry["wall"] = time.time()
     with LOCK, open(LOG, "a") as f:
         f.write(json.dumps(entry) + "\n")
+
+
+def publish():
+    """The GameServer object as the API server would hold it (GS_FILE)."""
+    if not GS_FILE:
+        return
+    GS["state"] = STATE["state"]
+    tmp = GS_FILE + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(GS, f)
+    os.replace(tmp, GS_FILE)
 
 
 def gameserver():
@@ -77,8 +102,12 @@ class Handler(BaseHTTPRequestHandler):
             return self.answer(400, {"error": bad})
         if self.path not in POSTS:
             return self.answer(404, {"error": "not found"})
-        if POSTS[self.path]:
-            STATE["state"] = POSTS[self.path]
+        with LOCK:
+            if POSTS[self.path]:
+                STATE["state"] = POSTS[self.path]
+            if self.path in ("/health", "/ready"):
+                GS["last_health_wall"] = time.time()
+            publish()
         self.answer(200, {})
 
     def do_PUT(self):
