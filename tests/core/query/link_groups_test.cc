@@ -190,7 +190,9 @@ TEST(LinkGroups, SubtreesMatchTheParentWalk) {
     for (int i = 0; i < s.num_links(); ++i) seen[g.preorder()[i]] = i;
     for (int i = 0; i < s.num_links(); ++i) {
       ASSERT_GE(seen[i], 0);
-      if (s.link(i).parent >= 0) EXPECT_LT(seen[s.link(i).parent], seen[i]);  // Parents first.
+      if (s.link(i).parent >= 0) {
+        EXPECT_LT(seen[s.link(i).parent], seen[i]);  // Parents first.
+      }
       const std::set<int> brute = SubtreeByParents(s, i);
       std::set<int> listed;
       for (const LinkIndex* m = g.begin(LinkIndex(i)); m != g.end(LinkIndex(i)); ++m) {
@@ -200,7 +202,10 @@ TEST(LinkGroups, SubtreesMatchTheParentWalk) {
       EXPECT_EQ(*g.begin(LinkIndex(i)), LinkIndex(i));
       int children = 0, child = -1;
       for (int j = 0; j < s.num_links(); ++j) {
-        if (s.link(j).parent == i) ++children, child = j;
+        if (s.link(j).parent == i) {
+          ++children;
+          child = j;
+        }
       }
       const bool chain = children == 1 && g.IsRoot(LinkIndex(child));
       EXPECT_EQ(g.IsRoot(LinkIndex(i)),
