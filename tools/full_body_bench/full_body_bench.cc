@@ -13,6 +13,7 @@
 // is asserted about them.
 //
 //   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
+//   build/bin/sweptccd_full_body_bench --convert SKEL16.json POSES16.jsonl OUT_DIR
 //
 // --clock thread times this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
 // which leaves out time other processes held the core (on a shared machine,
@@ -24,11 +25,15 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/avatar/joint_frame.h"
 #include "core/avatar/joint_set.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "core/errors.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
@@ -212,7 +217,59 @@ bool SameAnswer(const QueryResult& x, const QueryResult& y) {
   return true;
 }
 
+// --convert SKEL16.json POSES16.jsonl OUT_DIR: the 16-link CMU avatar's
+// stream (as `sweptccd import-bvh` writes it) as the 81-link meta-full-body
+// avatar's, fingers procedurally animated as in the bench: OUT_DIR/
+// skeleton.json (calibrated on the first pose) and OUT_DIR/poses.jsonl, one
+// line per pose the conversion accepts (tools/service_bench/run.sh,
+// FULL_BODY=1). Returns the process status.
+int Convert(const std::string& skeleton_path, const std::string& poses_path,
+            const std::string& out_dir) {
+  const Skeleton mocap = LoadSkeletonFile(skeleton_path);
+  std::ifstream in(poses_path);
+  std::vector<Pose> poses;
+  std::string line, error;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    std::optional<Pose> p = ParsePoseLine(line, mocap.num_links(), &error);
+    if (!p) {
+      std::fprintf(stderr, "%s: %s\n", poses_path.c_str(), error.c_str());
+      return 1;
+    }
+    poses.push_back(*p);
+  }
+  if (poses.empty()) {
+    std::fprintf(stderr, "%s: no poses\n", poses_path.c_str());
+    return 1;
+  }
+  const JointSet& set = FindJointSet("meta-full-body");
+  const FrameBuilder fb(set, mocap);
+  const JointFrame cal = fb.Build(poses[0]);
+  JointSkeletonOptions so;
+  so.calibration = &cal;
+  so.hands = HandsOption::kFull;
+  so.length_tolerance_m = 0.05;  // As the bench: the clip's clavicles move a little.
+  so.length_tolerance_fraction = 0.25;
+  const JointSkeleton js = JointSkeleton::Build(set, so);
+  std::ofstream skel_out(out_dir + "/skeleton.json");
+  skel_out << SkeletonToJson(js.skeleton()) << "\n";
+  std::ofstream poses_out(out_dir + "/poses.jsonl");
+  int refused = 0;
+  for (const Pose& p : poses) {
+    Pose full;
+    if (js.Convert(fb.Build(p), &full).empty()) {
+      poses_out << PoseToJsonLine(full) << "\n";
+    } else {
+      ++refused;
+    }
+  }
+  std::fprintf(stderr, "%zu poses, %d refused, %d links\n", poses.size(), refused,
+               js.skeleton().num_links());
+  return skel_out && poses_out ? 0 : 1;
+}
+
 int Main(int argc, char** argv) {
+  if (argc == 5 && std::string(argv[1]) == "--convert") return Convert(argv[2], argv[3], argv[4]);
   int max_pairs = 600;
   double rate_hz = 120;
   for (int i = 1; i + 1 < argc; i += 2) {
