@@ -244,6 +244,10 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
 
 PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
                        MotionModel model, Storage* storage)
+    : PairMotion(skeleton, pose0, pose1, model, storage, Ends::kAll) {}
+
+PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
+                       MotionModel model, Storage* storage, Ends ends)
     : model_(model) {
   if (storage != nullptr) {
     links_ = std::move(storage->links);
@@ -253,7 +257,7 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   }
   order_.clear();
   for (int i : skeleton.topological_order()) order_.push_back(LinkIndex(i));
-  Build(skeleton, pose0, pose1);
+  Build(skeleton, pose0, pose1, ends);
 }
 
 void PairMotion::Release(Storage* storage) {
@@ -267,7 +271,7 @@ void PairMotion::Release(Storage* storage) {
   segments_at_ends_.clear();
 }
 
-void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1) {
+void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends) {
   const int n = skeleton.num_links();
   SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
   SWEPTCCD_CHECK(static_cast<int>(pose1.links.size()) == n);
@@ -318,6 +322,7 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
     const double own_speed = NormHi(m.p1 - m.p0);
     const double lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
+    m.lever = lever;
     if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, parent, &m.bounds)) {
       m.bounds = internal::LinkBoundsByIntervals(m.half_angle, own_speed, lever, parent);
     }
@@ -336,10 +341,12 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // quadratic over a chain (9.2 s per pair for 10,000 links). For
   // `independent` a pose is its own slerp; the look-up still saves it.
   poses_at_ends_.resize(3 * static_cast<size_t>(n));
+  segments_at_ends_.resize(6 * static_cast<size_t>(n));
+  for (LinkMotion& m : links_) m.ends_ready = ends == Ends::kAll;
+  if (ends == Ends::kOnDemand) return;  // CompleteEnds, link by link.
   PosesAtInto(0.0, &poses_at_ends_[0]);
   PosesAtInto(0.5, &poses_at_ends_[n]);
   PosesAtInto(1.0, &poses_at_ends_[2 * n]);
-  segments_at_ends_.resize(6 * static_cast<size_t>(n));
   for (int k = 0; k < 3; ++k) {
     for (LinkIndex i(0); i < n; ++i) {
       SegmentOfPose(i, poses_at_ends_[k * n + i], &segments_at_ends_[6 * i + 2 * k],
@@ -347,6 +354,25 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     }
   }
 }
+
+// One link's share of Build's PosesAtInto at 0, 0.5 and 1 and of its
+// segment loop: the same operations, so the same bits.
+void PairMotion::CompleteEnds(LinkIndex link) {
+  LinkMotion& m = links_[link];
+  if (m.ends_ready) return;
+  SWEPTCCD_CHECK(!m.parent.is_valid() || links_[m.parent].ends_ready);
+  const size_t n = links_.size();
+  for (int k = 0; k < 3; ++k) {
+    const double s = k == 0 ? 0.0 : k == 1 ? 0.5 : 1.0;
+    LinkPose& X = poses_at_ends_[k * n + link];
+    X = Compose(m, s, !m.parent.is_valid() ? LinkPose() : poses_at_ends_[k * n + m.parent]);
+    SegmentOfPose(link, X, &segments_at_ends_[6 * link + 2 * k],
+                  &segments_at_ends_[6 * link + 2 * k + 1]);
+  }
+  m.ends_ready = true;
+}
+
+void PairMotion::CheckEndsReady(LinkIndex link) const { SWEPTCCD_CHECK(links_[link].ends_ready); }
 
 // SlerpPrepared(m.q0, m.q1, m.half_angle, s), bit for bit, with the sines
 // computed at construction where s allows: sin(half_angle) always (and its
@@ -403,7 +429,8 @@ void PairMotion::PosesAtInto(double s, LinkPose* X_WL) const {
 }
 
 LinkPose PairMotion::PoseFromParent(LinkIndex link, double s, const LinkPose& X_WP) const {
-  if (!poses_at_ends_.empty()) {  // PoseAt's look-ups (the same bits).
+  if (!poses_at_ends_.empty() && (s == 0.0 || s == 0.5 || s == 1.0)) {  // PoseAt's look-ups.
+    CheckEndsReady(link);
     const size_t n = links_.size();
     if (s == 0.0) return poses_at_ends_[link];
     if (s == 0.5) return poses_at_ends_[n + link];
@@ -413,7 +440,8 @@ LinkPose PairMotion::PoseFromParent(LinkIndex link, double s, const LinkPose& X_
 }
 
 LinkPose PairMotion::PoseAt(LinkIndex link, double s) const {
-  if (!poses_at_ends_.empty()) {
+  if (!poses_at_ends_.empty() && (s == 0.0 || s == 0.5 || s == 1.0)) {
+    CheckEndsReady(link);
     const size_t n = links_.size();
     if (s == 0.0) return poses_at_ends_[link];
     if (s == 0.5) return poses_at_ends_[n + link];
@@ -437,6 +465,7 @@ void PairMotion::SegmentAt(LinkIndex link, double s, Eigen::Vector3d* p_WA,
                            Eigen::Vector3d* p_WB) const {
   const int k = s == 0.0 ? 0 : s == 0.5 ? 1 : s == 1.0 ? 2 : -1;
   if (k >= 0 && !segments_at_ends_.empty()) {
+    CheckEndsReady(link);
     *p_WA = segments_at_ends_[6 * link + 2 * k];
     *p_WB = segments_at_ends_[6 * link + 2 * k + 1];
     return;

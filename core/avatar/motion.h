@@ -89,6 +89,23 @@ class PairMotion {
   /// same motion, bit for bit.
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
              Storage* storage);
+  /// Whether construction composes every link's pose and segment at s = 0,
+  /// 0.5 and 1 (kAll), or leaves them to CompleteEnds, link by link
+  /// (kOnDemand: a query whose link groups clear a subtree never composes
+  /// it; core/query/link_groups.h). Everything else (the per-link motion,
+  /// bounds, lever, rounding slack and coordinate scale) is computed for
+  /// every link either way, with the same bits.
+  enum class Ends { kAll, kOnDemand };
+  PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
+             Storage* storage, Ends ends);
+  /// kOnDemand: composes the link's poses and segments at s = 0, 0.5 and 1
+  /// (the same operations as kAll, so the same bits). Its motion parent's
+  /// must be complete. Not const: call it before the motion is shared.
+  void CompleteEnds(LinkIndex link);
+  /// Whether the link's poses at s = 0, 0.5 and 1 are composed (always with
+  /// kAll). PoseAt, PoseFromParent and SegmentAt at those times, and the
+  /// swept capsules over intervals ending there, need them (checked).
+  bool EndsReady(LinkIndex link) const { return links_[link].ends_ready; }
   /// Gives the arrays back for another motion; this motion is left empty.
   /// Not const: no other thread may be reading this motion.
   void Release(Storage* storage);
@@ -161,6 +178,10 @@ class PairMotion {
   /// SweptCapsuleFromSegments's second-order term (the same bits for the
   /// chord it computes). Nondecreasing in chord and in s1 - s0.
   double SecondOrderRadius(LinkIndex link, double chord, double s0, double s1) const;
+  /// Upper end of max(|c_0|, |c_1|): the link origin's offset from its motion
+  /// parent's origin at both ends (SPEC 3's c, whose interpolation never
+  /// leaves that ball); 0 for a link moving on its own.
+  double lever(LinkIndex link) const { return links_[link].lever; }
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link
@@ -182,7 +203,9 @@ class PairMotion {
     Eigen::Vector3d a_L, b_L;
     internal::LinkBounds bounds;  // Over the whole pair.
     double extent = 0;            // max(|a|, |b|): farthest segment point from the origin.
+    double lever = 0;             // Upper end of max(|p0|, |p1|) for a child, else 0.
     int depth = 1;                // Links from the root to this one, both counted.
+    bool ends_ready = true;       // Poses and segments at s = 0, 0.5, 1 composed.
   };
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
   // One composition step of PosesAt and PoseAt: the pose of the link moving
@@ -192,7 +215,9 @@ class PairMotion {
   void PosesAtInto(double s, LinkPose* X_WL) const;
 
   // Fills every field of links_ (storage may hold an earlier motion's).
-  void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1);
+  void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends);
+  // The look-ups at s = 0, 0.5 and 1 read composed ends only.
+  void CheckEndsReady(LinkIndex link) const;
 
   MotionModel model_;
   std::vector<LinkMotion> links_;

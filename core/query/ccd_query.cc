@@ -4,6 +4,7 @@
 
 #include "core/errors.h"
 #include "core/query/environment_target.h"
+#include "core/query/link_groups.h"
 #include "core/query/query_run.h"
 
 namespace sweptccd {
@@ -51,7 +52,10 @@ double BracketTimeHi(int64_t utime0, int64_t utime1, double s) {
 
 CcdEngine::CcdEngine(const Skeleton& skeleton, const Environment& environment,
                      CollisionFilter filter)
-    : skeleton_(skeleton), env_(environment), filter_(std::move(filter)) {}
+    : skeleton_(skeleton),
+      env_(environment),
+      filter_(std::move(filter)),
+      groups_(std::make_shared<const internal::LinkGroups>(skeleton)) {}
 
 QueryResult CcdEngine::Query(const Pose& pose0, const Pose& pose1,
                              const QueryOptions& options) const {
@@ -70,13 +74,12 @@ QueryResult CcdEngine::Query(const PairMotion& motion, const Pose& pose0, const 
   return run.Run();
 }
 
-bool CcdEngine::TouchesAt(const PairMotion& motion, LinkIndex link, double s,
-                          double slack) const {
+bool CcdEngine::TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const {
   return internal::EnvironmentTarget(skeleton_, env_, filter_).TouchesAt(motion, link, s, slack);
 }
 
-bool CcdEngine::Separation(const PairMotion& motion, LinkIndex link, double s,
-                           double search_radius, ContactRecord* record) const {
+bool CcdEngine::Separation(const PairMotion& motion, LinkIndex link, double s, double search_radius,
+                           ContactRecord* record) const {
   return internal::EnvironmentTarget(skeleton_, env_, filter_)
       .Separation(motion, link, s, search_radius, record);
 }

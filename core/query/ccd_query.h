@@ -8,12 +8,12 @@
 #include <string>
 #include <vector>
 
-#include "core/query/capsule_culler.h"
-#include "core/scene/collision_filter.h"
-#include "core/scene/environment.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/query/capsule_culler.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "core/typed_index.h"
 
 namespace sweptccd {
@@ -32,6 +32,13 @@ struct QueryOptions {
   /// most of a long list in groups, where refining the list tests every
   /// triangle (docs/BENCHMARKS.md, "Short candidate lists").
   int max_candidates = 8;
+  /// Hierarchical link bounds (`articulated` only; core/query/link_groups.h):
+  /// a subtree of at least 4 links (a hand, a finger, a foot) is first
+  /// tested as one ball around its root; when the ball meets nothing its
+  /// links are culled without composing their poses. The answers are the
+  /// same either way (tested); false tests every link on its own (the
+  /// full-body benchmark's baseline).
+  bool link_groups = true;
 };
 
 /// Empty when the options are usable, else the problem (names the option).
@@ -60,9 +67,10 @@ struct LinkBracket {
 };
 
 struct QueryStats {
-  int links_tested = 0;   // Links whose swept bound met the environment.
-  int links_culled = 0;   // Links the link BVH cleared for the whole pair.
-  int64_t intervals = 0;  // Time intervals tested.
+  int links_tested = 0;    // Links whose swept bound met the environment.
+  int links_culled = 0;    // Links the link BVH cleared for the whole pair.
+  int groups_cleared = 0;  // Link groups whose ball met nothing (their links are culled).
+  int64_t intervals = 0;   // Time intervals tested.
   int64_t triangle_tests = 0;
   // With a culler (the GPU backend): round trips, capsules sent, and
   // intervals it cleared (the CPU did not test those).
@@ -75,7 +83,7 @@ struct QueryResult {
   bool contact = false;  // false: `free`.
   bool initially_colliding = false;
   bool undecided = false;
-  double s_lo = 0, s_hi = 0;          // Meaningful when contact.
+  double s_lo = 0, s_hi = 0;            // Meaningful when contact.
   std::vector<ContactRecord> contacts;  // At least one when contact and decided.
   std::vector<LinkBracket> links;       // Per-link mode: every touching link, by index.
   QueryStats stats;
@@ -93,6 +101,10 @@ double BracketTimeHi(int64_t utime0, int64_t utime1, double s);
 /// parts are mapped in docs/DESIGN.md, "core/query"). Holds references:
 /// the skeleton and environment must outlive it. Query is const and
 /// thread-safe (each call uses its own scratch memory).
+namespace internal {
+class LinkGroups;
+}  // namespace internal
+
 class CcdEngine {
  public:
   CcdEngine(const Skeleton& skeleton, const Environment& environment,
@@ -127,12 +139,15 @@ class CcdEngine {
   const Skeleton& skeleton() const { return skeleton_; }
   const Environment& environment() const { return env_; }
   const CollisionFilter& filter() const { return filter_; }
+  /// The skeleton's link groups (core/query/link_groups.h), built once.
+  const internal::LinkGroups& link_groups() const { return *groups_; }
 
  private:
   const Skeleton& skeleton_;
   const Environment& env_;
   CollisionFilter filter_;
   std::shared_ptr<const CapsuleCuller> culler_;
+  std::shared_ptr<const internal::LinkGroups> groups_;
 };
 
 }  // namespace sweptccd

@@ -13,6 +13,11 @@ namespace {
 constexpr size_t kKeptLinks = 1024;
 constexpr size_t kKeptCandidates = size_t{1} << 16;
 constexpr size_t kKeptIntervals = 4096;
+// What a group ball may cost (QueryRun::GroupBallClear): triangle tests,
+// and its radius (a wider ball, e.g. a whole upper body's, rarely clears a
+// room and walks much of its BVH). Past either the group is not cleared.
+constexpr int kGroupBudget = 8;
+constexpr double kGroupMaxRadiusM = 0.5;
 
 }  // namespace
 
@@ -20,9 +25,14 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
                    const QueryOptions& options, const PairMotion* motion)
     : options_(options),
       num_links_(engine.skeleton().num_links()),
-      motion_(motion != nullptr ? *motion
-                                : own_motion_.emplace(engine.skeleton(), pose0, pose1,
-                                                      options.motion, &buffers_->motion)),
+      groups_(engine.link_groups()),
+      use_groups_(motion == nullptr && options.link_groups &&
+                  options.motion == MotionModel::kArticulated && !groups_.empty()),
+      motion_(motion != nullptr
+                  ? *motion
+                  : own_motion_.emplace(
+                        engine.skeleton(), pose0, pose1, options.motion, &buffers_->motion,
+                        use_groups_ ? PairMotion::Ends::kOnDemand : PairMotion::Ends::kAll)),
       target_(engine.skeleton(), engine.environment(), engine.filter()),
       bounds_(engine.skeleton(), motion_, SweptBounds::Tolerance(engine.environment(), motion_)),
       slicer_(pose0.utime, pose1.utime, options.eps_s),
@@ -30,9 +40,11 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       cull_(engine.culler(), bounds_, &stats_),
       witnesses_(target_, motion_, num_links_),
       cleared_by_culler_(num_links_, false),
+      group_cleared_(use_groups_ ? num_links_ : 0, 0),
       touches_at_start_(num_links_) {
   pool_.Adopt(std::move(buffers_->pool));
   queue_.Adopt(std::move(buffers_->queue));
+  if (use_groups_) witnesses_.SetClearForPair(&group_cleared_);
 }
 
 QueryRun::~QueryRun() {
@@ -50,6 +62,7 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
   FreeIfAbove(&b.pool, kKeptCandidates);
   FreeIfAbove(&b.queue, kKeptIntervals);
+  FreeIfAbove(&b.reach, kKeptLinks);
 }
 
 QueryResult QueryRun::Run() {
@@ -59,7 +72,9 @@ QueryResult QueryRun::Run() {
   // link's first primitive. Nothing is listed for the whole pair: its
   // capsules are the fattest of the descent, and the halves' own BVH queries
   // refuse far triangles in groups where refining a long list tests each one.
-  roots_.emplace(target_, bounds_, &pool_, &buffers_->roots);
+  ClearGroups();
+  roots_.emplace(target_, bounds_, &pool_, &buffers_->roots,
+                 use_groups_ ? &group_cleared_ : nullptr);
   const LinkIndex rest = CloseLeadingLink();
   if (Searching()) {
     // Without --per-link each link found open is checked at s = 0 at once,
@@ -85,6 +100,59 @@ QueryResult QueryRun::Run() {
   QueryResult result;
   result.stats = stats_;
   return witnesses_.Assemble(options_, std::move(result));
+}
+
+// Hierarchical link bounds (link_groups.h), parents first: a group whose
+// ball meets nothing leaves all its links culled, as their own whole-pair
+// capsules (inside the ball) would, so the answer is the same; their poses
+// are never composed. Every other link's ends are composed here, before
+// anything reads them.
+void QueryRun::ClearGroups() {
+  if (!use_groups_) return;
+  PairMotion& motion = *own_motion_;
+  const Skeleton& skeleton = target_.skeleton();
+  bool have_reach = false;
+  for (const LinkIndex l : groups_.preorder()) {
+    const int parent = skeleton.link(l).parent;
+    if (parent >= 0 && group_cleared_[parent] != 0) {
+      group_cleared_[l] = 1;
+      continue;
+    }
+    motion.CompleteEnds(l);
+    if (groups_.IsRoot(l)) {
+      if (!have_reach) {
+        SubtreeReach(groups_, skeleton, motion, &buffers_->reach);
+        have_reach = true;
+      }
+      if (GroupBallClear(l,
+                         GroupBall(skeleton, motion, buffers_->reach, l, bounds_.tolerance_m()))) {
+        group_cleared_[l] = 1;
+        ++stats_.groups_cleared;
+      }
+    }
+  }
+}
+
+bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {
+  if (!(ball.radius <= kGroupMaxRadiusM)) return false;
+  for (ObjectIndex o(0); o < target_.num_objects(); ++o) {
+    // The ball asks as a member that does not ignore the object (the pool
+    // skips objects its capsule's link ignores); none: nothing to ask.
+    ball.link = LinkIndex();
+    for (const LinkIndex* m = groups_.begin(root); m != groups_.end(root); ++m) {
+      if (!target_.Ignores(*m, o)) {
+        ball.link = *m;
+        break;
+      }
+    }
+    // A bounded search: past kGroupBudget triangle tests the group is not
+    // cleared (its links are then tested on their own, as without groups).
+    if (ball.link.is_valid() &&
+        pool_.AnyWithinBudget(ball, o, 0, kGroupBudget) != CandidatePool::Search::kNone) {
+      return false;
+    }
+  }
+  return true;
 }
 
 // A link touching at s = 0 answers at once: [0, w] with w the first dyadic

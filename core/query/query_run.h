@@ -9,6 +9,7 @@
 #include "core/query/ccd_query.h"
 #include "core/query/cull_batcher.h"
 #include "core/query/environment_target.h"
+#include "core/query/link_groups.h"
 #include "core/query/root_candidates.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
@@ -26,6 +27,7 @@ struct QueryBuffers {
   RootCandidates::Buffers roots;
   std::vector<Candidate> pool;
   std::vector<Interval> queue;
+  std::vector<double> reach;  // ClearGroups: SubtreeReach.
 };
 
 /// Runs one query. Single-use and single-threaded; holds references to the
@@ -45,6 +47,7 @@ class QueryRun {
 
  private:
   // The phases, in order.
+  void ClearGroups();
   LinkIndex CloseLeadingLink();
   // RootCandidates::TouchCheck: TouchesAt(link, 0), kept in touches_at_start_.
   static bool CheckTouchesAtStart(void* self, LinkIndex link);
@@ -60,6 +63,9 @@ class QueryRun {
   bool TestsLink(LinkIndex link) const {
     return !target_.IgnoresAll(link) && !witnesses_.done(link);
   }
+  // Whether no test finds a triangle of an object some link of the group
+  // does not ignore within `ball`.
+  bool GroupBallClear(LinkIndex root, LinkCapsule ball);
   enum class Step { kNext, kStop };
   // One interval of the descent: cleared, closed, or split into the queue.
   Step Visit(const Interval& interval);
@@ -70,6 +76,10 @@ class QueryRun {
 
   const QueryOptions& options_;
   const int num_links_;
+  const LinkGroups& groups_;
+  // Link groups apply: `articulated`, options.link_groups, the skeleton has
+  // groups, and the motion is built here (its ends composed on demand).
+  const bool use_groups_;
   // This thread's spare arrays (or new ones when a query on this thread is
   // running already), first so that everything below can start in them
   // and they are handed back last.
@@ -85,6 +95,7 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
+  std::vector<char> group_cleared_;      // The link's group ball met nothing (ClearGroups).
   // Whether the link touches at s = 0, once asked during the traversal (-1
   // not asked, 0 no, 1 yes), and where yes, the triangle TouchesAt found
   // (Separation starts from it).

@@ -5,8 +5,12 @@
 namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
-                               CandidatePool* pool, Buffers* buffers)
-    : target_(target), pool_(*pool), depth_first_(target.skeleton().depth_first_order()) {
+                               CandidatePool* pool, Buffers* buffers,
+                               const std::vector<char>* group_cleared)
+    : target_(target),
+      pool_(*pool),
+      group_cleared_(group_cleared),
+      depth_first_(target.skeleton().depth_first_order()) {
   if (buffers != nullptr) {
     links_ = std::move(buffers->links);
     link_order_ = std::move(buffers->link_order);
@@ -20,6 +24,11 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
   links_.resize(n);
   for (LinkIndex l(0); l < n; ++l) {
     LinkRoot& root = links_[l];  // Every field: the array may hold an earlier query's.
+    if (GroupCleared(l)) {       // Never open; its poses are not composed.
+      root = LinkRoot();
+      root.box = Aabb::Empty();
+      continue;
+    }
     root.capsule = bounds.Over(l, 0, 1);
     root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
     root.open = false;
@@ -44,7 +53,7 @@ void RootCandidates::FindOpen(LinkIndex first, TouchCheck touches, void* context
     for (int i : depth_first_) {
       const LinkIndex l(i);
       if (Dropped(l)) continue;
-      if (l >= first && !target_.Ignores(l, o) && !links_[l].open) {
+      if (l >= first && !target_.Ignores(l, o) && !links_[l].open && !GroupCleared(l)) {
         link_order_.push_back(l);
       }
     }
@@ -78,6 +87,7 @@ void RootCandidates::MarkOpen(LinkIndex link) {
 
 bool RootCandidates::FindOpenOne(LinkIndex link) {
   LinkRoot& root = links_[link];
+  if (GroupCleared(link)) return false;
   for (ObjectIndex o(0); o < target_.num_objects() && !root.open; ++o) {
     root.open = pool_.AnyWithin(root.capsule, o, 0);
   }

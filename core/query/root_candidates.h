@@ -23,8 +23,11 @@ class RootCandidates {
   /// `buffers`: the arrays of an earlier RootCandidates (Release) to reuse,
   /// or null (the query's thread keeps them; see QueryBuffers).
   struct Buffers;
+  /// `group_cleared` (null: none): by link, non-zero for the links whose
+  /// group ball met nothing (QueryRun::ClearGroups; link_groups.h). They are
+  /// never open, and neither their capsules nor their poses are asked for.
   RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool,
-                 Buffers* buffers = nullptr);
+                 Buffers* buffers = nullptr, const std::vector<char>* group_cleared = nullptr);
   /// Gives the arrays back for the next query; this object is left unusable.
   void Release(Buffers* buffers);
 
@@ -86,8 +89,13 @@ class RootCandidates {
     bool open = false;
   };
 
+  bool GroupCleared(LinkIndex link) const {
+    return group_cleared_ != nullptr && (*group_cleared_)[link] != 0;
+  }
+
   const EnvironmentTarget& target_;
   CandidatePool& pool_;
+  const std::vector<char>* group_cleared_;
   std::vector<LinkRoot> links_;          // By link index.
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.

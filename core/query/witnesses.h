@@ -17,6 +17,11 @@ class Witnesses {
   Witnesses(const EnvironmentTarget& target, const PairMotion& motion, int num_links)
       : target_(target), motion_(motion), done_(num_links, false) {}
 
+  /// Links known clear of the environment over the whole pair (their link
+  /// group's ball met nothing; null: none): they never touch at s = 0, and
+  /// their poses, which may not be composed, are not asked for.
+  void SetClearForPair(const std::vector<char>* clear) { clear_for_pair_ = clear; }
+
   /// Whether the link is closed (it needs no more work).
   bool done(LinkIndex link) const { return done_[link]; }
   const std::vector<bool>& done() const { return done_; }
@@ -37,12 +42,16 @@ class Witnesses {
   QueryResult Assemble(const QueryOptions& options, QueryResult result);
 
  private:
-  bool InitiallyTouching(LinkIndex link) const { return target_.TouchesAt(motion_, link, 0.0, 0.0); }
+  bool InitiallyTouching(LinkIndex link) const {
+    if (clear_for_pair_ != nullptr && (*clear_for_pair_)[link] != 0) return false;
+    return target_.TouchesAt(motion_, link, 0.0, 0.0);
+  }
 
   const EnvironmentTarget& target_;
   const PairMotion& motion_;
   std::vector<bool> done_;
   std::vector<LinkBracket> brackets_;
+  const std::vector<char>* clear_for_pair_ = nullptr;
 };
 
 }  // namespace sweptccd::internal

@@ -5,10 +5,15 @@
 // The body joints follow the CMU clip's 16 links (each joint on a link's
 // segment). THE FINGERS ARE PROCEDURALLY ANIMATED, NOT CAPTURED: every hand
 // cycles reach (open), grasp (curl), hold and release, 3 s a cycle, in the
-// hand link's frame. Timings are wall-clock per pair (median, p99, max,
-// microseconds); nothing is asserted.
+// hand link's frame. The 81-link avatar is timed twice, with the engine's
+// hierarchical link bounds (QueryOptions::link_groups, the default) and
+// without (every link on its own, as before them), alternating which goes
+// first; their answers must be equal (checked, the run aborts otherwise).
+// Timings are wall-clock per pair (median, p99, max, microseconds); nothing
+// is asserted about them.
 //
 //   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
+//   build/bin/sweptccd_full_body_bench --convert SKEL16.json POSES16.jsonl OUT_DIR
 //
 // --clock thread times this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
 // which leaves out time other processes held the core (on a shared machine,
@@ -20,11 +25,15 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/avatar/joint_frame.h"
 #include "core/avatar/joint_set.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
 #include "core/errors.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
@@ -185,12 +194,82 @@ class FrameBuilder {
 };
 
 struct Row {
-  std::string scene, clip;
+  std::string scene, clip, groups;
   int links = 0, pairs = 0, contacts = 0, undecided = 0, refused = 0;
   bench::Stats us;
 };
 
+// The two 81-link answers (link groups on and off) must be the same.
+bool SameAnswer(const QueryResult& x, const QueryResult& y) {
+  if (x.contact != y.contact || x.undecided != y.undecided || x.s_lo != y.s_lo ||
+      x.s_hi != y.s_hi || x.initially_colliding != y.initially_colliding ||
+      x.contacts.size() != y.contacts.size()) {
+    return false;
+  }
+  for (size_t i = 0; i < x.contacts.size(); ++i) {
+    const ContactRecord& a = x.contacts[i];
+    const ContactRecord& b = y.contacts[i];
+    if (a.link != b.link || a.object != b.object || a.triangle != b.triangle || a.s != b.s ||
+        a.separation != b.separation || a.point_link != b.point_link) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// --convert SKEL16.json POSES16.jsonl OUT_DIR: the 16-link CMU avatar's
+// stream (as `sweptccd import-bvh` writes it) as the 81-link meta-full-body
+// avatar's, fingers procedurally animated as in the bench: OUT_DIR/
+// skeleton.json (calibrated on the first pose) and OUT_DIR/poses.jsonl, one
+// line per pose the conversion accepts (tools/service_bench/run.sh,
+// FULL_BODY=1). Returns the process status.
+int Convert(const std::string& skeleton_path, const std::string& poses_path,
+            const std::string& out_dir) {
+  const Skeleton mocap = LoadSkeletonFile(skeleton_path);
+  std::ifstream in(poses_path);
+  std::vector<Pose> poses;
+  std::string line, error;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    std::optional<Pose> p = ParsePoseLine(line, mocap.num_links(), &error);
+    if (!p) {
+      std::fprintf(stderr, "%s: %s\n", poses_path.c_str(), error.c_str());
+      return 1;
+    }
+    poses.push_back(*p);
+  }
+  if (poses.empty()) {
+    std::fprintf(stderr, "%s: no poses\n", poses_path.c_str());
+    return 1;
+  }
+  const JointSet& set = FindJointSet("meta-full-body");
+  const FrameBuilder fb(set, mocap);
+  const JointFrame cal = fb.Build(poses[0]);
+  JointSkeletonOptions so;
+  so.calibration = &cal;
+  so.hands = HandsOption::kFull;
+  so.length_tolerance_m = 0.05;  // As the bench: the clip's clavicles move a little.
+  so.length_tolerance_fraction = 0.25;
+  const JointSkeleton js = JointSkeleton::Build(set, so);
+  std::ofstream skel_out(out_dir + "/skeleton.json");
+  skel_out << SkeletonToJson(js.skeleton()) << "\n";
+  std::ofstream poses_out(out_dir + "/poses.jsonl");
+  int refused = 0;
+  for (const Pose& p : poses) {
+    Pose full;
+    if (js.Convert(fb.Build(p), &full).empty()) {
+      poses_out << PoseToJsonLine(full) << "\n";
+    } else {
+      ++refused;
+    }
+  }
+  std::fprintf(stderr, "%zu poses, %d refused, %d links\n", poses.size(), refused,
+               js.skeleton().num_links());
+  return skel_out && poses_out ? 0 : 1;
+}
+
 int Main(int argc, char** argv) {
+  if (argc == 5 && std::string(argv[1]) == "--convert") return Convert(argv[2], argv[3], argv[4]);
   int max_pairs = 600;
   double rate_hz = 120;
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -243,17 +322,23 @@ int Main(int argc, char** argv) {
       const CcdEngine small(clip.skeleton, env);
       const CcdEngine big(js.skeleton(), env);
       QueryOptions q;
-      Row r16, r84;
-      r16.scene = r84.scene = sc.name;
-      r16.clip = r84.clip = clip_name;
+      QueryOptions q_flat = q;  // Before hierarchical link bounds: every link on its own.
+      q_flat.link_groups = false;
+      Row r16, r84, r84_flat;
+      r16.scene = r84.scene = r84_flat.scene = sc.name;
+      r16.clip = r84.clip = r84_flat.clip = clip_name;
       r16.links = clip.skeleton.num_links();
-      r84.links = js.skeleton().num_links();
-      std::vector<double> t16, t84;
+      r84.links = r84_flat.links = js.skeleton().num_links();
+      r16.groups = "-";
+      r84.groups = "on";
+      r84_flat.groups = "off";
+      std::vector<double> t16, t84, t84_flat;
       const int n = std::min<int>(max_pairs, static_cast<int>(clip.poses.size()) - 1);
       // Warm-up, untimed, the same first pairs through both.
       for (int k = 0; k < std::min(n, 10); ++k) {
         (void)small.Query(clip.poses[k], clip.poses[k + 1], q);
         if (full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q);
+        if (full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q_flat);
       }
       for (int k = 0; k < n; ++k) {
         if (!full[k] || !full[k + 1]) {
@@ -263,19 +348,31 @@ int Main(int argc, char** argv) {
         double a = NowS();
         const QueryResult x = small.Query(clip.poses[k], clip.poses[k + 1], q);
         t16.push_back(1e6 * (NowS() - a));
-        a = NowS();
-        const QueryResult y = big.Query(*full[k], *full[k + 1], q);
-        t84.push_back(1e6 * (NowS() - a));
+        // Groups on and off alternate which goes first, pair by pair.
+        QueryResult y, z;
+        for (int turn = 0; turn < 2; ++turn) {
+          const bool flat = (turn == 0) == (k % 2 == 0);
+          a = NowS();
+          (flat ? z : y) = big.Query(*full[k], *full[k + 1], flat ? q_flat : q);
+          (flat ? t84_flat : t84).push_back(1e6 * (NowS() - a));
+        }
+        SWEPTCCD_CHECK(SameAnswer(y, z));
         ++r16.pairs;
         ++r84.pairs;
+        ++r84_flat.pairs;
         r16.contacts += x.contact;
         r84.contacts += y.contact;
+        r84_flat.contacts += z.contact;
         r16.undecided += x.undecided;
         r84.undecided += y.undecided;
+        r84_flat.undecided += z.undecided;
       }
+      r84_flat.refused = r84.refused;
       r16.us = bench::Summarise(t16);
       r84.us = bench::Summarise(t84);
+      r84_flat.us = bench::Summarise(t84_flat);
       rows.push_back(r16);
+      rows.push_back(r84_flat);
       rows.push_back(r84);
     }
   }
@@ -285,12 +382,12 @@ int Main(int argc, char** argv) {
       "release; 3 s cycle), not captured.\n\n",
       rate_hz, g_thread_clock ? "thread CPU" : "wall");
   std::printf(
-      "| scene | clip | links | pairs | contact | undecided | refused | median us | p99 us "
-      "| max us |\n|---|---|---|---|---|---|---|---|---|---|\n");
+      "| scene | clip | links | link groups | pairs | contact | undecided | refused | median us "
+      "| p99 us | max us |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
   for (const Row& r : rows) {
-    std::printf("| %s | %s | %d | %d | %d | %d | %d | %.1f | %.1f | %.1f |\n", r.scene.c_str(),
-                r.clip.c_str(), r.links, r.pairs, r.contacts, r.undecided, r.refused, r.us.median,
-                r.us.p99, r.us.max);
+    std::printf("| %s | %s | %d | %s | %d | %d | %d | %d | %.1f | %.1f | %.1f |\n", r.scene.c_str(),
+                r.clip.c_str(), r.links, r.groups.c_str(), r.pairs, r.contacts, r.undecided,
+                r.refused, r.us.median, r.us.p99, r.us.max);
   }
   return 0;
 }

@@ -18,6 +18,9 @@
 # (latency_bench --breakdown). LATENCY_BENCH=PATH runs another bench binary
 # against the same daemon (default BUILD_DIR/bin/sweptccd_latency_bench; an
 # older bench takes neither option, so leave PHASES and BREAKDOWN unset).
+# FULL_BODY=1: every client is the 81-link meta-full-body avatar walking the
+# same walk, its fingers procedurally animated (sweptccd_full_body_bench
+# --convert; docs/SKELETONS.md), instead of the 16-link CMU avatar.
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
 enter_private_netns "$@"
@@ -40,6 +43,15 @@ where=()
 for run in ${RUNS:-1:90 8:90 32:90}; do
   n=${run%%:*} hz=${run#*:}
   import_walk "$build/bin/sweptccd" . "$hz" "$work" >/dev/null
+  if [ "${FULL_BODY:-}" = 1 ]; then
+    # The same walk as the 81-link meta-full-body avatar (procedurally
+    # animated fingers; tools/full_body_bench --convert), in place of the
+    # 16-link one.
+    mkdir -p "$work/full_body"
+    "$build/bin/sweptccd_full_body_bench" --convert "$work/skeleton.json" "$work/poses.jsonl" \
+      "$work/full_body" 2>/dev/null
+    cp "$work/full_body/skeleton.json" "$work/full_body/poses.jsonl" "$work/"
+  fi
   args=()
   for c in $(seq 0 $((n - 1))); do args+=(--client "client$c=$work/skeleton.json"); done
   "$build/bin/sweptccd-service" --lcm-url "$url" --env data/env/morse_apartment.ply.gz --workers 2 \

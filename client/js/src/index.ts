@@ -12,5 +12,6 @@ export * from "./viewer.js";
 export * from "./scene_mesh.js";
 export * from "./pose_math.js";
 export * from "./xr_skeleton.js";
+export * from "./joint_frame.js";
 export * from "./object_tracker.js";
 export * from "./rooms.js";

@@ -56,17 +56,19 @@
 #include <utility>
 #include <vector>
 
-#include "core/query/ccd_query.h"
-#include "core/scene/collision_filter.h"
-#include "tests/core/query/backend_under_test.h"
-#include "core/geometry/distance.h"
-#include "core/scene/environment.h"
-#include "core/geometry/mesh.h"
+#include "core/avatar/joint_frame.h"
+#include "core/avatar/joint_set.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
+#include "core/geometry/distance.h"
+#include "core/geometry/mesh.h"
+#include "core/query/ccd_query.h"
+#include "core/scene/collision_filter.h"
+#include "core/scene/environment.h"
 #include "tests/common/random.h"
 #include "tests/common/test_scale.h"
+#include "tests/core/query/backend_under_test.h"
 
 namespace sweptccd {
 namespace {
@@ -479,9 +481,10 @@ class Suite {
         ll(independent_), ll(contact_), ll(initially_), ll(free_), ll(undecided_), ll(touched_),
         ll(failures_), engine_s_, reference_s_);
     if (std::string(testing::BackendName()) != "cpu") {
-      std::printf("[%s, %s backend] culler: %lld round trips, %lld capsules, %lld intervals cleared\n",
-                  name_.c_str(), testing::BackendName(), ll(cull_round_trips_),
-                  ll(cull_capsules_), ll(cull_cleared_));
+      std::printf(
+          "[%s, %s backend] culler: %lld round trips, %lld capsules, %lld intervals cleared\n",
+          name_.c_str(), testing::BackendName(), ll(cull_round_trips_), ll(cull_capsules_),
+          ll(cull_cleared_));
       // The accelerator must have been used (a fallback to the CPU would
       // otherwise pass unnoticed).
       EXPECT_GT(cull_round_trips_, 0) << name_ << ": the backend under test never ran";
@@ -1978,6 +1981,150 @@ TEST(CcdRandomTest, Humanoid16LinksArticulated) {
 }
 
 // ---------------------------------------------------------------------------
+// Fingers (issue 31): an XR_EXT_hand_tracking hand (25 links, --hands full)
+// through the joint-set adapter, its joint frames built by a procedural hand
+// (rigid palm, each finger a chain curling about the hand's lateral axis)
+// and converted by JointSkeleton::Convert, reaching for a table edge or
+// closing round a thin rod (4 mm square). Every pair is checked against the
+// dense reference (G1-G3, no miss), so each finger capsule's contact is
+// certified, with the link groups (link_groups.h) on, as by default.
+
+struct ProceduralHand {
+  // Hand frame: x lateral (index to little), y along the fingers, z out of
+  // the back of the hand (the fingers curl towards -z, the palm's side). Per finger (thumb first):
+  // the metacarpal joint's offset from the wrist and the bone lengths from it (thumb: 3 bones,
+  // others 4).
+  struct Finger {
+    const char* name;
+    Vec3 base;
+    std::vector<double> bones;
+  };
+  std::vector<Finger> fingers = {{"THUMB", Vec3(-0.02, 0.02, -0.01), {0.045, 0.035, 0.03}},
+                                 {"INDEX", Vec3(-0.015, 0.01, 0), {0.065, 0.04, 0.025, 0.02}},
+                                 {"MIDDLE", Vec3(0.0, 0.01, 0), {0.065, 0.045, 0.028, 0.02}},
+                                 {"RING", Vec3(0.015, 0.01, 0), {0.06, 0.042, 0.026, 0.019}},
+                                 {"LITTLE", Vec3(0.03, 0.01, 0), {0.055, 0.032, 0.02, 0.018}}};
+
+  // The frame of set ext-hand: wrist pose (p, q), curl in [0, 1].
+  JointFrame Frame(const JointSet& set, const Vec3& p, const Eigen::Quaterniond& q, double curl,
+                   int64_t utime) const {
+    JointFrame f;
+    f.utime = utime;
+    f.joints.resize(set.joints.size());
+    for (JointSample& j : f.joints) {
+      j.p = p;
+      j.q = q;
+    }
+    auto at = [&](const std::string& name) -> JointSample& {
+      const int j = set.FindJoint("XR_HAND_JOINT_" + name + "_EXT");
+      EXPECT_GE(j, 0) << name;
+      return f.joints[std::max(j, 0)];
+    };
+    at("WRIST").p = p;
+    at("PALM").p = p + q * Vec3(0.005, 0.045, 0);
+    static const char* kThumb[] = {"METACARPAL", "PROXIMAL", "DISTAL", "TIP"};
+    static const char* kOther[] = {"METACARPAL", "PROXIMAL", "INTERMEDIATE", "DISTAL", "TIP"};
+    for (const Finger& fi : fingers) {
+      const bool thumb = std::string(fi.name) == "THUMB";
+      Vec3 x = p + q * fi.base;
+      at(std::string(fi.name) + "_" + (thumb ? kThumb[0] : kOther[0])).p = x;
+      for (size_t k = 0; k < fi.bones.size(); ++k) {
+        // The metacarpal bone stays in the palm; each later bone bends by
+        // curl x 80 degrees more (thumb: about the palm normal, inwards).
+        const double bend = k == 0 ? 0.0 : curl * 1.4 * static_cast<double>(k);
+        const Vec3 axis = thumb ? Vec3(0, 0, 1) : Vec3(1, 0, 0);
+        const Vec3 dir = q * (Eigen::AngleAxisd(thumb ? bend : -bend, axis) * Vec3(0, 1, 0));
+        x += fi.bones[k] * dir;
+        at(std::string(fi.name) + "_" + (thumb ? kThumb[k + 1] : kOther[k + 1])).p = x;
+      }
+    }
+    return f;
+  }
+};
+
+TEST(CcdRandomTest, FingersOnATableEdgeAndAThinRod) {
+  Suite suite("fingers (ext-hand, 25 links)");
+  const JointSet& set = FindJointSet("ext-hand");
+  const ProceduralHand hand;
+  JointSkeletonOptions so;
+  const JointFrame cal = hand.Frame(set, Vec3::Zero(), Eigen::Quaterniond::Identity(), 0, 0);
+  so.calibration = &cal;
+  const JointSkeleton js = JointSkeleton::Build(set, so);
+  ASSERT_EQ(js.skeleton().num_links(), 25);
+  int64_t table_contacts = 0, rod_contacts = 0;
+  for (int scene_i = 0; scene_i < ScaledCount(12); ++scene_i) {
+    const uint64_t seed = 0xF1A0000 + scene_i;
+    Rng rng(seed);
+    Scene scene;
+    scene.skeleton = js.skeleton();
+    // Table top 1.0 x 0.6 x 0.04 m, its top at z = 0.75, edge along x at
+    // y = 0.3; a rod along z at (rod_x, 0.45), from z = 0.75 to 1.75.
+    TriangleMesh table, rod;
+    AddBox(&table, Vec3(0, 0, 0.73), Mat3::Identity(), Vec3(0.5, 0.3, 0.02));
+    const double rod_x = rng.U(-0.3, 0.3);
+    AddBox(&rod, Vec3(rod_x, 0.45, 1.25), Mat3(Eigen::AngleAxisd(rng.U(0, kPi), Vec3::UnitZ())),
+           Vec3(0.002, 0.002, 0.5));
+    scene.meshes = {table, rod};
+    SceneUnderTest sut(std::move(scene));
+    for (int i = 0; i < 20; ++i) {
+      // Reach: the hand comes in over the edge (fingers pointing -y, palm
+      // down) and curls onto it; grasp: the open hand closes round the rod.
+      const bool rod_case = rng.P(0.5);
+      Vec3 p0, p1;
+      Eigen::Quaterniond q0, q1;
+      if (rod_case) {
+        // The hand's lateral axis along the rod, fingers horizontal, the
+        // rod on the palm's side (-z) of the proximal phalanges.
+        const Eigen::Quaterniond face(Eigen::AngleAxisd(rng.U(0, 2 * kPi), Vec3::UnitZ()));
+        Mat3 along;
+        along.col(0) = Vec3::UnitZ();
+        along.col(1) = Vec3::UnitX();
+        along.col(2) = Vec3::UnitY();
+        q0 = face * Eigen::Quaterniond(along) * rng.Turn(rng.U(0, 0.15));
+        const Vec3 grip = Vec3(rod_x, 0.45, rng.U(0.9, 1.6));
+        p0 = grip - q0 * Vec3(0, rng.U(0.085, 0.12), -rng.U(0.016, 0.04));
+        p1 = p0 + rng.Box(0.01);
+        q1 = q0 * rng.Turn(rng.U(0, 0.1));
+      } else {
+        q0 = Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vec3::UnitZ())) *
+             Eigen::Quaterniond(Eigen::AngleAxisd(rng.U(-0.3, 0.3), Vec3::UnitX())) *
+             rng.Turn(rng.U(0, 0.15));
+        p0 = Vec3(rng.U(-0.4, 0.4), rng.U(0.35, 0.5), rng.U(0.77, 0.85));
+        p1 = p0 + Vec3(rng.U(-0.02, 0.02), rng.U(-0.12, 0.0), rng.U(-0.06, 0.0));
+        q1 = q0 * rng.Turn(rng.U(0, 0.2));
+      }
+      const double c0 = rng.U(0, 0.4), c1 = std::min(1.0, c0 + rng.U(0, 0.6));
+      QuerySpec q;
+      q.options = RandomOptions(
+          rng, rng.P(0.85) ? MotionModel::kArticulated : MotionModel::kIndependent, 0.4);
+      SetTimes(rng, &q, 5e3, 3e4);
+      Pose x0, x1;
+      ASSERT_EQ(js.Convert(hand.Frame(set, p0, q0, c0, q.pose0.utime), &x0), "");
+      ASSERT_EQ(js.Convert(hand.Frame(set, p1, q1, c1, q.pose1.utime), &x1), "");
+      ASSERT_EQ(ValidateAndNormalizePose(&x0, 25), "");
+      ASSERT_EQ(ValidateAndNormalizePose(&x1, 25), "");
+      q.pose0 = x0;
+      q.pose1 = x1;
+      q.note = rod_case ? "fingers close round a thin rod" : "fingers curl over a table edge";
+      q.uniform_samples = 801;  // 25 links: the reference's time, not its rigour, is the cost.
+      const Outcome out = suite.Run(sut, q, seed, i);
+      for (const ContactRecord& c : out.result.contacts) {
+        // A phalanx (not a carpal bone or the palm) made the contact.
+        const std::string& name = js.skeleton().link(c.link.value()).name;
+        const bool phalanx = name.find("PROXIMAL_EXT>") != std::string::npos ||
+                             name.find("INTERMEDIATE_EXT>") != std::string::npos ||
+                             name.find("DISTAL_EXT>") != std::string::npos;
+        (c.object.value() == 1 ? rod_contacts : table_contacts) += phalanx;
+      }
+    }
+  }
+  suite.Finish(240);
+  // The scenes do what they say: finger bones touch the edge and the rod.
+  EXPECT_GT(table_contacts, static_cast<int64_t>(20 * testing::TestScale()));
+  EXPECT_GT(rod_contacts, static_cast<int64_t>(20 * testing::TestScale()));
+}
+
+// ---------------------------------------------------------------------------
 // Dense meshes (thousands of triangles): candidate lists overflow their cap
 // and the engine re-queries its BVHs; the reference still checks every
 // triangle.
@@ -2195,7 +2342,8 @@ TEST(CcdRandomTest, EpochUtimesKeepG2) {
   x0.p = Vec3(0, 0, 1);
   x1.p = Vec3(0, 0, -1);  // Touches at s = 0.505.
   const int64_t utime0 = 1700087249186542, dt = 6407;
-  const QueryResult r = QueryOnBackend(sk, env, MakePose(utime0, {x0}), MakePose(utime0 + dt, {x1}));
+  const QueryResult r =
+      QueryOnBackend(sk, env, MakePose(utime0, {x0}), MakePose(utime0 + dt, {x1}));
   ASSERT_TRUE(r.contact);
   EXPECT_FALSE(r.undecided);
   EXPECT_LE((r.s_hi - r.s_lo) * dt, 100.0) << "bracket [" << r.s_lo << ", " << r.s_hi << "] is "

@@ -1,0 +1,71 @@
+#pragma once
+// Internal to the query engine (see docs/DESIGN.md, "core/query"): link
+// groups, the hierarchical link bounds of a large skeleton. A group is a
+// subtree of the kinematic tree (a hand, a finger, a foot, an arm); with the
+// `articulated` model, one ball around the group root's origin holds the
+// whole-pair swept capsule of every link of the group, so a group whose ball
+// meets no triangle leaves every one of its links culled for the pair (the
+// answer the links' own capsules give) without composing their poses.
+
+#include <vector>
+
+#include "core/avatar/motion.h"
+#include "core/avatar/skeleton.h"
+#include "core/query/link_capsule.h"
+
+namespace sweptccd::internal {
+
+/// The groups of one skeleton: every link that has a parent and a subtree of
+/// at least kMinLinks links roots one, except a link whose only child roots
+/// one (a chain adds a link and a wider ball). Groups nest: a forearm's holds
+/// the hand's links, each finger is its own. Immutable; built once per
+/// engine.
+class LinkGroups {
+ public:
+  static constexpr int kMinLinks = 4;
+
+  explicit LinkGroups(const Skeleton& skeleton);
+
+  bool empty() const { return num_groups_ == 0; }
+  int num_groups() const { return num_groups_; }
+  /// Whether `link` roots a group.
+  bool IsRoot(LinkIndex link) const { return is_root_[link]; }
+  /// The links of the subtree rooted at `link` (itself first), in preorder.
+  const LinkIndex* begin(LinkIndex link) const { return &preorder_[position_[link]]; }
+  const LinkIndex* end(LinkIndex link) const {
+    return &preorder_[position_[link]] + subtree_size_[link];
+  }
+  /// Every link, parents before their descendants (preorder).
+  const std::vector<LinkIndex>& preorder() const { return preorder_; }
+
+ private:
+  std::vector<LinkIndex> preorder_;
+  std::vector<int> position_;      // By link: its place in preorder_.
+  std::vector<int> subtree_size_;  // By link, itself included.
+  std::vector<bool> is_root_;
+  int num_groups_ = 0;
+};
+
+/// The reach of every link's subtree for one pair (`articulated` only): for
+/// link j, an upper bound on the distance from j's origin at s = 0.5 (as
+/// PairMotion composes it) to any point of the whole-pair swept capsule
+/// (SweptBounds::Over(l, 0, 1), tolerance excluded) of any link l of j's
+/// subtree: reach(j) = max(extent_j + radius_j + g_j, max over children c of
+/// lever_c + reach(c)), g_j the first-order growth over [0, 1]
+/// (PairMotion::SweepRadius, never below the capsule's growth) and lever_c
+/// the child's offset bound (PairMotion::lever: SPEC 3's c, interpolated
+/// linearly, stays within it). Needs no pose composed. O(links).
+void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const PairMotion& motion,
+                  std::vector<double>* reach);
+
+/// The ball of the group rooted at `root`: centred at the root's origin at
+/// s = 0.5 (its ends must be composed), radius reach(root) + `tolerance_m`
+/// (the query's, which every capsule carries) + 4 rounding slacks of the
+/// motion (the composition from the root down) + BoxPad of the motion's
+/// scale (far above the rounding of these sums and of the distance tests).
+/// It holds the whole-pair capsule of every link of the group, so a
+/// triangle that no test finds within it is not found within any of them.
+LinkCapsule GroupBall(const Skeleton& skeleton, const PairMotion& motion,
+                      const std::vector<double>& reach, LinkIndex root, double tolerance_m);
+
+}  // namespace sweptccd::internal

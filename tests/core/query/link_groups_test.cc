@@ -1,0 +1,418 @@
+// Hierarchical link bounds (core/query/link_groups.*, QueryRun::ClearGroups),
+// seeded and randomized:
+// - the groups' subtrees against a brute-force walk up the parents;
+// - the group ball holds every member's whole-pair capsule (the property the
+//   engine's answer rests on) and every point of the members' motion, sampled
+//   densely by an independent composition of SPEC 3 written here; a ball 30 %
+//   narrower fails somewhere (the check can fail);
+// - PairMotion's ends composed on demand are the same bits as all at once;
+// - CcdEngine::Query with link groups and without gives the same answers
+//   (every field but the stats) on the 81-link meta-full-body skeleton and on
+//   random trees, near a floor, a table and a thin rod, with and without
+//   --per-link and under small work limits, with groups cleared in many
+//   cases and contacts in many.
+
+#include "core/query/link_groups.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "core/avatar/joint_frame.h"
+#include "core/avatar/joint_set.h"
+#include "core/avatar/motion.h"
+#include "core/avatar/pose.h"
+#include "core/avatar/skeleton.h"
+#include "core/geometry/mesh.h"
+#include "core/query/ccd_query.h"
+#include "core/query/swept_bounds.h"
+#include "core/scene/environment.h"
+#include "tests/common/random.h"
+#include "tests/common/test_scale.h"
+
+namespace sweptccd {
+namespace {
+
+using internal::GroupBall;
+using internal::LinkGroups;
+using internal::SubtreeReach;
+using testing::Rng;
+using Vec3 = Eigen::Vector3d;
+
+// A random tree: each link hangs from an earlier one (depth at most
+// max_depth), its origin at the parent's b (sometimes off it).
+struct Rig {
+  Skeleton skeleton;
+  std::vector<Vec3> offset;  // In the parent frame.
+};
+
+Rig RandomRig(Rng& rng, int n, int max_depth) {
+  std::vector<Link> links(n);
+  std::vector<int> depth(n, 0);
+  Rig rig;
+  rig.offset.assign(n, Vec3::Zero());
+  for (int i = 0; i < n; ++i) {
+    Link& l = links[i];
+    l.name = "l" + std::to_string(i);
+    if (i > 0) {
+      int p;
+      do {
+        p = rng.I(i);
+      } while (depth[p] + 1 > max_depth);
+      l.parent = p;
+      depth[i] = depth[p] + 1;
+      rig.offset[i] = links[p].b_L + (rng.P(0.3) ? rng.Box(0.05) : Vec3::Zero());
+    }
+    l.a_L = rng.P(0.6) ? Vec3::Zero() : rng.Box(0.03);
+    l.b_L = rng.P(0.1) ? l.a_L : Vec3(l.a_L + rng.Dir() * rng.U(0.01, 0.3));
+    l.radius = rng.U(0.005, 0.08);
+  }
+  rig.skeleton = Skeleton::FromLinks("random", links, "link_groups_test");
+  return rig;
+}
+
+// The rig's offsets for a joint-set skeleton: each link starts at its
+// parent's b (bones chain joint to joint), sometimes at its a.
+Rig RigOf(Rng& rng, const Skeleton& skeleton) {
+  Rig rig;
+  rig.skeleton = skeleton;
+  rig.offset.assign(skeleton.num_links(), Vec3::Zero());
+  for (int i = 0; i < skeleton.num_links(); ++i) {
+    const int p = skeleton.link(i).parent;
+    if (p >= 0) rig.offset[i] = rng.P(0.8) ? skeleton.link(p).b_L : skeleton.link(p).a_L;
+  }
+  return rig;
+}
+
+// World poses: root pose given, each link its parent's pose times (offset,
+// local rotation).
+Pose PoseOf(const Rig& rig, const LinkPose& root, const std::vector<Eigen::Quaterniond>& local,
+            int64_t utime) {
+  const Skeleton& s = rig.skeleton;
+  Pose pose;
+  pose.utime = utime;
+  pose.links.resize(s.num_links());
+  for (int i : s.topological_order()) {
+    const int p = s.link(i).parent;
+    if (p < 0) {
+      pose.links[i] = root;
+    } else {
+      const LinkPose& x = pose.links[p];
+      pose.links[i].p = x.p + x.q * rig.offset[i];
+      pose.links[i].q = (x.q * local[i]).normalized();
+    }
+  }
+  return pose;
+}
+
+// A pair of poses: local rotations within `spread` of a random rest, turned
+// by up to `turn` between the two; the root moves up to `move` metres.
+std::pair<Pose, Pose> RandomPair(Rng& rng, const Rig& rig, const Vec3& place, double spread,
+                                 double turn, double move) {
+  const int n = rig.skeleton.num_links();
+  std::vector<Eigen::Quaterniond> l0(n), l1(n);
+  for (int i = 0; i < n; ++i) {
+    l0[i] = rng.Turn(rng.U(0, spread));
+    l1[i] = (l0[i] * rng.Turn(rng.U(0, turn))).normalized();
+  }
+  LinkPose r0, r1;
+  r0.p = place;
+  r0.q = rng.Quat();
+  r1.p = place + rng.Dir() * rng.U(0, move);
+  r1.q = (r0.q * rng.Turn(rng.U(0, turn))).normalized();
+  Pose p0 = PoseOf(rig, r0, l0, 1'000'000);
+  Pose p1 = PoseOf(rig, r1, l1, 1'000'000 + 8'333);
+  EXPECT_EQ(ValidateAndNormalizePose(&p0, n), "");
+  EXPECT_EQ(ValidateAndNormalizePose(&p1, n), "");
+  return {p0, p1};
+}
+
+// SPEC 3, composed here from the text (Eigen's slerp on the shortest arc).
+struct RefMotion {
+  const Skeleton& s;
+  const Pose& p0;
+  const Pose& p1;
+  std::vector<LinkPose> At(double t) const {
+    std::vector<LinkPose> out(s.num_links());
+    for (int i : s.topological_order()) {
+      const int k = s.link(i).parent;
+      if (k < 0) {
+        out[i].p = (1 - t) * p0.links[i].p + t * p1.links[i].p;
+        out[i].q = Slerp(p0.links[i].q, p1.links[i].q, t);
+        continue;
+      }
+      const Vec3 c0 = p0.links[k].q.conjugate() * (p0.links[i].p - p0.links[k].p);
+      const Vec3 c1 = p1.links[k].q.conjugate() * (p1.links[i].p - p1.links[k].p);
+      const Eigen::Quaterniond r0 = p0.links[k].q.conjugate() * p0.links[i].q;
+      const Eigen::Quaterniond r1 = p1.links[k].q.conjugate() * p1.links[i].q;
+      const Vec3 c = (1 - t) * c0 + t * c1;
+      out[i].q = (out[k].q * Slerp(r0, r1, t)).normalized();
+      out[i].p = out[k].p + out[k].q * c;
+    }
+    return out;
+  }
+  static Eigen::Quaterniond Slerp(const Eigen::Quaterniond& a, Eigen::Quaterniond b, double t) {
+    if (a.dot(b) < 0) b.coeffs() = -b.coeffs();
+    return a.slerp(t, b).normalized();
+  }
+};
+
+// The brute-force subtree: links whose ancestor chain reaches `root`.
+std::set<int> SubtreeByParents(const Skeleton& s, int root) {
+  std::set<int> out;
+  for (int i = 0; i < s.num_links(); ++i) {
+    for (int k = i; k >= 0; k = s.link(k).parent) {
+      if (k == root) {
+        out.insert(i);
+        break;
+      }
+    }
+  }
+  return out;
+}
+
+TEST(LinkGroups, SubtreesMatchTheParentWalk) {
+  Rng rng(31001);
+  const int cases = std::max(1, static_cast<int>(200 * testing::TestScale()));
+  int groups = 0;
+  for (int c = 0; c < cases; ++c) {
+    const Rig rig = RandomRig(rng, 1 + rng.I(90), 1 + rng.I(20));
+    const Skeleton& s = rig.skeleton;
+    const LinkGroups g(s);
+    ASSERT_EQ(static_cast<int>(g.preorder().size()), s.num_links());
+    std::vector<int> seen(s.num_links(), -1);
+    for (int i = 0; i < s.num_links(); ++i) seen[g.preorder()[i]] = i;
+    for (int i = 0; i < s.num_links(); ++i) {
+      ASSERT_GE(seen[i], 0);
+      if (s.link(i).parent >= 0) {
+        EXPECT_LT(seen[s.link(i).parent], seen[i]);  // Parents first.
+      }
+      const std::set<int> brute = SubtreeByParents(s, i);
+      std::set<int> listed;
+      for (const LinkIndex* m = g.begin(LinkIndex(i)); m != g.end(LinkIndex(i)); ++m) {
+        listed.insert(m->value());
+      }
+      EXPECT_EQ(listed, brute) << "case " << c << " link " << i;
+      EXPECT_EQ(*g.begin(LinkIndex(i)), LinkIndex(i));
+      int children = 0, child = -1;
+      for (int j = 0; j < s.num_links(); ++j) {
+        if (s.link(j).parent == i) {
+          ++children;
+          child = j;
+        }
+      }
+      const bool chain = children == 1 && g.IsRoot(LinkIndex(child));
+      EXPECT_EQ(g.IsRoot(LinkIndex(i)),
+                s.link(i).parent >= 0 && static_cast<int>(brute.size()) >= LinkGroups::kMinLinks &&
+                    !chain);
+      groups += g.IsRoot(LinkIndex(i)) ? 1 : 0;
+    }
+  }
+  EXPECT_GT(groups, cases);  // Groups are common in these trees.
+}
+
+// The ball holds each member's whole-pair capsule and each member's sampled
+// motion; `shrink` < 1 narrows the ball (the twin must then fail somewhere).
+struct Holding {
+  int groups = 0;
+  int capsule_outside = 0;
+  int sample_outside = 0;
+};
+
+Holding CheckBalls(uint64_t seed, int cases, double shrink) {
+  Rng rng(seed);
+  Holding h;
+  for (int c = 0; c < cases; ++c) {
+    const Rig rig = RandomRig(rng, 4 + rng.I(60), 2 + rng.I(12));
+    const auto [p0, p1] = RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14),
+                                     rng.P(0.1) ? 3.14159 : rng.U(0, 1.5), rng.U(0, 0.5));
+    const PairMotion motion(rig.skeleton, p0, p1, MotionModel::kArticulated);
+    const double tol = rng.P(0.5) ? 1e-9 : rng.U(1e-7, 1e-4);
+    const internal::SweptBounds bounds(rig.skeleton, motion, tol);
+    const LinkGroups groups(rig.skeleton);
+    std::vector<double> reach;
+    SubtreeReach(groups, rig.skeleton, motion, &reach);
+    const RefMotion ref{rig.skeleton, p0, p1};
+    std::vector<std::vector<LinkPose>> samples;
+    for (int k = 0; k <= 64; ++k) samples.push_back(ref.At(k / 64.0));
+    for (LinkIndex r(0); r < rig.skeleton.num_links(); ++r) {
+      if (!groups.IsRoot(r)) continue;
+      ++h.groups;
+      LinkCapsule ball = GroupBall(rig.skeleton, motion, reach, r, tol);
+      ball.radius *= shrink;
+      bool capsule_out = false, sample_out = false;
+      for (const LinkIndex* m = groups.begin(r); m != groups.end(r); ++m) {
+        const LinkCapsule cap = bounds.Over(*m, 0, 1);
+        const double far = std::max((cap.a - ball.a).norm(), (cap.b - ball.a).norm());
+        capsule_out |= far + cap.radius > ball.radius;
+        const Link& link = rig.skeleton.link(*m);
+        for (const auto& x : samples) {
+          const Vec3 a = x[*m].p + x[*m].q * link.a_L;
+          const Vec3 b = x[*m].p + x[*m].q * link.b_L;
+          const double d = std::max((a - ball.a).norm(), (b - ball.a).norm()) + link.radius;
+          sample_out |= d > ball.radius;
+        }
+      }
+      h.capsule_outside += capsule_out;
+      h.sample_outside += sample_out;
+    }
+  }
+  return h;
+}
+
+TEST(LinkGroups, BallHoldsEveryMembersCapsuleAndMotion) {
+  const int cases = std::max(1, static_cast<int>(300 * testing::TestScale()));
+  const Holding h = CheckBalls(31002, cases, 1.0);
+  EXPECT_GT(h.groups, cases);
+  EXPECT_EQ(h.capsule_outside, 0);
+  EXPECT_EQ(h.sample_outside, 0);
+  // The same cases with a ball 30 % narrower: some capsule pokes out.
+  const Holding narrow = CheckBalls(31002, cases, 0.7);
+  EXPECT_GT(narrow.capsule_outside, 0);
+}
+
+TEST(LinkGroups, EndsOnDemandAreTheSameBits) {
+  Rng rng(31003);
+  const int cases = std::max(1, static_cast<int>(100 * testing::TestScale()));
+  for (int c = 0; c < cases; ++c) {
+    const Rig rig = RandomRig(rng, 1 + rng.I(60), 1 + rng.I(12));
+    const auto [p0, p1] = RandomPair(rng, rig, rng.Box(2.0), 3.0, rng.U(0, 3.14159), 0.3);
+    const MotionModel model = rng.P(0.5) ? MotionModel::kArticulated : MotionModel::kIndependent;
+    const PairMotion all(rig.skeleton, p0, p1, model);
+    PairMotion lazy(rig.skeleton, p0, p1, model, nullptr, PairMotion::Ends::kOnDemand);
+    const LinkGroups groups(rig.skeleton);
+    for (LinkIndex l : groups.preorder()) {
+      EXPECT_FALSE(lazy.EndsReady(l));
+      lazy.CompleteEnds(l);
+      EXPECT_TRUE(lazy.EndsReady(l));
+    }
+    EXPECT_EQ(all.rounding_slack(), lazy.rounding_slack());
+    EXPECT_EQ(all.coordinate_scale(), lazy.coordinate_scale());
+    for (LinkIndex l(0); l < rig.skeleton.num_links(); ++l) {
+      for (double s : {0.0, 0.5, 1.0, 0.25}) {
+        const LinkPose x = all.PoseAt(l, s), y = lazy.PoseAt(l, s);
+        EXPECT_EQ(x.p, y.p);
+        EXPECT_EQ(x.q.coeffs(), y.q.coeffs());
+        Vec3 a0, b0, a1, b1;
+        all.SegmentAt(l, s, &a0, &b0);
+        lazy.SegmentAt(l, s, &a1, &b1);
+        EXPECT_EQ(a0, a1);
+        EXPECT_EQ(b0, b1);
+      }
+      EXPECT_EQ(all.lever(l), lazy.lever(l));
+      EXPECT_EQ(all.SweepRadius(l, 0, 1), lazy.SweepRadius(l, 0, 1));
+    }
+  }
+}
+
+// A room: floor at z = 0, a table (top at 0.75 m, edge along x at y = 0.4),
+// a thin rod (4 mm square, 1 m long, upright) beside it.
+Environment Room() {
+  TriangleMesh m;
+  auto quad = [&m](const Vec3& c, const Vec3& e1, const Vec3& e2) {
+    const uint32_t base = static_cast<uint32_t>(m.vertices.size());
+    for (const Vec3& v :
+         {Vec3(c - e1 - e2), Vec3(c + e1 - e2), Vec3(c + e1 + e2), Vec3(c - e1 + e2)}) {
+      m.vertices.push_back(v.cast<float>());
+    }
+    for (uint32_t k : {0u, 1u, 2u, 0u, 2u, 3u}) m.indices.push_back(base + k);
+  };
+  auto box = [&quad](const Vec3& c, const Vec3& h) {
+    const Vec3 x(h.x(), 0, 0), y(0, h.y(), 0), z(0, 0, h.z());
+    quad(c + x, y, z);
+    quad(c - x, z, y);
+    quad(c + y, z, x);
+    quad(c - y, x, z);
+    quad(c + z, x, y);
+    quad(c - z, y, x);
+  };
+  quad(Vec3(0, 0, 0), Vec3(4, 0, 0), Vec3(0, 4, 0));
+  box(Vec3(0, 0, 0.725), Vec3(0.8, 0.4, 0.025));       // Table top.
+  box(Vec3(0.6, 0.55, 0.5), Vec3(0.002, 0.002, 0.5));  // Thin rod.
+  Environment env;
+  env.AddMesh(m, "room");
+  return env;
+}
+
+bool SameContact(const ContactRecord& x, const ContactRecord& y) {
+  return x.link == y.link && x.object == y.object && x.triangle == y.triangle && x.s == y.s &&
+         x.point_link == y.point_link && x.point_env == y.point_env && x.normal == y.normal &&
+         x.separation == y.separation;
+}
+
+::testing::AssertionResult SameAnswer(const QueryResult& x, const QueryResult& y) {
+  if (x.contact != y.contact || x.undecided != y.undecided ||
+      x.initially_colliding != y.initially_colliding || x.s_lo != y.s_lo || x.s_hi != y.s_hi ||
+      x.contacts.size() != y.contacts.size() || x.links.size() != y.links.size()) {
+    return ::testing::AssertionFailure()
+           << "contact " << x.contact << "/" << y.contact << " undecided " << x.undecided << "/"
+           << y.undecided << " s_lo " << x.s_lo << "/" << y.s_lo << " s_hi " << x.s_hi << "/"
+           << y.s_hi << " contacts " << x.contacts.size() << "/" << y.contacts.size();
+  }
+  for (size_t i = 0; i < x.contacts.size(); ++i) {
+    if (!SameContact(x.contacts[i], y.contacts[i])) {
+      return ::testing::AssertionFailure() << "witness " << i << " differs";
+    }
+  }
+  for (size_t i = 0; i < x.links.size(); ++i) {
+    const LinkBracket& a = x.links[i];
+    const LinkBracket& b = y.links[i];
+    if (a.link != b.link || a.s_lo != b.s_lo || a.s_hi != b.s_hi ||
+        a.initially_colliding != b.initially_colliding || a.undecided != b.undecided ||
+        a.has_witness != b.has_witness || (a.has_witness && !SameContact(a.witness, b.witness))) {
+      return ::testing::AssertionFailure() << "link bracket " << i << " differs";
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+TEST(LinkGroups, QueriesWithAndWithoutGroupsAgree) {
+  const Environment env = Room();
+  const JointSkeleton body = JointSkeleton::Build(FindJointSet("meta-full-body"), {});
+  ASSERT_EQ(body.skeleton().num_links(), 81);
+  Rng rng(31004);
+  const int cases = std::max(1, static_cast<int>(1500 * testing::TestScale()));
+  int cleared = 0, contacts = 0, undecided = 0, per_link = 0;
+  for (int c = 0; c < cases; ++c) {
+    const bool full_body = c % 4 != 3;
+    const Rig rig = full_body ? RigOf(rng, body.skeleton()) : RandomRig(rng, 16 + rng.I(70), 12);
+    // Near the table's edge, the rod or the floor; sometimes far from all.
+    const Vec3 place = rng.P(0.15) ? Vec3(rng.U(-3, 3), rng.U(-3, 3), 2.5)
+                                   : Vec3(rng.U(-0.9, 0.9), rng.U(0.2, 1.0), rng.U(0.6, 1.3));
+    const auto [p0, p1] =
+        RandomPair(rng, rig, place, rng.U(0.2, 1.2), rng.U(0, 0.6), rng.U(0, 0.15));
+    const CcdEngine engine(rig.skeleton, env);
+    QueryOptions on;
+    on.per_link = rng.P(0.3);
+    if (rng.P(0.3)) on.max_intervals = 1 + rng.I(40);  // Work limits: undecided answers.
+    if (rng.P(0.2)) on.max_candidates = 1 + rng.I(4);
+    on.delta_m = rng.P(0.5) ? 1e-3 : rng.U(1e-4, 2e-2);
+    QueryOptions off = on;
+    off.link_groups = false;
+    const QueryResult x = engine.Query(p0, p1, on);
+    const QueryResult y = engine.Query(p0, p1, off);
+    ASSERT_TRUE(SameAnswer(x, y)) << "case " << c << " full_body " << full_body;
+    EXPECT_EQ(y.stats.groups_cleared, 0);
+    EXPECT_EQ(x.stats.links_culled + x.stats.links_tested,
+              y.stats.links_culled + y.stats.links_tested);
+    cleared += x.stats.groups_cleared > 0;
+    contacts += x.contact;
+    undecided += x.undecided;
+    per_link += on.per_link && x.links.size() > 1;
+  }
+  // The comparison means something: groups cleared, contacts, undecided
+  // answers and several per-link brackets all occur.
+  EXPECT_GT(cleared, cases / 4);
+  EXPECT_GT(contacts, cases / 4);
+  EXPECT_GT(undecided, 0);
+  EXPECT_GT(per_link, 0);
+}
+
+}  // namespace
+}  // namespace sweptccd
