@@ -465,6 +465,20 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     if (!options.write_scene.empty() && options.scenes.size() != 1) {
       throw InputError("sweptccd bench: --write-scene needs exactly one --scene");
     }
+    // The sweep's table is printed scene by scene as each ends (flushed), so
+    // a run cut short (gpu_bundle.sh's timeouts) keeps the scenes done.
+    if (options.sweep && options.write_scene.empty()) {
+      std::printf(
+          "SweptCCD bench --sweep: %g Hz, eps %g s, delta %g m, motion %s%s; batches of pairs, "
+          "each answered by the CPU backend on 1 thread, the CPU backend on %d threads and the "
+          "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
+          "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
+          "batches; differ: pairs whose answer differs between the methods (must be 0); "
+          "dispatches: the GPU's, shared by the workers' requests\n\n",
+          options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
+          options.per_link ? ", per-link" : "", options.threads, options.threads,
+          gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
+    }
     for (const SceneSpec& scene : scenes) {
       const bool named = std::find(options.scenes.begin(), options.scenes.end(), scene.name) !=
                          options.scenes.end();
@@ -517,6 +531,12 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         so.query = BenchQueryOptions(options);
         const std::vector<bench::SweepRow> rows =
             bench::RunSweep(scene.name, env, sweep_clips, so, gpu_backend.get());
+        std::string part = bench::FormatSweep(rows, true);
+        if (!sweep_rows.empty()) {  // The header once, then rows only.
+          for (int line = 0; line < 2; ++line) part.erase(0, part.find('\n') + 1);
+        }
+        std::fputs(part.c_str(), stdout);
+        std::fflush(stdout);
         sweep_rows.insert(sweep_rows.end(), rows.begin(), rows.end());
         std::fprintf(stderr, "%s: sweep done\n", scene.name.c_str());
         continue;
@@ -633,18 +653,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       rows.push_back(all_row);
     }
     if (options.sweep) {
-      std::printf(
-          "SweptCCD bench --sweep: %g Hz, eps %g s, delta %g m, motion %s%s; batches of pairs, "
-          "each answered by the CPU backend on 1 thread, the CPU backend on %d threads and the "
-          "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
-          "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
-          "batches; differ: pairs whose answer differs between the methods (must be 0); "
-          "dispatches: the GPU's, shared by the workers' requests\n\n",
-          options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
-          options.per_link ? ", per-link" : "", options.threads, options.threads,
-          gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
       const std::string table = bench::FormatSweep(sweep_rows, true);
-      std::fputs(table.c_str(), stdout);
       if (!options.markdown_path.empty()) {
         std::ofstream md(options.markdown_path);
         md << table;
