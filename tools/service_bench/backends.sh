@@ -98,19 +98,24 @@ for backend in ${BACKENDS:-cpu gpu}; do
       END { for (c in a) { A += a[c]; K += k[c] } print A + K, K }')
   merged_cell=$(awk -v r="$received" -v m="$merged" 'BEGIN {
     if (r > 0) printf "%d (%.1f%%)", m, 100 * m / r; else print "-" }')
+  # The row says the backend the daemon ran on: a GPU it could not open
+  # (require_hardware on llvmpipe, no driver) leaves it on the CPU.
+  ran=$(grep -o 'backend [a-z]*' "$work/daemon_$backend.log" | head -1 | cut -d' ' -f2)
+  label=$backend
+  if [ "$ran" != "$backend" ]; then label="$backend requested, ran ${ran:-?}"; fi
   # Non-shared rows: | clients | Hz | sent | events | median | p99 | max |;
   # shared rows: | label | messages | median | p99 | max |.
   if [ "$shared" = true ]; then
     grep '^| ' "$work/bench_$backend.out" | while IFS='|' read -r _ part n med p99 max _; do
-      echo "| $backend |$part|$n|$med|$p99|$max| $received | $merged_cell |"
+      echo "| $label |$part|$n|$med|$p99|$max| $received | $merged_cell |"
     done
   else
     grep '^| ' "$work/bench_$backend.out" | while IFS='|' read -r _ _ _ _ n med p99 max _; do
-      echo "| $backend | env part |$n|$med|$p99|$max| $received | $merged_cell |"
+      echo "| $label | env part |$n|$med|$p99|$max| $received | $merged_cell |"
     done
   fi
   grep -q '^| ' "$work/bench_$backend.out" ||
-    echo "| $backend | (no result: $(tail -1 "$work/bench_$backend.err")) | | | | | | |"
+    echo "| $label | (no result: $(tail -1 "$work/bench_$backend.err")) | | | | | | |"
   notes+=("$backend: $(grep -o 'backend .*' "$work/daemon_$backend.log" | head -1)")
   if [ "$shared" = true ]; then
     notes+=("$backend: $(grep -E '^shared entries:' "$work/bench_$backend.out" | head -1)")
