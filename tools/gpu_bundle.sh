@@ -85,7 +85,7 @@ part() { echo "== $1 at $((SECONDS - start)) s" >> "$results/times.txt"; }
 } > "$results/env.txt" 2>&1
 # The GPU suites at once (correctness only; they share the GPU).
 part tests
-t_cap=$(cap 100)
+t_cap=$(cap 150)
 for t in gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test \
   real_data_gpu_test; do
   (
