@@ -8,7 +8,8 @@
 # CullCombiner). One table: pose publication -> contact event latency
 # (median, p99, max), and the pairs merged by latest-wins, per backend; with
 # SHARED=true the shared world is on and its part (avatar against avatar,
-# from the covering sample) has its own row.
+# from the covering sample) has its own row. Last, the answers of the pairs
+# both runs answered, compared pair by pair: "differ" must be 0.
 #   bash tools/service_bench/backends.sh [BUILD_DIR] [SECONDS]   (default build 10)
 # CLIENTS (64), RATE (120), WORKERS (default the number of cores), SHARED
 # (false), SCENE (breakfast+dragon_1.1M; any `sweptccd bench --scene` name),
@@ -83,6 +84,7 @@ for backend in ${BACKENDS:-cpu gpu}; do
   monitor=$!
   timeout $((seconds + 30)) "$build/bin/sweptccd_latency_bench" "$url" "$work/poses.jsonl" \
     "$clients" "$rate" "$seconds" "$work/room.key" "${placement[@]}" --label "env part" \
+    --answers-out "$work/answers_$backend.txt" \
     > "$work/bench_$backend.out" 2> "$work/bench_$backend.err" || true
   sleep 1.5  # A status period, so the monitor has the daemon's last counts.
   kill -TERM $daemon
@@ -126,3 +128,13 @@ done
 echo
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)"
 for n in "${notes[@]}"; do echo "$n"; done
+# The answers, pair by pair, where both runs answered the same pair (same
+# client, seq0 and seq1: latest-wins merges different pairs under different
+# timing): result, flags and the certified bracket must be equal.
+set -- ${BACKENDS:-cpu gpu}
+if [ $# -ge 2 ] && [ -s "$work/answers_$1.txt" ] && [ -s "$work/answers_$2.txt" ]; then
+  awk -v a="$1" -v b="$2" 'NR == FNR { k = $1 " " $2 " " $3; v[k] = $0; next }
+    { k = $1 " " $2 " " $3; if (k in v) { ++common; if (v[k] != $0) ++differ } }
+    END { printf "answers %s against %s: %d pairs answered by both, differ %d (must be 0)\n",
+          b, a, common, differ }' "$work/answers_$1.txt" "$work/answers_$2.txt"
+fi
