@@ -6,10 +6,12 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -23,6 +25,7 @@
 #include "tools/bench_common.h"
 #include "tools/bench_sweep.h"
 #include "tools/bullet_peer.h"
+#include "tools/ply_writer.h"
 
 namespace sweptccd {
 
@@ -33,7 +36,11 @@ void AddBenchOptions(CLI::App* app, BenchCommandOptions* o) {
   app->add_option("--clip", o->clips, "BVH clips in mocap/ to replay");
   app->add_option("--scene", o->scenes,
                   "Only these scenes (morse_apartment, grey_white_room, breakfast_room, "
-                  "breakfast+dragon_1.1M; default all)");
+                  "breakfast+dragon_1.1M; default all of these; also breakfast+dragons_10M, "
+                  "10.7 M triangles, only when named)");
+  app->add_option("--write-scene", o->write_scene,
+                  "Write the one --scene's placed meshes as one binary PLY here and stop (for "
+                  "the daemon, which takes mesh files)");
   app->add_option("--max-pairs", o->max_pairs, "Pairs per scene and clip")
       ->check(CLI::Range(1, 100000000));
   app->add_option("--rate", o->rate_hz, "Tracker rate, Hz (the clip is resampled)")
@@ -108,6 +115,7 @@ struct MeshPlacement {
   std::string file;
   double scale = 1;
   Eigen::Vector3d offset{0, 0, 0};
+  double yaw_deg = 0;  // Turn about +y (the up axis of the scenes that use it), before scaling.
 };
 struct SceneSpec {
   std::string name;
@@ -115,15 +123,42 @@ struct SceneSpec {
   char up = 'y';
   double floor = 0;              // Height of the floor along the up axis.
   Eigen::Vector2d centre{0, 0};  // Horizontal centre of the walk.
+  bool opt_in = false;           // Only when --scene names it (too large for every run).
 };
 
+// `m`'s mesh placed; each file is read once per scene (`cache`), so the
+// 10 M-triangle scene's twelve dragons cost one load.
 TriangleMesh PlacedMesh(const std::string& dir, const MeshPlacement& m,
-                        const MeshLoadOptions& options) {
-  TriangleMesh mesh = LoadMeshFile(DataFile(dir + "/env/" + m.file), options);
+                        const MeshLoadOptions& options,
+                        std::map<std::string, TriangleMesh>* cache) {
+  auto it = cache->find(m.file);
+  if (it == cache->end()) {
+    it = cache->emplace(m.file, LoadMeshFile(DataFile(dir + "/env/" + m.file), options)).first;
+  }
+  TriangleMesh mesh = it->second;
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(m.yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
   for (Eigen::Vector3f& v : mesh.vertices) {
-    v = (v.cast<double>() * m.scale + m.offset).cast<float>();
+    v = (turn * v.cast<double>() * m.scale + m.offset).cast<float>();
   }
   return mesh;
+}
+
+// The 10 M-triangle scene (issue 30): the breakfast room and twelve copies of
+// the 0.87 M-triangle Stanford dragon (scale 10, 2 m long): the 1.1 M scene's
+// dragon where the walk is, and eleven more on a ring of 2.2 m around it,
+// each turned 30 degrees further. 269,538 + 12 x 871,414 = 10,726,506
+// triangles; deterministic (the bundled files, fixed placements).
+std::vector<MeshPlacement> DragonRing() {
+  const Eigen::Vector3d centre(-0.67, -1.42 - 0.527, -1.9);
+  std::vector<MeshPlacement> meshes = {{"bitterli_breakfast_room.ply"},
+                                       {"stanford_dragon_vrip.ply", 10.0, centre}};
+  for (int k = 0; k < 11; ++k) {
+    const double a = 2 * M_PI * k / 11;
+    meshes.push_back({"stanford_dragon_vrip.ply", 10.0,
+                      centre + 2.2 * Eigen::Vector3d(std::cos(a), 0, std::sin(a)), 30.0 * (k + 1)});
+  }
+  return meshes;
 }
 
 // FCL peer: discrete collision of the 16 capsules at the second pose of each
@@ -406,10 +441,11 @@ int RunBenchCommand(const BenchCommandOptions& options) {
          'y',
          -1.42,
          {-0.67, -1.9}},
+        {"breakfast+dragons_10M", DragonRing(), 'y', -1.42, {-0.67, -1.9}, true},
     };
     // The GPU backend beside the CPU one, same pairs, same run.
     std::unique_ptr<gpu::Backend> gpu_backend;
-    if (options.gpu != "off") {
+    if (options.gpu != "off" && options.write_scene.empty()) {
       gpu::BackendOptions bo;
       bo.backend = gpu::BackendKind::kGpu;
       bo.device_index = options.gpu_device;
@@ -420,20 +456,64 @@ int RunBenchCommand(const BenchCommandOptions& options) {
     }
     std::vector<Row> rows;
     std::vector<bench::SweepRow> sweep_rows;
-    for (const SceneSpec& scene : scenes) {
-      if (!options.scenes.empty() && std::find(options.scenes.begin(), options.scenes.end(),
-                                               scene.name) == options.scenes.end()) {
-        continue;
+    for (const std::string& name : options.scenes) {
+      if (std::none_of(scenes.begin(), scenes.end(),
+                       [&](const SceneSpec& s) { return s.name == name; })) {
+        throw InputError("sweptccd bench: no scene '" + EscapeForDisplay(name) + "'");
       }
+    }
+    if (!options.write_scene.empty() && options.scenes.size() != 1) {
+      throw InputError("sweptccd bench: --write-scene needs exactly one --scene");
+    }
+    // The sweep's table is printed scene by scene as each ends (flushed), so
+    // a run cut short (gpu_bundle.sh's timeouts) keeps the scenes done.
+    if (options.sweep && options.write_scene.empty()) {
+      std::printf(
+          "SweptCCD bench --sweep: %g Hz, eps %g s, delta %g m, motion %s%s; batches of pairs, "
+          "each answered by the CPU backend on 1 thread, the CPU backend on %d threads and the "
+          "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
+          "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
+          "batches; differ: pairs whose answer differs between the methods (must be 0); "
+          "dispatches: the GPU's, shared by the workers' requests\n\n",
+          options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
+          options.per_link ? ", per-link" : "", options.threads, options.threads,
+          gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
+    }
+    for (const SceneSpec& scene : scenes) {
+      const bool named = std::find(options.scenes.begin(), options.scenes.end(), scene.name) !=
+                         options.scenes.end();
+      if (options.scenes.empty() ? scene.opt_in : !named) continue;
+      const auto l0 = Clock::now();
       std::vector<TriangleMesh> meshes;
-      for (const MeshPlacement& m : scene.meshes)
-        meshes.push_back(PlacedMesh(dir, m, options.mesh));
+      {
+        std::map<std::string, TriangleMesh> cache;
+        for (const MeshPlacement& m : scene.meshes)
+          meshes.push_back(PlacedMesh(dir, m, options.mesh, &cache));
+      }
+      const double load_s = Seconds(l0, Clock::now());
+      if (!options.write_scene.empty()) {  // The placed meshes as one file, for the daemon.
+        TriangleMesh all;
+        for (const TriangleMesh& m : meshes) {
+          const auto base = static_cast<uint32_t>(all.vertices.size());
+          all.vertices.insert(all.vertices.end(), m.vertices.begin(), m.vertices.end());
+          for (uint32_t i : m.indices) all.indices.push_back(base + i);
+        }
+        WriteBinaryPly(all, options.write_scene);
+        std::printf("%s: %zu triangles written to %s\n", scene.name.c_str(), all.num_triangles(),
+                    EscapeForDisplay(options.write_scene).c_str());
+        return 0;
+      }
       const long rss0 = ResidentKiB();
       const auto t0 = Clock::now();
       Environment env;
       for (size_t k = 0; k < meshes.size(); ++k) env.AddMesh(meshes[k], scene.meshes[k].file);
       const double build_s = Seconds(t0, Clock::now());
       const long rss1 = ResidentKiB();
+      std::fprintf(stderr,
+                   "%s: %zu triangles, meshes read and placed in %.2f s, BVH built in %.2f s, "
+                   "%.0f MiB resident (%.1f bytes/triangle for the environment)\n",
+                   scene.name.c_str(), env.num_triangles(), load_s, build_s, rss1 / 1024.0,
+                   1024.0 * (rss1 - rss0) / env.num_triangles());
       if (options.sweep) {  // Batches instead of the per-pair table (bench_sweep.h).
         std::vector<MocapClip> clips;
         std::vector<bench::SweepClip> sweep_clips;
@@ -451,6 +531,12 @@ int RunBenchCommand(const BenchCommandOptions& options) {
         so.query = BenchQueryOptions(options);
         const std::vector<bench::SweepRow> rows =
             bench::RunSweep(scene.name, env, sweep_clips, so, gpu_backend.get());
+        std::string part = bench::FormatSweep(rows, true);
+        if (!sweep_rows.empty()) {  // The header once, then rows only.
+          for (int line = 0; line < 2; ++line) part.erase(0, part.find('\n') + 1);
+        }
+        std::fputs(part.c_str(), stdout);
+        std::fflush(stdout);
         sweep_rows.insert(sweep_rows.end(), rows.begin(), rows.end());
         std::fprintf(stderr, "%s: sweep done\n", scene.name.c_str());
         continue;
@@ -567,18 +653,7 @@ int RunBenchCommand(const BenchCommandOptions& options) {
       rows.push_back(all_row);
     }
     if (options.sweep) {
-      std::printf(
-          "SweptCCD bench --sweep: %g Hz, eps %g s, delta %g m, motion %s%s; batches of pairs, "
-          "each answered by the CPU backend on 1 thread, the CPU backend on %d threads and the "
-          "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
-          "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
-          "batches; differ: pairs whose answer differs between the methods (must be 0); "
-          "dispatches: the GPU's, shared by the workers' requests\n\n",
-          options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
-          options.per_link ? ", per-link" : "", options.threads, options.threads,
-          gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");
       const std::string table = bench::FormatSweep(sweep_rows, true);
-      std::fputs(table.c_str(), stdout);
       if (!options.markdown_path.empty()) {
         std::ofstream md(options.markdown_path);
         md << table;

@@ -47,6 +47,9 @@ struct BenchCommandOptions {
   bool sweep = false;         // --sweep: the batch-size sweep (tools/bench_sweep.h).
   std::vector<int> sweep_sizes = {1, 16, 64, 256, 4096};
   int threads = DefaultThreadCount();  // --threads: the sweep's workers.
+  /// --write-scene: write the one named scene's placed meshes as one binary
+  /// PLY here and stop (the daemon takes mesh files, not placements).
+  std::string write_scene;
 };
 
 void AddBenchOptions(CLI::App* app, BenchCommandOptions* options);

@@ -8,15 +8,22 @@
 # (batches of 1 to 4,096 pairs: CPU on 1 and on all threads, GPU on all
 # threads, one run), `sweptccd bench --gpu hardware` and `--backend auto` on
 # every bundled scene there, and the records of `--backend gpu --threads
-# $(nproc)` against `--backend cpu --threads 1`. The GL vendor library comes
-# from the host's driver (glvnd's EGL vendor file of NVIDIA, found under
-# /usr/local/nvidia or /usr/share/glvnd).
+# $(nproc)` against `--backend cpu --threads 1`, the same sweep on the
+# 10.7 M-triangle scene (breakfast+dragons_10M), and the daemon on the CPU
+# then the GPU backend (tools/service_bench/backends.sh): 64 clients at 120
+# Hz, and 32 avatars in one room with the shared world on. The GL vendor
+# library comes from the host's driver (glvnd's EGL vendor file of NVIDIA,
+# found under /usr/local/nvidia or /usr/share/glvnd).
 #
 #   bash tools/gpu_bundle.sh [BUILD_DIR] [OUT_DIR]   (default build, .gpu)
 #
 # Then, on the GPU host, from a copy of this tree (data/ included) with
 # OUT_DIR beside it: `bash OUT_DIR/run.sh RESULTS_DIR`. docs/GPU.md,
-# "On an NVIDIA H200", has what it measured.
+# "On an NVIDIA H200", has what it measured. run.sh keeps within BUDGET
+# seconds (default 470: the device machine's limits are 10 minutes a command
+# and 15 minutes a session): the parts run in order of importance, each
+# under `timeout` of at most what is left, and every part writes its rows as
+# it goes, so a part cut short leaves a partial table and "exit 124".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build}
@@ -24,10 +31,15 @@ out=${2:-.gpu}
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/lib"
 tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test"
-for b in sweptccd sweptccd_gpu_roundtrip_bench $tests; do
+for b in sweptccd sweptccd-service sweptccd_latency_bench sweptccd_gpu_roundtrip_bench $tests; do
   strip -o "$out/bin/$b" "$build/bin/$b"
 done
-ldd "$out"/bin/* | awk '/=>/ { print $3 }' | sort -u |
+# The daemon's benches run in a private network namespace and route
+# multicast over its loopback with iproute2's ip, which a GPU host's image
+# may lack: this machine's ip travels, used only where the host has none.
+mkdir -p "$out/tools"
+cp -L "$(command -v ip)" "$out/tools/ip"
+ldd "$out"/bin/* "$out"/tools/* | awk '/=>/ { print $3 }' | sort -u |
   grep -v -E '/(libc|libm|ld-linux[^/]*)\.so' | xargs -I{} cp -L {} "$out/lib/"
 tar -C "$out" -cJf "$out/lib.tar.xz" lib
 sed -n 's/^SWEPTCCD_DATA_DIR:PATH=//p' "$build/CMakeCache.txt" > "$out/data_dir.txt"
@@ -56,59 +68,95 @@ vendor=$(ls /usr/local/nvidia/share/glvnd/egl_vendor.d/*.json \
   /usr/share/glvnd/egl_vendor.d/*.json 2> /dev/null | grep -i nvidia | head -1 || true)
 if [ -n "$vendor" ]; then export __EGL_VENDOR_LIBRARY_FILENAMES=$vendor; fi
 B=$bundle/bin
+if ! command -v ip > /dev/null; then export PATH=$PATH:$bundle/tools; fi
+# The time budget: part CAP runs under timeout of min(CAP, what is left).
+budget=${BUDGET:-470}
+start=$SECONDS
+cap() {
+  local left=$((budget - (SECONDS - start)))
+  if [ "$left" -lt "$1" ]; then echo $((left > 1 ? left : 1)); else echo "$1"; fi
+}
+part() { echo "== $1 at $((SECONDS - start)) s" >> "$results/times.txt"; }
 {
   date -u
   nvidia-smi --query-gpu=name,driver_version --format=csv
-  echo "EGL vendor file: ${vendor:-none}; cores $(nproc)"
+  echo "EGL vendor file: ${vendor:-none}; cores $(nproc); budget $budget s"
   ldd "$B/sweptccd" | grep 'not found'
 } > "$results/env.txt" 2>&1
 # The GPU suites at once (correctness only; they share the GPU).
+part tests
+t_cap=$(cap 150)
 for t in gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test \
   real_data_gpu_test; do
   (
     s=$SECONDS
-    timeout 220 "$B/$t" --gtest_brief=1 > "/tmp/gpu_bundle_$t.log" 2>&1
+    timeout "$t_cap" "$B/$t" --gtest_brief=1 > "/tmp/gpu_bundle_$t.log" 2>&1
     echo "== $t exit $? in $((SECONDS - s)) s" >> "/tmp/gpu_bundle_$t.log"
   ) &
 done
 wait
 cat /tmp/gpu_bundle_*_test.log > "$results/tests.txt"
-# One round trip (issue 30): read-back against persistent mapped buffers and
-# a fence, 1 to 4,096 capsules, a small scene and the 0.9 M-triangle dragon.
-for e in morse_apartment.ply.gz stanford_dragon_vrip.ply.gz; do
-  timeout 60 "$B/sweptccd_gpu_roundtrip_bench" --env "data/env/$e" --seconds 0.3
-  echo "exit $?"
-done > "$results/roundtrip.txt" 2>&1
 # Batches of pairs (issue 30): pairs/s and latency per batch for the CPU on
 # 1 thread, the CPU on every core and the GPU on every core, in one run.
-timeout 240 "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --sweep \
+part sweep
+timeout "$(cap 110)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --sweep \
   --threads "$(nproc)" --markdown "$results/sweep.md" > "$results/sweep.txt" 2>&1
 echo "exit $?" >> "$results/sweep.txt"
-# The bench alone: the CPU and GPU backends on the same pairs, wall clock.
-timeout 150 "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \
-  --markdown "$results/bench.md" > "$results/bench.txt" 2>&1
-echo "exit $?" >> "$results/bench.txt"
-timeout 80 "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \
-  --scene breakfast+dragon_1.1M --per-link > "$results/bench_per_link.txt" 2>&1
-echo "exit $?" >> "$results/bench_per_link.txt"
+# The daemon, CPU then GPU backend, same load, one run: 64 clients at 120 Hz
+# on the 1.1 M-triangle dragon room, every core's worker.
+part daemon_64x120
+CLIENTS=64 RATE=120 WORKERS=$(nproc) REQUIRE_HARDWARE=1 timeout "$(cap 75)" \
+  bash tools/service_bench/backends.sh "$bundle" 10 > "$results/daemon_64x120.txt" 2>&1
+echo "exit $?" >> "$results/daemon_64x120.txt"
+# 32 avatars in one room with the shared world on, CPU then GPU backend.
+part daemon_32_shared
+CLIENTS=32 RATE=90 WORKERS=$(nproc) SHARED=true REQUIRE_HARDWARE=1 timeout "$(cap 100)" \
+  bash tools/service_bench/backends.sh "$bundle" 10 > "$results/daemon_32_shared.txt" 2>&1
+echo "exit $?" >> "$results/daemon_32_shared.txt"
+# One round trip (issue 30): read-back against persistent mapped buffers and
+# a fence, 1 to 4,096 capsules, a small scene and the 0.9 M-triangle dragon.
+part roundtrip
+for e in morse_apartment.ply.gz stanford_dragon_vrip.ply.gz; do
+  timeout "$(cap 20)" "$B/sweptccd_gpu_roundtrip_bench" --env "data/env/$e" --seconds 0.3
+  echo "exit $?"
+done > "$results/roundtrip.txt" 2>&1
+# The sweep on the 10.7 M-triangle scene (twelve dragons and the room;
+# built here from the bundled meshes in seconds).
+part sweep_10M
+timeout "$(cap 70)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --sweep \
+  --threads "$(nproc)" --scene breakfast+dragons_10M --clip cmu_02_01_walk.bvh \
+  --clip boxing_toes.bvh --max-pairs 300 --markdown "$results/sweep_10M.md" \
+  > "$results/sweep_10M.txt" 2>&1
+echo "exit $?" >> "$results/sweep_10M.txt"
 # --backend auto on each scene, and the walk's records on both backends.
+part auto
 for e in morse_apartment.ply.gz bitterli_breakfast_room.ply.gz \
   bitterli_grey_white_room.ply.gz stanford_dragon_vrip.ply.gz; do
   echo "== $e"
   q=("$B/sweptccd" query --skeleton "$bundle/walk_skel.json" --poses "$bundle/walk_poses.jsonl"
     --env "data/env/$e")
-  timeout 40 "${q[@]}" --backend auto --output /dev/null 2>&1 | grep 'backend'
-  timeout 40 "${q[@]}" --backend cpu --threads 1 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_cpu
-  timeout 40 "${q[@]}" --backend gpu 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu
+  timeout "$(cap 15)" "${q[@]}" --backend auto --output /dev/null 2>&1 | grep 'backend'
+  timeout "$(cap 15)" "${q[@]}" --backend cpu --threads 1 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_cpu
+  timeout "$(cap 15)" "${q[@]}" --backend gpu 2> /dev/null | sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu
   echo "records: cpu $(wc -l < /tmp/gpu_bundle_cpu), gpu $(wc -l < /tmp/gpu_bundle_gpu)," \
     "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu | grep -c '^>')"
   # The GPU with every core's worker (requests coalesced), logged dispatches.
-  timeout 40 "${q[@]}" --backend gpu --threads "$(nproc)" --log-level info 2> /tmp/gpu_bundle_log |
+  timeout "$(cap 15)" "${q[@]}" --backend gpu --threads "$(nproc)" --log-level info 2> /tmp/gpu_bundle_log |
     sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu_threads
   grep -E 'dispatches|capsules cross' /tmp/gpu_bundle_log
   echo "records: gpu --threads $(nproc) $(wc -l < /tmp/gpu_bundle_gpu_threads)," \
     "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu_threads | grep -c '^>')"
 done > "$results/auto.txt" 2>&1
+# The bench alone: the CPU and GPU backends on the same pairs, wall clock.
+part bench
+timeout "$(cap 60)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \
+  --markdown "$results/bench.md" > "$results/bench.txt" 2>&1
+echo "exit $?" >> "$results/bench.txt"
+part bench_per_link
+timeout "$(cap 40)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \
+  --scene breakfast+dragon_1.1M --per-link > "$results/bench_per_link.txt" 2>&1
+echo "exit $?" >> "$results/bench_per_link.txt"
+part "done"
 EOF
 chmod +x "$out/run.sh"
 du -sh "$out"

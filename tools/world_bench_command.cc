@@ -2,10 +2,12 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <tuple>
@@ -16,6 +18,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/errors.h"
+#include "core/worker_pool.h"
 #include "core/world/world_query.h"
 #include "mocap/mocap_import.h"
 #include "msgs/text.h"
@@ -36,6 +39,10 @@ void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* o) {
   app->add_option("--spacing", o->spacing, "Metres between grid neighbours (default 0.8)");
   app->add_option("--warmup", o->warmup, "Records per avatar answered untimed first (default 10)");
   app->add_flag("--generate-only", o->generate_only, "Write the world, do not time it");
+  app->add_option("--threads", o->threads,
+                  "Workers answering the records (default 1: the per-record times of one "
+                  "thread; the tallies are the same for any number)")
+      ->check(CLI::Range(1, 1024));
 }
 
 namespace {
@@ -249,44 +256,62 @@ void PrintTarget(const char* what, double value, double target) {
               value <= target ? "met" : "missed");
 }
 
+// One timed record's outcome, kept by its position in the order so that the
+// tallies are summed in that order whatever the number of workers.
+struct RecordOutcome {
+  double env_us = 0, whole_us = 0;
+  bool env_contact = false, any = false, link_work = false;
+  int64_t entries = 0, culled = 0, held = 0, thrown = 0;
+  std::vector<int> avatar_contacts;  // The other avatars touched.
+};
+
 void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
   const world::LoadedWorld w = world::LoadWorldFile(g.path);
-  const world::WorldAnswerer answerer(w, QueryOptions());
   const int n_avatars = static_cast<int>(w.world.avatars.size());
   const int n_objects = static_cast<int>(w.world.objects.size());
-  // The other entities of avatar a's record: (b, -1) avatars, (-1, o) objects.
-  std::vector<world::OtherAnswer> answers(n_avatars + n_objects);
-  std::vector<char> answered(answers.size());
-  const auto answer_all = [&](int a, size_t r) {
+  // One answerer per worker (an answerer keeps per-record state and is not
+  // thread-safe), and its buffers: the other entities of avatar a's record,
+  // (b, -1) avatars, (-1, o) objects.
+  WorkerPool pool(o.threads);
+  struct Worker {
+    std::unique_ptr<world::WorldAnswerer> answerer;
+    std::vector<world::OtherAnswer> answers;
+    std::vector<char> answered;
+  };
+  std::vector<Worker> workers(pool.size());
+  for (Worker& k : workers) {
+    k.answerer = std::make_unique<world::WorldAnswerer>(w, QueryOptions());
+    k.answers.resize(n_avatars + n_objects);
+    k.answered.resize(n_avatars + n_objects);
+  }
+  const auto answer_all = [&](Worker& k, int a, size_t r) {
     const world::AvatarIndex ia(a);
-    QueryResult env = answerer.AnswerEnvironment(ia, r);
+    QueryResult env = k.answerer->AnswerEnvironment(ia, r);
     const double t_env = bench::ThreadCpuSeconds();
     for (int e = 0; e < n_avatars + n_objects; ++e) {
       if (e == a) {
-        answered[e] = false;
+        k.answered[e] = false;
         continue;
       }
       std::optional<world::WorldAnswerer::Entry> x =
-          e < n_avatars ? answerer.AnswerAvatar(ia, r, world::AvatarIndex(e))
-                        : answerer.AnswerObject(ia, r, world::TrackedObjectIndex(e - n_avatars));
-      answered[e] = x.has_value();
-      if (x) answers[e] = std::move(x->answer);
+          e < n_avatars ? k.answerer->AnswerAvatar(ia, r, world::AvatarIndex(e))
+                        : k.answerer->AnswerObject(ia, r, world::TrackedObjectIndex(e - n_avatars));
+      k.answered[e] = x.has_value();
+      if (x) k.answers[e] = std::move(x->answer);
     }
     return std::make_pair(env.contact, t_env);
   };
-  for (int a = 0; a < n_avatars; ++a) {
-    int done = 0;
-    for (size_t r = 0; r < w.world.avatars[a].records.size() && done < o.warmup; ++r) {
-      if (!w.world.avatars[a].records[r].valid) continue;
-      answer_all(a, r);
-      ++done;
+  // Warm-up, untimed, on every worker's answerer alike.
+  for (Worker& k : workers) {
+    for (int a = 0; a < n_avatars; ++a) {
+      int done = 0;
+      for (size_t r = 0; r < w.world.avatars[a].records.size() && done < o.warmup; ++r) {
+        if (!w.world.avatars[a].records[r].valid) continue;
+        answer_all(k, a, r);
+        ++done;
+      }
     }
   }
-  std::vector<double> env_us, whole_us;
-  // The whole answer's times by record kind: every other entity cleared by
-  // the broad phase; link work but no shared contact; a shared contact.
-  std::vector<double> by_kind[3], env_by_kind[3];
-  Tally tally;
   // Records in the order a live room completes them: by the utime of the
   // pair's second sample (then avatar), as the daemon receives them.
   std::vector<std::tuple<int64_t, int, size_t>> order;
@@ -297,33 +322,63 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
     }
   }
   std::sort(order.begin(), order.end());
-  for (const auto& [utime1, a, r] : order) {
-    {
+  std::vector<RecordOutcome> outcomes(order.size());
+  // Runs of consecutive records go to one worker, which times each record
+  // in its own thread's CPU time.
+  constexpr size_t kRun = 8;
+  const auto wall0 = std::chrono::steady_clock::now();
+  pool.Run((order.size() + kRun - 1) / kRun, [&](size_t run, int worker) {
+    Worker& k = workers[worker];
+    for (size_t i = run * kRun; i < std::min(order.size(), (run + 1) * kRun); ++i) {
+      const int a = std::get<1>(order[i]);
+      const size_t r = std::get<2>(order[i]);
+      RecordOutcome& out = outcomes[i];
       const double t0 = bench::ThreadCpuSeconds();
-      const auto [env_contact, t_env] = answer_all(a, r);
+      const auto [env_contact, t_env] = answer_all(k, a, r);
       const double t1 = bench::ThreadCpuSeconds();
-      env_us.push_back(1e6 * (t_env - t0));
-      whole_us.push_back(1e6 * (t1 - t0));
-      tally.env_contacts += env_contact;
-      bool any = false, link_work = false;
+      out.env_us = 1e6 * (t_env - t0);
+      out.whole_us = 1e6 * (t1 - t0);
+      out.env_contact = env_contact;
       for (int e = 0; e < n_avatars + n_objects; ++e) {
-        if (!answered[e]) continue;
-        ++tally.entries;
-        tally.culled += answers[e].culled_by_box;
-        link_work = link_work || !answers[e].culled_by_box;
-        if (!answers[e].contact) continue;
-        any = true;
+        if (!k.answered[e]) continue;
+        ++out.entries;
+        out.culled += k.answers[e].culled_by_box;
+        out.link_work = out.link_work || !k.answers[e].culled_by_box;
+        if (!k.answers[e].contact) continue;
+        out.any = true;
         if (e < n_avatars) {
-          ++tally.avatar_contacts;
-          tally.avatar_pairs.insert({std::min(a, e), std::max(a, e)});
+          out.avatar_contacts.push_back(e);
         } else {
-          ++(g.holder[e - n_avatars] >= 0 ? tally.held_contacts : tally.thrown_contacts);
+          ++(g.holder[e - n_avatars] >= 0 ? out.held : out.thrown);
         }
       }
-      tally.records_with_contact += any;
-      by_kind[any ? 2 : link_work ? 1 : 0].push_back(whole_us.back());
-      env_by_kind[any ? 2 : link_work ? 1 : 0].push_back(env_us.back());
     }
+  });
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  std::vector<double> env_us, whole_us;
+  // The whole answer's times by record kind: every other entity cleared by
+  // the broad phase; link work but no shared contact; a shared contact.
+  std::vector<double> by_kind[3], env_by_kind[3];
+  Tally tally;
+  for (size_t i = 0; i < order.size(); ++i) {
+    const RecordOutcome& out = outcomes[i];
+    const int a = std::get<1>(order[i]);
+    env_us.push_back(out.env_us);
+    whole_us.push_back(out.whole_us);
+    tally.env_contacts += out.env_contact;
+    tally.entries += out.entries;
+    tally.culled += out.culled;
+    tally.held_contacts += out.held;
+    tally.thrown_contacts += out.thrown;
+    for (int e : out.avatar_contacts) {
+      ++tally.avatar_contacts;
+      tally.avatar_pairs.insert({std::min(a, e), std::max(a, e)});
+    }
+    tally.records_with_contact += out.any;
+    const int kind = out.any ? 2 : out.link_work ? 1 : 0;
+    by_kind[kind].push_back(out.whole_us);
+    env_by_kind[kind].push_back(out.env_us);
   }
   const bench::Stats env = bench::Summarise(env_us), whole = bench::Summarise(whole_us);
   const int64_t pairs = static_cast<int64_t>(n_avatars) * (n_avatars - 1) / 2;
@@ -336,11 +391,13 @@ void Bench(const WorldBenchOptions& o, const GeneratedWorld& g) {
       static_cast<int>(std::count(g.holder.begin(), g.holder.end(), -1)),
       static_cast<int>(w.env.num_triangles()));
   std::printf(
-      "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID), one thread, CPU backend; the "
-      "first %d valid records of each avatar answered once untimed first; every valid "
-      "record timed, none dropped, in the order a live room completes them (by the pair's "
-      "second utime)\n\n",
-      o.warmup);
+      "times: thread CPU time (CLOCK_THREAD_CPUTIME_ID) of the worker that answered the "
+      "record, %d worker%s, CPU backend; the first %d valid records of each avatar answered "
+      "once untimed first by every worker; every valid record timed, none dropped, in the "
+      "order a live room completes them (by the pair's second utime); the records in %.3f s "
+      "wall, %.0f records/s\n\n",
+      pool.size(), pool.size() == 1 ? "" : "s", o.warmup, wall_s,
+      wall_s > 0 ? whole_us.size() / wall_s : 0.0);
   std::printf("| answer | records | median us | p99 us | max us |\n|---|---|---|---|---|\n");
   PrintLine("env-only", env_us.size(), env);
   PrintLine("whole", whole_us.size(), whole);

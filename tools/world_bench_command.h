@@ -23,6 +23,7 @@ struct WorldBenchOptions {
   double spacing = 0.8;  // Metres between neighbouring grid cells.
   int warmup = 10;       // Records per avatar answered untimed first.
   bool generate_only = false;
+  int threads = 1;  // --threads: workers answering the records (tallies equal for any number).
 };
 
 void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* options);

@@ -745,6 +745,9 @@ void Daemon::Stop() {
     impl_->door->Stop();
     impl_->publisher->SetSecond(nullptr);
   }
+  // The GPU's dispatches over the run (tools/service_bench/backends.sh).
+  if (impl_->backend && impl_->backend->gpu())
+    spdlog::info("GPU: {}", impl_->backend->DispatchSummary());
   spdlog::info("stopped");
 }
 

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <fstream>
 #include <iterator>
 #include <map>
 #include <regex>
@@ -166,6 +167,65 @@ TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
   }
   EXPECT_EQ(rows.size(), 9u) << r.out;
   for (const auto& [key, n] : rows) EXPECT_EQ(n, 1) << key;
+}
+
+// `--write-scene` (issue 30: bench scenes for the daemon): the placed meshes
+// as one binary PLY of exactly the scene's triangles, which loads back to
+// the same geometry: `query` on the written apartment gives the records of
+// `query` on the bundled file. Unknown scenes and a missing --scene are
+// refused with one line.
+std::string WithoutTimes(std::string records) {
+  records = std::regex_replace(records, std::regex("\"elapsed_us\":[^,]*,"), "");
+  return std::regex_replace(records, std::regex("\"stats\":\\{[^}]*\\},"), "");
+}
+
+TEST_F(BenchCommandTest, WriteSceneWritesThePlacedMeshesExactly) {
+  const RunResult dragon =
+      Run({"bench", "--scene", "breakfast+dragon_1.1M", "--write-scene", Path("dragon.ply")});
+  ASSERT_TRUE(dragon.exited && dragon.code == 0) << dragon.Describe();
+  EXPECT_NE(dragon.out.find("breakfast+dragon_1.1M: 1140952 triangles written"), std::string::npos)
+      << dragon.out;
+  std::ifstream ply(Path("dragon.ply"), std::ios::binary);
+  std::string header, line;
+  int64_t vertices = -1, faces = -1;
+  while (std::getline(ply, line)) {
+    header += line + "\n";
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoll(line.substr(15));
+    if (line.rfind("element face ", 0) == 0) faces = std::stoll(line.substr(13));
+    if (line == "end_header") break;
+  }
+  EXPECT_EQ(faces, 1140952);
+  ASSERT_GT(vertices, 0);
+  ply.seekg(0, std::ios::end);
+  EXPECT_EQ(static_cast<int64_t>(ply.tellg()),
+            static_cast<int64_t>(header.size()) + 12 * vertices + 13 * faces);
+
+  const RunResult morse =
+      Run({"bench", "--scene", "morse_apartment", "--write-scene", Path("morse.ply")});
+  ASSERT_TRUE(morse.exited && morse.code == 0) << morse.Describe();
+  const RunResult walk =
+      Run({"import-bvh", "--bvh", std::string(SWEPTCCD_DATA_DIR) + "/mocap/cmu_02_01_walk.bvh.gz",
+           "--up", "z", "--rate", "30", "--offset", "0", "0", "0.02", "--skeleton-out",
+           Path("skel.json"), "--poses-out", Path("poses.jsonl")});
+  ASSERT_TRUE(walk.exited && walk.code == 0) << walk.Describe();
+  std::vector<std::string> query = {
+      "query", "--skeleton", Path("skel.json"), "--poses", Path("poses.jsonl"), "--backend",
+      "cpu",   "--env"};
+  std::vector<std::string> bundled = query, written = query;
+  bundled.push_back(std::string(SWEPTCCD_DATA_DIR) + "/env/morse_apartment.ply.gz");
+  written.push_back(Path("morse.ply"));
+  const RunResult a = Run(bundled), b = Run(written);
+  ASSERT_TRUE(a.exited && a.code == 0) << a.Describe();
+  ASSERT_TRUE(b.exited && b.code == 0) << b.Describe();
+  EXPECT_NE(a.out.find("\"result\":\"contact\""), std::string::npos) << "no contact to compare";
+  EXPECT_EQ(WithoutTimes(a.out), WithoutTimes(b.out));
+
+  const RunResult unknown = Run({"bench", "--scene", "no_such_scene", "--gpu", "off"});
+  EXPECT_TRUE(unknown.exited && unknown.code != 0) << unknown.Describe();
+  EXPECT_NE(unknown.err.find("no scene 'no_such_scene'"), std::string::npos) << unknown.err;
+  const RunResult two = Run({"bench", "--write-scene", Path("x.ply")});
+  EXPECT_TRUE(two.exited && two.code != 0) << two.Describe();
+  EXPECT_NE(two.err.find("--write-scene needs exactly one --scene"), std::string::npos) << two.err;
 }
 
 }  // namespace

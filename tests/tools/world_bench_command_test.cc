@@ -117,6 +117,44 @@ TEST_F(WorldBenchCommandTest, WritesTheWorldAndPrintsTheTable) {
   EXPECT_EQ(std::count(q.out.begin(), q.out.end(), '\n'), records);
 }
 
+// --threads N (issue 30): the records are answered by N workers, and what
+// the table counts (records per kind, contacts, entries, avatar pairs) is
+// the same as with one; only the times may differ.
+std::vector<std::string> Counts(const std::string& out) {
+  std::vector<std::string> counts;
+  std::istringstream in(out);
+  std::string line;
+  const std::regex row("\\| ([^|]+) \\| ([0-9]+) \\| .*");
+  while (std::getline(in, line)) {
+    std::smatch m;
+    if (std::regex_match(line, m, row)) counts.push_back(m[1].str() + ": " + m[2].str());
+    for (const char* prefix : {"avatar pairs with", "records with", "entity "}) {
+      if (line.rfind(prefix, 0) == 0) counts.push_back(line);
+    }
+  }
+  return counts;
+}
+
+TEST_F(WorldBenchCommandTest, CountsAreTheSameForAnyNumberOfThreads) {
+  const std::vector<std::string> args = {"world-bench", "--avatars", "4",        "--objects", "2",
+                                         "--seconds",   "1",         "--warmup", "2"};
+  std::vector<std::string> one = args, three = args;
+  one.insert(one.end(), {"--out", Path("w1"), "--threads", "1"});
+  three.insert(three.end(), {"--out", Path("w3"), "--threads", "3"});
+  const RunResult a = Run(one);
+  ASSERT_TRUE(a.exited && a.code == 0) << a.Describe();
+  const std::string out1 = a.out;
+  const RunResult b = Run(three);
+  ASSERT_TRUE(b.exited && b.code == 0) << b.Describe();
+  EXPECT_NE(out1.find(", 1 worker, "), std::string::npos) << out1;
+  EXPECT_NE(b.out.find(", 3 workers, "), std::string::npos) << b.out;
+  const std::vector<std::string> c1 = Counts(out1), c3 = Counts(b.out);
+  EXPECT_EQ(c1.size(), 16u) << out1;  // 11 table rows and 5 tally lines.
+  EXPECT_EQ(c1, c3);
+  // Not a vacuous comparison: the world has shared contacts.
+  EXPECT_EQ(out1.find("records with a shared contact: 0 of"), std::string::npos) << out1;
+}
+
 TEST_F(WorldBenchCommandTest, RefusesBadSizes) {
   const RunResult r = Run({"world-bench", "--out", Path("w"), "--avatars", "1"});
   EXPECT_TRUE(r.exited && r.code == 2) << r.Describe();

@@ -26,6 +26,8 @@
 //                         as headsets on independent clocks would be
 //   --breakdown           also print to stderr where the environment part's
 //                         time went (below)
+//   --answers-out FILE    write every event's answer (client, seq0, seq1,
+//                         result, flags, s_lo, s_hi), one line each
 //
 // Two threads, each with its own lcm::LCM on the same URL: the main thread
 // publishes; a receive thread only takes each event's arrival time when its
@@ -112,6 +114,11 @@ struct EventArrival {
   int64_t skipped_pairs_total = 0;
   int64_t receive_utime = 0, event_utime = 0;
   double queue_us = 0, compute_us = 0;
+  // The answer itself, for --answers-out.
+  int64_t seq0 = 0;
+  int result = 0;
+  bool initially_colliding = false, undecided = false;
+  double s_lo = 0, s_hi = 0;
 };
 
 struct SharedArrival {
@@ -173,7 +180,8 @@ class Receiver {
       return;
     }
     events_.push_back({now, now_utime, std::move(e.client_id), e.seq1, e.skipped_pairs_total,
-                       e.receive_utime, e.utime, e.queue_us, e.compute_us});
+                       e.receive_utime, e.utime, e.queue_us, e.compute_us, e.seq0, e.result,
+                       e.initially_colliding != 0, e.undecided != 0, e.s_lo, e.s_hi});
   }
 
   void OnShared(const lcm::ReceiveBuffer* rbuf, const std::string&) {
@@ -275,7 +283,28 @@ struct Options {
   std::string label;
   bool spread = false;  // --phases spread.
   bool breakdown = false;
+  std::string answers_out;  // --answers-out: every event's answer, one line each.
 };
+
+// --answers-out FILE: "CLIENT SEQ0 SEQ1 RESULT INITIALLY UNDECIDED S_LO S_HI"
+// per event (s exact, %.17g), so that two runs on different backends can be
+// compared pair by pair where both answered the same pair
+// (tools/service_bench/backends.sh). The client id is escaped for display.
+bool WriteAnswers(const std::string& path, const std::vector<EventArrival>& events) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) {
+    std::fprintf(stderr, "latency_bench: cannot write '%s'\n",
+                 sweptccd::EscapeForDisplay(path).c_str());
+    return false;
+  }
+  for (const EventArrival& e : events) {
+    std::fprintf(f, "%s %lld %lld %d %d %d %.17g %.17g\n",
+                 sweptccd::EscapeForDisplay(e.client_id).c_str(), static_cast<long long>(e.seq0),
+                 static_cast<long long>(e.seq1), e.result, e.initially_colliding ? 1 : 0,
+                 e.undecided ? 1 : 0, e.s_lo, e.s_hi);
+  }
+  return std::fclose(f) == 0;
+}
 
 // Parses the options after the six positional arguments; false on a bad one.
 bool ParseOptions(int argc, char** argv, Options* o) {
@@ -306,6 +335,8 @@ bool ParseOptions(int argc, char** argv, Options* o) {
       o->spread = v == "spread";
     } else if (a == "--breakdown") {
       o->breakdown = true;
+    } else if (a == "--answers-out" && left >= 1) {
+      o->answers_out = argv[++i];
     } else {
       std::fprintf(stderr, "latency_bench: unknown or incomplete option '%s'\n", a.c_str());
       return false;
@@ -457,6 +488,9 @@ int main(int argc, char** argv) {
                  static_cast<long long>(receiver.undecodable()));
   }
   if (options.breakdown) PrintBreakdown(collector);
+  if (!options.answers_out.empty() && !WriteAnswers(options.answers_out, receiver.events())) {
+    return 2;
+  }
   const Stats env = Summarise(collector.latencies_us);
   if (!options.shared) {
     std::printf("| %d | %.0f | %lld | %zu | %.1f | %.1f | %.1f |\n", clients, rate,
