@@ -8,7 +8,7 @@
 #  3. oci_layout.py: the root file system as an OCI image layout (one layer;
 #     user 65532, entrypoint sweptccd-service --config /etc/sweptccd/room.yaml).
 # Needs root (mmdebstrap --mode=root) or unprivileged user namespaces
-# (--mode=unshare), Debian's mmdebstrap, dpkg-dev and the network to the
+# (--mode=unshare), Debian's mmdebstrap (deploy/debian-packages-image.txt), dpkg-dev and the network to the
 # Debian mirror. Takes minutes: it is not run in CI.
 #   deploy/image/build.sh BUILD_DIR OUT_DIR [MIRROR]
 # then, e.g.:  podman pull oci:OUT_DIR/oci   (or skopeo copy oci:OUT_DIR/oci docker://...)
@@ -17,6 +17,10 @@ build=$1 out=$2 mirror=${3:-http://deb.debian.org/debian}
 here=$(cd "$(dirname "$0")" && pwd)
 mode=root
 [ "$(id -u)" = 0 ] || mode=unshare
+command -v mmdebstrap >/dev/null || {
+  echo "build.sh: needs mmdebstrap: sudo apt-get install -y \$(grep -v '^#' deploy/debian-packages-image.txt)" >&2
+  exit 2
+}
 mkdir -p "$out"
 rm -rf "$out/deb" "$out/oci" "$out/rootfs.tar"
 (cd "$out" && cpack -G DEB -B "$out/deb" --config "$build/CPackConfig.cmake") > "$out/cpack.log" 2>&1 ||
