@@ -39,6 +39,12 @@ struct QueryOptions {
   /// same either way (tested); false tests every link on its own (the
   /// full-body benchmark's baseline).
   bool link_groups = true;
+  /// The groups are tried only on skeletons of at least this many links. On
+  /// the 16-link bodies they cost more than they save (4.5 % more
+  /// instructions in `bench`, tools/bench_callgrind.sh, 2026-11-28): their
+  /// subtrees are an arm's few links, which the BVH culls one by one as
+  /// cheaply. 0: on every skeleton (the tests that compare both ways).
+  int link_groups_min_links = 32;
 };
 
 /// Empty when the options are usable, else the problem (names the option).

@@ -27,7 +27,8 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
       num_links_(engine.skeleton().num_links()),
       groups_(engine.link_groups()),
       use_groups_(motion == nullptr && options.link_groups &&
-                  options.motion == MotionModel::kArticulated && !groups_.empty()),
+                  options.motion == MotionModel::kArticulated && !groups_.empty() &&
+                  num_links_ >= options.link_groups_min_links),
       motion_(motion != nullptr
                   ? *motion
                   : own_motion_.emplace(

@@ -389,6 +389,7 @@ TEST(LinkGroups, QueriesWithAndWithoutGroupsAgree) {
         RandomPair(rng, rig, place, rng.U(0.2, 1.2), rng.U(0, 0.6), rng.U(0, 0.15));
     const CcdEngine engine(rig.skeleton, env);
     QueryOptions on;
+    on.link_groups_min_links = 0;  // The random trees of 16 to 85 links too.
     on.per_link = rng.P(0.3);
     if (rng.P(0.3)) on.max_intervals = 1 + rng.I(40);  // Work limits: undecided answers.
     if (rng.P(0.2)) on.max_candidates = 1 + rng.I(4);
