@@ -20,6 +20,7 @@
 #include "core/errors.h"
 #include "msgs/text.h"
 #include "service/collision_service.h"
+#include "service/ops/room_name.h"
 #include "service/token_bucket.h"
 #include "service/ws/client_message.h"
 #include "service/ws/lcm_json.h"
@@ -814,6 +815,7 @@ Frame WsDoor::Impl::Hello(const std::string& challenge) const {
   j["challenge"] = challenge;
   j["server_utime"] = WallUtime();
   j["shared_world"] = ctx.shared_world;
+  if (ctx.room) j["room"] = ctx.room->Get();
   OrderedJson l;
   l["max_message_bytes"] = options.max_message_bytes;
   l["max_links"] = limits.max_links;
@@ -1064,7 +1066,9 @@ void WsDoor::PublishRejection(const rejection_t& rejection) {
 void WsDoor::PublishStatus(const status_t& status) {
   auto e = std::make_shared<const status_t>(status);
   impl_->Post([impl = impl_.get(), e] {
-    const Frame f = MakeFrame(ws::ToJson(*e));
+    OrderedJson j = ws::ToJson(*e);
+    if (impl->ctx.room) j["room"] = impl->ctx.room->Get();
+    const Frame f = MakeFrame(j);
     for (auto& [id, w] : impl->conns) {
       if (auto c = w.lock(); c && (c->joined || c->subscribed)) c->SendLatest("status", f);
     }

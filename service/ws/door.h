@@ -27,10 +27,14 @@
 namespace sweptccd {
 
 class CollisionService;
+class RoomName;
 
 /// What the door needs of the daemon.
 struct WsDoorContext {
   CollisionService* service = nullptr;  // Outlives the door.
+  /// The room's name, told in hello and status (may change once Agones
+  /// labels the GameServer); outlives the door. Null: not told.
+  const RoomName* room = nullptr;
   bool signed_mode = true;
   KeyRing keys;       // The room's keys (room key: joins, subscribers; objects' keys).
   WireLimits limits;  // Field limits (max_links, max_join_links, strings...).

@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# The room a GameServer holds, read from the Agones SDK sidecar (docs/DEPLOY.md
+# "Which room a server holds"), end to end inside a private network namespace
+# this script creates: the daemon starts as its configured `room`; after
+# Ready the sidecar stand-in (agones_sdk_standin.py) labels the GameServer
+# sweptccd.dev/room=lobby-7 and streams the change on GET /watch/gameserver;
+# the daemon then says lobby-7 in /metrics' room label, in the WebSocket
+# door's hello and status, and in one log line. A label that breaks the id
+# rule is refused (the room stays, one escaped warning); a streamed line over
+# the limit drops the stream, the daemon reconnects and reads the label set
+# meanwhile (GET /gameserver once the stream is open).
+#   e2e_room_label.sh SERVICE SOURCE_DIR WORK_DIR
+set -euo pipefail
+source "$(dirname "$0")/../../../tools/netns.sh"
+enter_private_netns "$@"
+service=$1 src=$2 work=$3
+here=$src/tests/service/ops
+py=/usr/bin/python3  # Debian's, with python3-websockets
+rm -rf "$work" && mkdir -p "$work"
+setup_loopback_multicast
+cd "$work"
+printf 'v -10 -10 0\nv 10 -10 0\nv 10 10 0\nv -10 10 0\nf 1 2 3\nf 1 3 4\n' > floor.obj
+cat > room.yaml <<'YAML'
+lcm_url: "udpm://239.255.76.67:7667?ttl=0"
+environment: [floor.obj]
+backend: cpu
+security: {mode: unsigned}
+max_live_clients: 4
+status_period_s: 0.2
+room: config-room
+metrics: {listen: "127.0.0.1:9464"}
+websocket: {listen: "127.0.0.1:8765"}
+agones: {enabled: true, health_period_s: 0.5, empty_shutdown_s: 0}
+YAML
+pids=()
+cleanup() { for p in "${pids[@]}"; do kill "$p" 2> /dev/null || true; done; }
+trap cleanup EXIT
+fail() { echo "e2e_room_label: $*" >&2; echo "--- daemon log" >&2; cat daemon.log >&2 || true; exit 1; }
+"$py" "$here/agones_sdk_standin.py" 127.0.0.1 9358 agones.log & pids+=($!)
+for _ in $(seq 100); do curl -s -o /dev/null http://127.0.0.1:9358/none && break; sleep 0.05; done
+control() { curl -sf -H 'Content-Type: application/json' -d "$2" "http://127.0.0.1:9358/standin/$1" > /dev/null; }
+watches() { grep -c '"/watch/gameserver"' agones.log || true; }
+metrics_room() { curl -sf http://127.0.0.1:9464/metrics | sed -n 's/^sweptccd_clients{room="\([^"]*\)"}.*/\1/p'; }
+wait_room() {  # wait_room NAME: /metrics says NAME within 5 s
+  for _ in $(seq 100); do [ "$(metrics_room)" = "$1" ] && return 0; sleep 0.05; done
+  fail "metrics room: '$(metrics_room)', expected '$1'"
+}
+AGONES_SDK_HTTP_PORT=9358 "$service" --config room.yaml --log-level info 2> daemon.log & daemon=$!
+pids+=($daemon)
+for _ in $(seq 200); do [ "$(watches)" -ge 1 ] && grep -q '"/gameserver"' agones.log && break; sleep 0.05; done
+[ "$(watches)" -ge 1 ] || fail "no GET /watch/gameserver after Ready: $(cat agones.log)"
+
+# Unlabelled: the configured room everywhere.
+wait_room config-room
+"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+[ "$(cat ws.log)" = $'hello config-room\nstatus config-room' ] || fail "before the label: $(cat ws.log)"
+
+# Labelled after Ready: streamed, and the daemon tells lobby-7.
+control labels '{"sweptccd.dev/room": "lobby-7", "other": "x"}'
+wait_room lobby-7
+"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+[ "$(cat ws.log)" = $'hello lobby-7\nstatus lobby-7' ] || fail "after the label: $(cat ws.log)"
+[ "$(grep -c "holds room 'lobby-7'" daemon.log)" = 1 ] || fail "no single log line for lobby-7"
+
+# A label that breaks the id rule (a newline, an escape): refused, escaped once.
+control labels '{"sweptccd.dev/room": "bad\nroom\u001b[31m"}'
+for _ in $(seq 100); do grep -q 'breaks the id rule' daemon.log && break; sleep 0.05; done
+[ "$(grep -c 'breaks the id rule' daemon.log)" = 1 ] || fail "the bad label: not one warning"
+grep -q $'\x1b' daemon.log && fail "a raw escape byte in the log"
+[ "$(metrics_room)" = lobby-7 ] || fail "a bad label changed the room: $(metrics_room)"
+
+# A streamed line over the limit (256 KiB): the stream is dropped, the daemon
+# reconnects and reads the label set while it was away.
+w0=$(watches)
+control raw '{"bytes": 300000}'
+for _ in $(seq 100); do grep -q 'a line over 262144 bytes' daemon.log && break; sleep 0.05; done
+grep -q 'a line over 262144 bytes' daemon.log || fail "no log line for the long line"
+control labels '{"sweptccd.dev/room": "lobby-8"}'
+wait_room lobby-8
+[ "$(watches)" -gt "$w0" ] || fail "the watch did not reconnect"
+"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+[ "$(cat ws.log)" = $'hello lobby-8\nstatus lobby-8' ] || fail "after the reconnect: $(cat ws.log)"
+
+kill -TERM "$daemon"
+status=0
+wait "$daemon" || status=$?
+[ "$status" = 0 ] || fail "daemon exit status $status"
+echo "e2e_room_label: passed"
