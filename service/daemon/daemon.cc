@@ -35,6 +35,7 @@
 #include "service/collision_service.h"
 #include "service/fanout_publisher.h"
 #include "service/lcm_transport.h"
+#include "service/ops/prometheus_text.h"
 #include "service/ops/room_name.h"
 #include "service/ws/door.h"
 
@@ -596,6 +597,11 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c), room(c.ops.room) {
     spdlog::info("websocket scene: {} meshes for display, built in {:.3f} s",
                  ctx.scene.meshes.size(), std::chrono::duration<double>(Clock::now() - t0).count());
     LiveRegistry* registry = live.get();
+    CollisionService* svc = service.get();
+    const RoomName* room_name = &room;
+    ctx.metrics = [svc, room_name] {
+      return RenderRoomMetrics(room_name->Get(), svc->Status(), svc->latency_histogram());
+    };
     ctx.submit_join = [registry](join_request_t request, JoinReplyFn reply) {
       registry->SubmitDoorJoin(std::move(request), std::move(reply));
     };

@@ -1,5 +1,6 @@
 #include "service/ws/door.h"
 
+#include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -20,10 +21,12 @@
 #include "core/errors.h"
 #include "msgs/text.h"
 #include "service/collision_service.h"
+#include "service/ops/prometheus_text.h"
 #include "service/ops/room_name.h"
 #include "service/token_bucket.h"
 #include "service/ws/client_message.h"
 #include "service/ws/lcm_json.h"
+#include "service/ws/metrics_token.h"
 #include "service/ws/proof.h"
 #include "service/ws/send_queue.h"
 #include "service/ws/static_files.h"
@@ -150,6 +153,7 @@ struct WsDoor::Impl {
 
   net::io_context ioc{1};
   std::optional<ssl::context> tls;
+  std::string metrics_token;  // options.metrics_token_path's; empty: no /metrics.
   tcp::acceptor acceptor{ioc};
   net::steady_timer room_timer{ioc};
   std::thread thread;
@@ -715,6 +719,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     }
     const std::string_view full(req.target().data(), req.target().size());
     const std::string_view target = full.substr(0, full.find('?'));
+    if (target == "/metrics") {
+      Metrics(req);
+      return;
+    }
     if (target == "/scene.json") {
       Bytes(req, door_->ctx.scene.json, "application/json");
       return;
@@ -757,6 +765,30 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     res.body() = std::move(body);
     res.prepare_payload();
     Write(std::move(res));
+  }
+
+  // GET /metrics: only with a configured token, and only for a request that
+  // presents it (Authorization: Bearer TOKEN, compared in constant time).
+  void Metrics(const http::request<http::empty_body>& req) {
+    const std::string& token = door_->metrics_token;
+    if (token.empty() || !door_->ctx.metrics) {
+      Text(req, http::status::not_found, "not found\n");
+      return;
+    }
+    const auto auth = req[http::field::authorization];
+    const std::string want = "Bearer " + token;
+    if (auth.size() != want.size() || CRYPTO_memcmp(auth.data(), want.data(), want.size()) != 0) {
+      spdlog::info("websocket door: GET /metrics from {} without the metrics token",
+                   EscapeForDisplay(slot_->address));
+      http::response<http::string_body> res{http::status::unauthorized, req.version()};
+      Headers(&res, "text/plain; charset=utf-8");
+      res.set(http::field::www_authenticate, "Bearer");
+      res.body() = "GET /metrics needs Authorization: Bearer <websocket.metrics_token_file>\n";
+      res.prepare_payload();
+      Write(std::move(res));
+      return;
+    }
+    Bytes(req, door_->ctx.metrics(), kPrometheusContentType);
   }
 
   template <class Res>
@@ -995,6 +1027,8 @@ WsDoor::WsDoor(WsDoorOptions options, WsDoorContext context)
                        "; give the PEM private key of --ws-cert");
     }
   }
+  if (!o.metrics_token_path.empty())
+    impl_->metrics_token = ws::LoadMetricsToken(o.metrics_token_path);
   impl_->Bind();
 }
 

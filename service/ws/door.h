@@ -49,6 +49,10 @@ struct WsDoorContext {
   /// signed mode its session key is a fresh random key kept by the
   /// service and told nobody. `reply` is called once, on any thread.
   std::function<void(join_request_t, std::function<void(const join_reply_t&)>)> submit_join;
+  /// The Prometheus text of the room (service/ops/prometheus_text.h), for
+  /// GET /metrics with the bearer token (options.metrics_token_path); called
+  /// on the door's I/O thread. Empty: /metrics is not served.
+  std::function<std::string()> metrics;
 };
 
 class WsDoor : public Publisher {

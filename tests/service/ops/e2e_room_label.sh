@@ -8,7 +8,11 @@
 # door's hello and status, and in one log line. A label that breaks the id
 # rule is refused (the room stays, one escaped warning); a streamed line over
 # the limit drops the stream, the daemon reconnects and reads the label set
-# meanwhile (GET /gameserver once the stream is open).
+# meanwhile (GET /gameserver once the stream is open). The door is TLS
+# (wss://, a self-signed certificate) with websocket.metrics_token_file:
+# GET /metrics on the door's port needs the bearer token (401 without it or
+# with another) and then answers the same room; a token file readable by
+# others is refused at start.
 #   e2e_room_label.sh SERVICE SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../../tools/netns.sh"
@@ -20,6 +24,10 @@ rm -rf "$work" && mkdir -p "$work"
 setup_loopback_multicast
 cd "$work"
 printf 'v -10 -10 0\nv 10 -10 0\nv 10 10 0\nv -10 10 0\nf 1 2 3\nf 1 3 4\n' > floor.obj
+openssl req -x509 -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -days 1 \
+  -subj /CN=localhost -keyout door.key -out door.crt 2> /dev/null
+openssl rand -hex 32 > metrics.token
+chmod 644 metrics.token
 cat > room.yaml <<'YAML'
 lcm_url: "udpm://239.255.76.67:7667?ttl=0"
 environment: [floor.obj]
@@ -29,7 +37,7 @@ max_live_clients: 4
 status_period_s: 0.2
 room: config-room
 metrics: {listen: "127.0.0.1:9464"}
-websocket: {listen: "127.0.0.1:8765"}
+websocket: {listen: "127.0.0.1:8765", cert: door.crt, key: door.key, metrics_token_file: metrics.token}
 agones: {enabled: true, health_period_s: 0.5, empty_shutdown_s: 0}
 YAML
 pids=()
@@ -45,6 +53,13 @@ wait_room() {  # wait_room NAME: /metrics says NAME within 5 s
   for _ in $(seq 100); do [ "$(metrics_room)" = "$1" ] && return 0; sleep 0.05; done
   fail "metrics room: '$(metrics_room)', expected '$1'"
 }
+# A token file readable by others: refused in one error line, status 2.
+status=0
+AGONES_SDK_HTTP_PORT=9358 "$service" --config room.yaml 2> bad.log || status=$?
+[ "$status" = 2 ] && [ "$(grep -c '^error:' bad.log)" = 1 ] && tail -1 bad.log | grep -q 'chmod 600' ||
+  fail "token file mode 644: status $status, $(cat bad.log)"
+: > agones.log
+chmod 600 metrics.token
 AGONES_SDK_HTTP_PORT=9358 "$service" --config room.yaml --log-level info 2> daemon.log & daemon=$!
 pids+=($daemon)
 for _ in $(seq 200); do [ "$(watches)" -ge 1 ] && grep -q '"/gameserver"' agones.log && break; sleep 0.05; done
@@ -52,13 +67,13 @@ for _ in $(seq 200); do [ "$(watches)" -ge 1 ] && grep -q '"/gameserver"' agones
 
 # Unlabelled: the configured room everywhere.
 wait_room config-room
-"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+"$py" "$here/ws_room.py" wss://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
 [ "$(cat ws.log)" = $'hello config-room\nstatus config-room' ] || fail "before the label: $(cat ws.log)"
 
 # Labelled after Ready: streamed, and the daemon tells lobby-7.
 control labels '{"sweptccd.dev/room": "lobby-7", "other": "x"}'
 wait_room lobby-7
-"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+"$py" "$here/ws_room.py" wss://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
 [ "$(cat ws.log)" = $'hello lobby-7\nstatus lobby-7' ] || fail "after the label: $(cat ws.log)"
 [ "$(grep -c "holds room 'lobby-7'" daemon.log)" = 1 ] || fail "no single log line for lobby-7"
 
@@ -78,8 +93,22 @@ grep -q 'a line over 262144 bytes' daemon.log || fail "no log line for the long 
 control labels '{"sweptccd.dev/room": "lobby-8"}'
 wait_room lobby-8
 [ "$(watches)" -gt "$w0" ] || fail "the watch did not reconnect"
-"$py" "$here/ws_room.py" ws://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
+"$py" "$here/ws_room.py" wss://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
 [ "$(cat ws.log)" = $'hello lobby-8\nstatus lobby-8' ] || fail "after the reconnect: $(cat ws.log)"
+
+# /metrics through the door's TLS port: the bearer token or nothing.
+door_metrics() { curl -sk -o door_metrics.txt -w '%{http_code}' "$@" https://127.0.0.1:8765/metrics; }
+code=$(door_metrics) && [ "$code" = 401 ] || fail "door /metrics without the token: $code"
+code=$(door_metrics -H "Authorization: Bearer $(openssl rand -hex 32)") && [ "$code" = 401 ] ||
+  fail "door /metrics with another token: $code"
+code=$(door_metrics -H "Authorization: Bearer $(cat metrics.token)") && [ "$code" = 200 ] ||
+  fail "door /metrics with the token: $code"
+"$py" "$here/prom_parse.py" < door_metrics.txt > door_metrics.json || fail "door metrics do not parse"
+$py -c 'import json,sys; m = json.load(open(sys.argv[1])); sys.exit(m.get("sweptccd_clients{room=\"lobby-8\"}") is None)' \
+  door_metrics.json || fail "door metrics: $(head -c 300 door_metrics.json)"
+code=$(curl -s -o /dev/null -w '%{http_code}' -H "Authorization: Bearer $(cat metrics.token)" \
+  http://127.0.0.1:8765/metrics) || true
+[ "$code" != 200 ] || fail "door /metrics answered over plain HTTP on the TLS port"
 
 kill -TERM "$daemon"
 status=0
