@@ -688,6 +688,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
       Text(req, http::status::bad_request, "WebSocket upgrades go to /ws\n");
       return;
     }
+    // /ws?room=NAME: a client that asks for a room this door does not hold
+    // (the resolver's answer is stale: the room moved) is refused at once.
+    if (const std::optional<std::string> asked = RoomAsked(target)) {
+      if (!IsValidClientId(*asked)) {
+        Text(req, http::status::bad_request,
+             "room '" + EscapeForDisplay(*asked, 80) + "' breaks the id rule\n");
+        return;
+      }
+      const std::string held = door_->ctx.room ? door_->ctx.room->Get() : std::string();
+      if (*asked != held) {
+        Text(req, http::status::conflict,
+             "this door holds room '" + held + "', not '" + *asked + "'\n");
+        return;
+      }
+    }
     const auto proto = req[http::field::sec_websocket_protocol];
     if (!ListsToken(std::string_view(proto.data(), proto.size()), kSubprotocol)) {
       Text(req, http::status::bad_request,
@@ -710,6 +725,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     }
     auto session = std::make_shared<WsSession<Stream>>(door_, std::move(stream_), std::move(slot_));
     session->Accept(std::move(req));
+  }
+
+  // The value of `room=` in the target's query (the last one given), if any.
+  static std::optional<std::string> RoomAsked(std::string_view target) {
+    const size_t q = target.find('?');
+    if (q == std::string_view::npos) return std::nullopt;
+    std::optional<std::string> room;
+    std::string_view rest = target.substr(q + 1);
+    while (!rest.empty()) {
+      const size_t amp = rest.find('&');
+      const std::string_view param = rest.substr(0, amp);
+      if (param.substr(0, 5) == "room=") room = std::string(param.substr(5));
+      rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
+    }
+    return room;
   }
 
   void Serve(const http::request<http::empty_body>& req) {

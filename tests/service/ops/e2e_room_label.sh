@@ -12,7 +12,7 @@
 # (wss://, a self-signed certificate) with websocket.metrics_token_file:
 # GET /metrics on the door's port needs the bearer token (401 without it or
 # with another) and then answers the same room; a token file readable by
-# others is refused at start.
+# others is refused at start. /ws?room=NAME of another room is refused (409).
 #   e2e_room_label.sh SERVICE SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../../tools/netns.sh"
@@ -95,6 +95,19 @@ wait_room lobby-8
 [ "$(watches)" -gt "$w0" ] || fail "the watch did not reconnect"
 "$py" "$here/ws_room.py" wss://127.0.0.1:8765/ws alice > ws.log || fail "ws: $(cat ws.log)"
 [ "$(cat ws.log)" = $'hello lobby-8\nstatus lobby-8' ] || fail "after the reconnect: $(cat ws.log)"
+
+# /ws?room=NAME: the room held is let in, another room is refused (409), a
+# name that breaks the id rule too (400).
+"$py" "$here/ws_room.py" 'wss://127.0.0.1:8765/ws?room=lobby-8' alice > ws.log || fail "ws ?room=lobby-8: $(cat ws.log)"
+[ "$(cat ws.log)" = $'hello lobby-8\nstatus lobby-8' ] || fail "?room=lobby-8: $(cat ws.log)"
+upgrade() {
+  curl -sk -o upgrade.txt -w '%{http_code}' --max-time 3 -H 'Connection: Upgrade' -H 'Upgrade: websocket' \
+    -H 'Sec-WebSocket-Version: 13' -H 'Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==' \
+    -H 'Sec-WebSocket-Protocol: sweptccd.v1' "https://127.0.0.1:8765/ws?$1" || true
+}
+code=$(upgrade room=lobby-7) && [ "$code" = 409 ] && grep -q "holds room 'lobby-8'" upgrade.txt ||
+  fail "?room=lobby-7 answered $code: $(cat upgrade.txt)"
+code=$(upgrade 'x=1&room=bad%0Aroom') && [ "$code" = 400 ] || fail "?room=bad answered $code"
 
 # /metrics through the door's TLS port: the bearer token or nothing.
 door_metrics() { curl -sk -o door_metrics.txt -w '%{http_code}' "$@" https://127.0.0.1:8765/metrics; }
