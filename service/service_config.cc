@@ -303,7 +303,7 @@ void ParseWebsocket(const YAML::Node& w, const std::string& at, const std::strin
              "max_connections_per_address", "handshake_timeout_ms", "idle_timeout_ms",
              "max_message_bytes", "message_rate_hz", "message_burst", "send_queue_messages",
              "send_queue_bytes", "max_objects_per_connection", "max_scene_triangles",
-             "socket_send_buffer_bytes"},
+             "socket_send_buffer_bytes", "metrics_token_file"},
             where);
   WsDoorOptions& o = c.websocket;
   const std::string in = where + ".";
@@ -311,6 +311,10 @@ void ParseWebsocket(const YAML::Node& w, const std::string& at, const std::strin
   if (w["cert"]) o.cert_path = Resolve(base_dir, Get<std::string>(w["cert"], in + "cert"));
   if (w["key"]) o.key_path = Resolve(base_dir, Get<std::string>(w["key"], in + "key"));
   if (w["allow_origins"]) o.allow_origins = StringList(w["allow_origins"], in + "allow_origins");
+  if (w["metrics_token_file"]) {
+    o.metrics_token_path =
+        Resolve(base_dir, Get<std::string>(w["metrics_token_file"], in + "metrics_token_file"));
+  }
   if (w["view_dir"]) {
     o.view_dir = Resolve(base_dir, Get<std::string>(w["view_dir"], in + "view_dir"));
   }

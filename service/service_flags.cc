@@ -100,6 +100,8 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--ws-key", f->ws_key, "PEM private key of --ws-cert");
   app->add_option("--ws-allow-origin", f->ws_allow_origins,
                   "A browser Origin allowed at the door besides its own; repeat");
+  app->add_option("--ws-metrics-token-file", f->ws_metrics_token_file,
+                  "Bearer token file (mode 600) that opens GET /metrics at the door");
   app->add_option("--ws-view-dir", f->ws_view_dir,
                   "Folder of the live view's files served at the door's root");
   app->add_option("--ws-max-connections", f->ws_max_connections,
@@ -161,6 +163,7 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
   SetIfGiven(flags.ws_cert, &ws.cert_path);
   SetIfGiven(flags.ws_key, &ws.key_path);
   SetIfGiven(flags.ws_view_dir, &ws.view_dir);
+  SetIfGiven(flags.ws_metrics_token_file, &ws.metrics_token_path);
   for (const std::string& o : flags.ws_allow_origins) ws.allow_origins.push_back(o);
   if (flags.ws_max_connections > 0) ws.max_connections = flags.ws_max_connections;
   if (flags.ws_max_connections_per_address > 0) {

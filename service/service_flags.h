@@ -36,7 +36,7 @@ struct ServiceFlags {
   std::string security_mode, room_key, service_key;
   std::vector<std::string> client_key_flags;  // ID=FILE.
   // The WebSocket door (docs/WEBSOCKET.md); empty / -1: not given.
-  std::string ws_listen, ws_cert, ws_key, ws_view_dir;
+  std::string ws_listen, ws_cert, ws_key, ws_view_dir, ws_metrics_token_file;
   std::vector<std::string> ws_allow_origins;  // Appended to websocket.allow_origins.
   int ws_max_connections = -1, ws_max_connections_per_address = -1;
   // Operations (docs/DEPLOY.md); empty / false: not given.

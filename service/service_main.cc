@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
     const ServiceConfig config = BuildServiceConfig(flags);
     const std::string agones_url = Operations::AgonesUrl(config.ops);  // Before the scene.
     Daemon daemon(config);  // The scene loaded, the backend calibrated.
-    Operations ops(config.ops, agones_url, daemon.service());
+    Operations ops(config.ops, agones_url, daemon.service(), daemon.room());
     daemon.SetLoopTick([&ops] { ops.Tick(); });
     // The loop (which calls ops) ends before ops is destroyed, whatever throws.
     struct StopDaemonFirst {

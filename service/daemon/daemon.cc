@@ -35,6 +35,8 @@
 #include "service/collision_service.h"
 #include "service/fanout_publisher.h"
 #include "service/lcm_transport.h"
+#include "service/ops/prometheus_text.h"
+#include "service/ops/room_name.h"
 #include "service/ws/door.h"
 
 namespace sweptccd {
@@ -499,6 +501,7 @@ struct Daemon::Impl {
   void Send(char byte);
 
   ServiceConfig config;
+  RoomName room;  // config.ops.room, then the Agones label (service/ops/room_name.h).
   std::unique_ptr<gpu::Backend> backend;  // Outlives the service (its engines use it).
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<LcmTransport> transport;     // Outlives the service (its publisher).
@@ -519,7 +522,7 @@ struct Daemon::Impl {
   bool stopped = false;
 };
 
-Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
+Daemon::Impl::Impl(const ServiceConfig& c) : config(c), room(c.ops.room) {
   SetLogLevel(config.log_level);
   // Key files first: a bad key is refused before the environment loads.
   TransportSecurity security = LoadTransportSecurity(config.security);
@@ -579,6 +582,7 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
     if (options.view_dir.empty()) options.view_dir = DefaultViewDir();
     WsDoorContext ctx;
     ctx.service = service.get();
+    ctx.room = &room;
     ctx.signed_mode = signed_mode;
     ctx.keys = door_keys;
     ctx.limits = door_limits;
@@ -593,6 +597,11 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c) {
     spdlog::info("websocket scene: {} meshes for display, built in {:.3f} s",
                  ctx.scene.meshes.size(), std::chrono::duration<double>(Clock::now() - t0).count());
     LiveRegistry* registry = live.get();
+    CollisionService* svc = service.get();
+    const RoomName* room_name = &room;
+    ctx.metrics = [svc, room_name] {
+      return RenderRoomMetrics(room_name->Get(), svc->Status(), svc->latency_histogram());
+    };
     ctx.submit_join = [registry](join_request_t request, JoinReplyFn reply) {
       registry->SubmitDoorJoin(std::move(request), std::move(reply));
     };
@@ -754,5 +763,7 @@ void Daemon::Stop() {
 lcm::LCM* Daemon::lcm() { return impl_->lcm.get(); }
 
 CollisionService* Daemon::service() { return impl_->service.get(); }
+
+RoomName* Daemon::room() { return &impl_->room; }
 
 }  // namespace sweptccd

@@ -19,6 +19,7 @@ class LCM;
 namespace sweptccd {
 
 class CollisionService;
+class RoomName;
 
 class Daemon {
  public:
@@ -61,6 +62,8 @@ class Daemon {
   lcm::LCM* lcm();
   /// The service (for its counters and status).
   CollisionService* service();
+  /// The room's name (config's `room`; Operations sets the Agones label's).
+  RoomName* room();
 
  private:
   struct Impl;

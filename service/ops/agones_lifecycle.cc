@@ -2,13 +2,19 @@
 
 #include <spdlog/spdlog.h>
 
+#include "msgs/text.h"
+#include "service/ops/gameserver_room.h"
+
 namespace sweptccd {
 
 using Clock = std::chrono::steady_clock;
 
 AgonesLifecycle::AgonesLifecycle(AgonesSdk sdk, AgonesOptions options,
-                                 std::function<int()> live_clients)
-    : sdk_(std::move(sdk)), options_(options), live_clients_(std::move(live_clients)) {}
+                                 std::function<int()> live_clients, RoomName* room)
+    : sdk_(std::move(sdk)),
+      options_(options),
+      live_clients_(std::move(live_clients)),
+      room_(room) {}
 
 AgonesLifecycle::~AgonesLifecycle() { Stop(); }
 
@@ -32,8 +38,10 @@ void AgonesLifecycle::Stop() {
     std::lock_guard<std::mutex> lock(mutex_);
     stopping_ = true;
   }
+  stop_flag_.store(true);
   cv_.notify_all();
   if (thread_.joinable()) thread_.join();
+  if (watch_thread_.joinable()) watch_thread_.join();
 }
 
 bool AgonesLifecycle::SleepFor(std::chrono::duration<double> d) {
@@ -48,6 +56,7 @@ void AgonesLifecycle::Run() {
     if (!SleepFor(std::chrono::milliseconds(500))) return;
   }
   spdlog::info("agones: Ready");
+  watch_thread_ = std::thread([this] { WatchRoom(); });
   const auto period = std::chrono::duration<double>(options_.health_period_s);
   bool wedged_logged = false, shutdown_sent = false;
   // When the room was first seen empty (sampled every period, so the room
@@ -77,6 +86,43 @@ void AgonesLifecycle::Run() {
                    options_.empty_shutdown_s);
       shutdown_sent = sdk_.Shutdown();
     }
+  }
+}
+
+void AgonesLifecycle::ApplyGameServer(const std::string& json, bool watch_event) {
+  const GameServerRoom r = RoomOfGameServer(json, watch_event);
+  if (!r.problem.empty()) {
+    if (r.problem != last_problem_) {
+      spdlog::warn("agones: the GameServer's room: {}; the room stays '{}'", r.problem,
+                   EscapeForDisplay(room_->Get()));
+    }
+    last_problem_ = r.problem;
+    return;
+  }
+  last_problem_.clear();
+  if (!r.room.empty() && room_->Set(r.room)) {
+    spdlog::info("agones: this server holds room '{}' (GameServer label {})", r.room, kRoomLabel);
+  }
+}
+
+void AgonesLifecycle::WatchRoom() {
+  int failures = 0;
+  while (!stop_flag_.load()) {
+    std::string error;
+    const bool stopped =
+        sdk_.WatchGameServer([this](const std::string& line) { ApplyGameServer(line, true); },
+                             [this, &failures] {
+                               failures = 0;
+                               // What changed before the stream opened is not streamed.
+                               const std::string gs = sdk_.GetGameServer();
+                               if (!gs.empty()) ApplyGameServer(gs, false);
+                             },
+                             [this] { return stop_flag_.load(); }, &error);
+    if (stopped) return;
+    // Once per streak of failures (a sidecar that is not up yet fails each second).
+    if (++failures == 1)
+      spdlog::warn("agones: {}; the GameServer watch reconnects every 1 s", error);
+    if (!SleepFor(std::chrono::seconds(1))) return;
   }
 }
 

@@ -11,6 +11,7 @@
 #include "service/ops/agones_lifecycle.h"
 #include "service/ops/metrics_server.h"
 #include "service/ops/prometheus_text.h"
+#include "service/ops/room_name.h"
 #include "service/ops/systemd_notifier.h"
 
 namespace sweptccd {
@@ -30,20 +31,19 @@ std::string Operations::AgonesUrl(const OpsOptions& options) {
 }
 
 Operations::Operations(const OpsOptions& options, const std::string& agones_url,
-                       const CollisionService* service)
+                       const CollisionService* service, RoomName* room)
     : impl_(std::make_unique<Impl>()) {
   impl_->options = options;
   impl_->service = service;
   if (const char* f = std::getenv("SWEPTCCD_TEST_WEDGE_FILE")) impl_->wedge_file = f;
   if (!options.metrics.listen.empty()) {
-    const std::string room = options.room;
     impl_->metrics = std::make_unique<MetricsServer>(options.metrics.listen, [service, room] {
-      return RenderRoomMetrics(room, service->Status(), service->latency_histogram());
+      return RenderRoomMetrics(room->Get(), service->Status(), service->latency_histogram());
     });
   }
   if (options.agones.enabled) {
     impl_->agones = std::make_unique<AgonesLifecycle>(
-        AgonesSdk(agones_url), options.agones, [service] { return service->live_clients(); });
+        AgonesSdk(agones_url), options.agones, [service] { return service->live_clients(); }, room);
   }
 }
 

@@ -14,6 +14,7 @@
 namespace sweptccd {
 
 class CollisionService;
+class RoomName;
 
 class Operations {
  public:
@@ -23,9 +24,11 @@ class Operations {
   static std::string AgonesUrl(const OpsOptions& options);
 
   /// Binds the metrics port and reads the systemd environment; throws
-  /// InputError (a port taken). `service` must outlive this.
+  /// InputError (a port taken). `service` and `room` (the room's name: the
+  /// metrics' label, set from the GameServer's label under Agones) must
+  /// outlive this.
   Operations(const OpsOptions& options, const std::string& agones_url,
-             const CollisionService* service);
+             const CollisionService* service, RoomName* room);
   ~Operations();
 
   /// On the daemon's loop thread, at least every 250 ms: WATCHDOG=1 when due

@@ -1,5 +1,6 @@
 #include "service/ws/door.h"
 
+#include <openssl/crypto.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -20,9 +21,12 @@
 #include "core/errors.h"
 #include "msgs/text.h"
 #include "service/collision_service.h"
+#include "service/ops/prometheus_text.h"
+#include "service/ops/room_name.h"
 #include "service/token_bucket.h"
 #include "service/ws/client_message.h"
 #include "service/ws/lcm_json.h"
+#include "service/ws/metrics_token.h"
 #include "service/ws/proof.h"
 #include "service/ws/send_queue.h"
 #include "service/ws/static_files.h"
@@ -149,6 +153,7 @@ struct WsDoor::Impl {
 
   net::io_context ioc{1};
   std::optional<ssl::context> tls;
+  std::string metrics_token;  // options.metrics_token_path's; empty: no /metrics.
   tcp::acceptor acceptor{ioc};
   net::steady_timer room_timer{ioc};
   std::thread thread;
@@ -683,6 +688,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
       Text(req, http::status::bad_request, "WebSocket upgrades go to /ws\n");
       return;
     }
+    // /ws?room=NAME: a client that asks for a room this door does not hold
+    // (the resolver's answer is stale: the room moved) is refused at once.
+    if (const std::optional<std::string> asked = RoomAsked(target)) {
+      if (!IsValidClientId(*asked)) {
+        Text(req, http::status::bad_request,
+             "room '" + EscapeForDisplay(*asked, 80) + "' breaks the id rule\n");
+        return;
+      }
+      const std::string held = door_->ctx.room ? door_->ctx.room->Get() : std::string();
+      if (*asked != held) {
+        Text(req, http::status::conflict,
+             "this door holds room '" + held + "', not '" + *asked + "'\n");
+        return;
+      }
+    }
     const auto proto = req[http::field::sec_websocket_protocol];
     if (!ListsToken(std::string_view(proto.data(), proto.size()), kSubprotocol)) {
       Text(req, http::status::bad_request,
@@ -707,6 +727,21 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     session->Accept(std::move(req));
   }
 
+  // The value of `room=` in the target's query (the last one given), if any.
+  static std::optional<std::string> RoomAsked(std::string_view target) {
+    const size_t q = target.find('?');
+    if (q == std::string_view::npos) return std::nullopt;
+    std::optional<std::string> room;
+    std::string_view rest = target.substr(q + 1);
+    while (!rest.empty()) {
+      const size_t amp = rest.find('&');
+      const std::string_view param = rest.substr(0, amp);
+      if (param.substr(0, 5) == "room=") room = std::string(param.substr(5));
+      rest = amp == std::string_view::npos ? std::string_view() : rest.substr(amp + 1);
+    }
+    return room;
+  }
+
   void Serve(const http::request<http::empty_body>& req) {
     if (req.method() != http::verb::get && req.method() != http::verb::head) {
       Text(req, http::status::method_not_allowed, "GET only\n");
@@ -714,6 +749,10 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     }
     const std::string_view full(req.target().data(), req.target().size());
     const std::string_view target = full.substr(0, full.find('?'));
+    if (target == "/metrics") {
+      Metrics(req);
+      return;
+    }
     if (target == "/scene.json") {
       Bytes(req, door_->ctx.scene.json, "application/json");
       return;
@@ -756,6 +795,30 @@ class HttpSession : public std::enable_shared_from_this<HttpSession<Stream>> {
     res.body() = std::move(body);
     res.prepare_payload();
     Write(std::move(res));
+  }
+
+  // GET /metrics: only with a configured token, and only for a request that
+  // presents it (Authorization: Bearer TOKEN, compared in constant time).
+  void Metrics(const http::request<http::empty_body>& req) {
+    const std::string& token = door_->metrics_token;
+    if (token.empty() || !door_->ctx.metrics) {
+      Text(req, http::status::not_found, "not found\n");
+      return;
+    }
+    const auto auth = req[http::field::authorization];
+    const std::string want = "Bearer " + token;
+    if (auth.size() != want.size() || CRYPTO_memcmp(auth.data(), want.data(), want.size()) != 0) {
+      spdlog::info("websocket door: GET /metrics from {} without the metrics token",
+                   EscapeForDisplay(slot_->address));
+      http::response<http::string_body> res{http::status::unauthorized, req.version()};
+      Headers(&res, "text/plain; charset=utf-8");
+      res.set(http::field::www_authenticate, "Bearer");
+      res.body() = "GET /metrics needs Authorization: Bearer <websocket.metrics_token_file>\n";
+      res.prepare_payload();
+      Write(std::move(res));
+      return;
+    }
+    Bytes(req, door_->ctx.metrics(), kPrometheusContentType);
   }
 
   template <class Res>
@@ -814,6 +877,7 @@ Frame WsDoor::Impl::Hello(const std::string& challenge) const {
   j["challenge"] = challenge;
   j["server_utime"] = WallUtime();
   j["shared_world"] = ctx.shared_world;
+  if (ctx.room) j["room"] = ctx.room->Get();
   OrderedJson l;
   l["max_message_bytes"] = options.max_message_bytes;
   l["max_links"] = limits.max_links;
@@ -993,6 +1057,8 @@ WsDoor::WsDoor(WsDoorOptions options, WsDoorContext context)
                        "; give the PEM private key of --ws-cert");
     }
   }
+  if (!o.metrics_token_path.empty())
+    impl_->metrics_token = ws::LoadMetricsToken(o.metrics_token_path);
   impl_->Bind();
 }
 
@@ -1064,7 +1130,9 @@ void WsDoor::PublishRejection(const rejection_t& rejection) {
 void WsDoor::PublishStatus(const status_t& status) {
   auto e = std::make_shared<const status_t>(status);
   impl_->Post([impl = impl_.get(), e] {
-    const Frame f = MakeFrame(ws::ToJson(*e));
+    OrderedJson j = ws::ToJson(*e);
+    if (impl->ctx.room) j["room"] = impl->ctx.room->Get();
+    const Frame f = MakeFrame(j);
     for (auto& [id, w] : impl->conns) {
       if (auto c = w.lock(); c && (c->joined || c->subscribed)) c->SendLatest("status", f);
     }

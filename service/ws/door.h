@@ -27,10 +27,14 @@
 namespace sweptccd {
 
 class CollisionService;
+class RoomName;
 
 /// What the door needs of the daemon.
 struct WsDoorContext {
   CollisionService* service = nullptr;  // Outlives the door.
+  /// The room's name, told in hello and status (may change once Agones
+  /// labels the GameServer); outlives the door. Null: not told.
+  const RoomName* room = nullptr;
   bool signed_mode = true;
   KeyRing keys;       // The room's keys (room key: joins, subscribers; objects' keys).
   WireLimits limits;  // Field limits (max_links, max_join_links, strings...).
@@ -45,6 +49,10 @@ struct WsDoorContext {
   /// signed mode its session key is a fresh random key kept by the
   /// service and told nobody. `reply` is called once, on any thread.
   std::function<void(join_request_t, std::function<void(const join_reply_t&)>)> submit_join;
+  /// The Prometheus text of the room (service/ops/prometheus_text.h), for
+  /// GET /metrics with the bearer token (options.metrics_token_path); called
+  /// on the door's I/O thread. Empty: /metrics is not served.
+  std::function<std::string()> metrics;
 };
 
 class WsDoor : public Publisher {

@@ -44,6 +44,10 @@ std::string ValidateWsDoorOptions(const WsDoorOptions& o) {
   if (o.cert_path.empty() != o.key_path.empty()) {
     return "websocket: give both --ws-cert and --ws-key (PEM files) for TLS, or neither";
   }
+  if (!o.metrics_token_path.empty() && o.cert_path.empty() && !IsLoopbackListen(o.listen)) {
+    return "websocket.metrics_token_file: /metrics with a bearer token off loopback needs TLS; "
+           "give --ws-cert and --ws-key, or listen on 127.0.0.1";
+  }
   if (o.max_connections < 1 || o.max_connections_per_address < 1) {
     return "websocket: max_connections and max_connections_per_address must be >= 1";
   }

@@ -17,6 +17,11 @@ struct WsDoorOptions {
   std::string key_path;                    // PEM private key.
   std::vector<std::string> allow_origins;  // Browser origins allowed besides the door's own.
   std::string view_dir;                    // The live view's files; empty: the build's view folder.
+  /// A file holding the bearer token for GET /metrics at the door (the
+  /// Prometheus text, as --metrics-listen serves it on loopback); empty:
+  /// the door does not serve /metrics (404). Needs TLS (cert, key) unless
+  /// the door listens on loopback: a token never crosses a network in clear.
+  std::string metrics_token_path;
   int max_connections = 64;
   int max_connections_per_address = 8;
   int64_t handshake_timeout_ms = 5000;  // TCP accept -> upgrade done.

@@ -340,7 +340,7 @@ TEST(ServiceConfigTest, WebsocketBlockParses) {
       "  max_connections: 5, max_connections_per_address: 2, handshake_timeout_ms: 700,\n"
       "  idle_timeout_ms: 900, max_message_bytes: 4096, message_rate_hz: 50, message_burst: 3,\n"
       "  send_queue_messages: 7, send_queue_bytes: 8192, socket_send_buffer_bytes: 16384,\n"
-      "  max_objects_per_connection: 1, max_scene_triangles: 99}\n",
+      "  max_objects_per_connection: 1, max_scene_triangles: 99, metrics_token_file: m.token}\n",
       "test", "/base");
   const WsDoorOptions& w = c.websocket;
   EXPECT_EQ(w.cert_path, "/base/c.pem");
@@ -358,6 +358,7 @@ TEST(ServiceConfigTest, WebsocketBlockParses) {
   EXPECT_EQ(w.socket_send_buffer_bytes, 16384);
   EXPECT_EQ(w.max_objects_per_connection, 1);
   EXPECT_EQ(w.max_scene_triangles, 99);
+  EXPECT_EQ(w.metrics_token_path, "/base/m.token");
   EXPECT_NO_THROW(ValidateServiceConfig(c));
   EXPECT_THROW(ParseServiceConfig("websocket: {lisen: x}\n", "t", "/b"), InputError);
   ServiceConfig bad = c;
@@ -368,6 +369,19 @@ TEST(ServiceConfigTest, WebsocketBlockParses) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--ws-key"), std::string::npos);
   }
+  // A metrics token off loopback without TLS: refused (a bearer token in clear).
+  ServiceConfig clear = c;
+  clear.websocket.cert_path.clear();
+  clear.websocket.key_path.clear();
+  clear.security.mode = "unsigned";
+  try {
+    ValidateServiceConfig(clear);
+    FAIL() << "a metrics token over plain HTTP off loopback accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("metrics_token_file"), std::string::npos);
+  }
+  clear.websocket.listen = "127.0.0.1:9000";
+  EXPECT_NO_THROW(ValidateServiceConfig(clear));
 }
 
 }  // namespace

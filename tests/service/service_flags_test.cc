@@ -101,7 +101,9 @@ TEST(ServiceFlagsTest, WebsocketFlags) {
                         "--ws-max-connections",
                         "9",
                         "--ws-max-connections-per-address",
-                        "3"};
+                        "3",
+                        "--ws-metrics-token-file",
+                        "m.token"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.websocket.allow_origins = {"https://yaml.example"};
@@ -112,6 +114,7 @@ TEST(ServiceFlagsTest, WebsocketFlags) {
   EXPECT_EQ(w.cert_path, "c.pem");
   EXPECT_EQ(w.key_path, "k.pem");
   EXPECT_EQ(w.view_dir, "v");
+  EXPECT_EQ(w.metrics_token_path, "m.token");
   EXPECT_EQ(w.allow_origins, (std::vector<std::string>{"https://yaml.example", "https://a.example",
                                                        "https://b.example"}));
   EXPECT_EQ(w.max_connections, 9);
@@ -126,6 +129,7 @@ TEST(ServiceFlagsTest, WebsocketFlags) {
   ServiceConfig off;
   ApplyServiceFlags(none, &off);
   EXPECT_TRUE(off.websocket.listen.empty());
+  EXPECT_TRUE(off.websocket.metrics_token_path.empty());
 }
 
 TEST(ServiceFlagsTest, RefusalsNameTheFlag) {

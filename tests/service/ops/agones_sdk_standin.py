@@ -15,13 +15,21 @@ hold it: the allocator stand-in (tests/service/fleet/) reads it.
 
 POST /ready /health /shutdown /allocate take a JSON object (Content-Type
 application/json) and answer {}; /reserve takes {"seconds": N}; GET
-/gameserver answers a GameServer; PUT /metadata/label and
+/gameserver answers a GameServer; GET /watch/gameserver streams (chunked,
+as the sidecar's grpc-gateway) one line {"result": GameServer} each time
+the GameServer changes (state, labels); PUT /metadata/label and
 /metadata/annotation take {"key", "value"}. Anything else: 404; a body that
 is not JSON or a wrong content type: 400 (then the test sees the call too,
 with "bad": true).
+
+Test controls, not Agones': POST /standin/labels {"k": "v", ...} sets those
+labels as the allocator (through Kubernetes' API) would, and the watchers
+hear it; POST /standin/raw {"bytes": N} streams one line of N bytes of junk
+to every watcher (a hostile or broken sidecar).
 """
 import json
 import os
+import queue
 import sys
 import threading
 import time
@@ -38,6 +46,8 @@ if GS_FILE:
 START = time.monotonic()
 LOCK = threading.Lock()
 STATE = {"state": "Scheduled", "labels": {}, "annotations": {}}
+
+WATCHERS = []  # One queue of encoded lines per open GET /watch/gameserver.
 
 POSTS = {"/ready": "Ready", "/health": None, "/shutdown": "Shutdown", "/allocate": "Allocated",
          "/reserve": "Reserved"}
@@ -59,6 +69,13 @@ def publish():
     with open(tmp, "w") as f:
         json.dump(GS, f)
     os.replace(tmp, GS_FILE)
+
+
+def notify(line=None):
+    """Every watcher gets `line`, by default the GameServer now (hold LOCK)."""
+    data = (line if line is not None else json.dumps({"result": gameserver()}) + "\n").encode()
+    for q in WATCHERS:
+        q.put(data)
 
 
 def gameserver():
@@ -100,11 +117,21 @@ class Handler(BaseHTTPRequestHandler):
         record({"method": "POST", "path": self.path, "body": obj, "bad": bad is not None})
         if bad:
             return self.answer(400, {"error": bad})
+        if self.path == "/standin/labels":
+            with LOCK:
+                STATE["labels"].update({str(k): str(v) for k, v in obj.items()})
+                notify()
+            return self.answer(200, {})
+        if self.path == "/standin/raw":
+            with LOCK:
+                notify("x" * int(obj.get("bytes", 0)) + "\n")
+            return self.answer(200, {})
         if self.path not in POSTS:
             return self.answer(404, {"error": "not found"})
         with LOCK:
-            if POSTS[self.path]:
+            if POSTS[self.path] and POSTS[self.path] != STATE["state"]:
                 STATE["state"] = POSTS[self.path]
+                notify()
             if self.path in ("/health", "/ready"):
                 GS["last_health_wall"] = time.time()
             publish()
@@ -118,7 +145,9 @@ class Handler(BaseHTTPRequestHandler):
         kind = {"/metadata/label": "labels", "/metadata/annotation": "annotations"}.get(self.path)
         if not kind:
             return self.answer(404, {"error": "not found"})
-        STATE[kind]["agones.dev/sdk-" + obj["key"]] = obj["value"]
+        with LOCK:
+            STATE[kind]["agones.dev/sdk-" + obj["key"]] = obj["value"]
+            notify()
         self.answer(200, {})
 
     def do_GET(self):
@@ -126,8 +155,29 @@ class Handler(BaseHTTPRequestHandler):
         if self.path == "/gameserver":
             return self.answer(200, gameserver())
         if self.path == "/watch/gameserver":
-            return self.answer(200, {"result": gameserver()})
+            return self.watch()
         self.answer(404, {"error": "not found"})
+
+    def watch(self):
+        q = queue.Queue()
+        with LOCK:
+            WATCHERS.append(q)
+        try:
+            self.send_response(200)
+            self.send_header("Content-Type", "application/json")
+            self.send_header("Transfer-Encoding", "chunked")
+            self.end_headers()
+            self.wfile.flush()
+            while True:
+                data = q.get()
+                self.wfile.write(b"%x\r\n%s\r\n" % (len(data), data))
+                self.wfile.flush()
+        except OSError:
+            pass
+        finally:
+            with LOCK:
+                WATCHERS.remove(q)
+            self.close_connection = True
 
 
 ThreadingHTTPServer((HOST, PORT), Handler).serve_forever()

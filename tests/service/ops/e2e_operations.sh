@@ -11,7 +11,8 @@
 #    a second run: a live client joined through the WebSocket door
 #    (ws_hold_room.py) postpones Shutdown until empty_shutdown_s after it left;
 #  - /metrics on --metrics-listen parses strictly (prom_parse.py) and counts
-#    the room; other paths are 404.
+#    the room; other paths are 404; the door (no metrics_token_file) has
+#    no /metrics.
 #   e2e_operations.sh SERVICE SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../../tools/netns.sh"
@@ -141,6 +142,9 @@ printf 'max_live_clients: 4\nwebsocket: {listen: "127.0.0.1:8765"}\n' >> room2.y
 AGONES_SDK_HTTP_PORT=9358 "$service" --config room2.yaml --log-level info 2> daemon.log & daemon=$!
 pids+=($daemon)
 for _ in $(seq 200); do grep -q '"/ready"' agones.log && break; sleep 0.05; done
+# A door without websocket.metrics_token_file does not serve /metrics.
+code=$(curl -s -o /dev/null -w '%{http_code}' http://127.0.0.1:8765/metrics)
+[ "$code" = 404 ] || fail "door /metrics without a token file answered $code"
 "$py" "$here/ws_hold_room.py" ws://127.0.0.1:8765/ws bob 4 > hold.log || fail "ws client: $(cat hold.log)"
 for _ in $(seq 100); do grep -q '"/shutdown"' agones.log && break; sleep 0.05; done
 "$py" - agones.log hold.log <<'PY' || fail "Shutdown with a live client"
