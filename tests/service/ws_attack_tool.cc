@@ -109,14 +109,29 @@ std::unique_ptr<Ws> Open(net::io_context& ioc, const char* source, std::string* 
 // *close_code holds the close code when closed).
 std::string ReadUntil(Ws& ws, const std::string& type, const std::string& code, int ms,
                       int* close_code = nullptr) {
+  // One socket read can bring Beast several frames, which it then holds: the
+  // socket's readiness says nothing about the next message (polling it first
+  // missed a rate_limited error already buffered). Each read runs
+  // asynchronously under the deadline instead.
+  auto& ioc = static_cast<net::io_context&>(ws.get_executor().context());
   const auto deadline = Clock::now() + std::chrono::milliseconds(ms);
-  tcp::socket& s = ws.next_layer();
   while (Clock::now() < deadline) {
-    pollfd p{s.native_handle(), POLLIN, 0};
-    if (poll(&p, 1, 50) <= 0) continue;
     beast::flat_buffer b;
     beast::error_code ec;
-    ws.read(b, ec);
+    bool done = false;
+    ws.async_read(b, [&](beast::error_code e, size_t) {
+      ec = e;
+      done = true;
+    });
+    ioc.restart();
+    ioc.run_until(deadline);
+    if (!done) {  // Out of time: abandon the read (the stream is not used for reading again).
+      beast::error_code ignored;
+      ws.next_layer().cancel(ignored);
+      ioc.restart();
+      ioc.run();
+      return "";
+    }
     if (ec) {
       if (close_code) *close_code = ws.reason().code;
       return "";
