@@ -115,18 +115,26 @@ LinkIndex BallCentre(const LinkGroups& groups, const Skeleton& skeleton, const P
       }
     }
     // From c's origin: d's own capsule, d's other subtrees (their origins
-    // and c's are interpolated in d's frame alike) and what lies above d.
-    double up_c = std::max(OwnFromChild(skeleton, motion, growth, d, c), motion.lever(c) + up);
+    // and c's are interpolated in d's frame alike) and what lies above d;
+    // the cheap terms first, each able to end the walk.
+    double up_c = motion.lever(c) + up;
+    if (!(std::max(reach[c], up_c) < bound)) break;
+    up_c = std::max(up_c, OwnFromChild(skeleton, motion, growth, d, c));
+    if (!(up_c < bound)) break;
+    bool narrower = true;
     for (const LinkIndex s : kids) {
       if (s == c) continue;
       const double apart =
           Apart(motion.offset(c, 0), motion.offset(c, 1), motion.offset(s, 0), motion.offset(s, 1));
       up_c = std::max(up_c, apart + reach[s]);
+      if (!(up_c < bound)) {
+        narrower = false;
+        break;
+      }
     }
-    const double bound_c = std::max(reach[c], up_c);
-    if (!(bound_c < bound)) break;
+    if (!narrower) break;
     d = c;
-    bound = bound_c;
+    bound = std::max(reach[c], up_c);
     up = up_c;
   }
   *radius = bound;
