@@ -182,6 +182,12 @@ class PairMotion {
   /// parent's origin at both ends (SPEC 3's c, whose interpolation never
   /// leaves that ball); 0 for a link moving on its own.
   double lever(LinkIndex link) const { return links_[link].lever; }
+  /// SPEC 3's c at s = 0 (end 0) and s = 1 (end 1) for a link with a motion
+  /// parent (its origin in the parent's frame, interpolated linearly
+  /// between the two); the world position for a link moving on its own.
+  const Eigen::Vector3d& offset(LinkIndex link, int end) const {
+    return end == 0 ? links_[link].p0 : links_[link].p1;
+  }
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
   double rounding_slack() const { return rounding_slack_; }
   /// Largest absolute coordinate of the poses (world and relative) and link

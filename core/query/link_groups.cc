@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "core/errors.h"
+#include "core/geometry/interval.h"
 #include "core/geometry/rounding_slack.h"
 
 namespace sweptccd::internal {
@@ -29,6 +30,7 @@ LinkGroups::LinkGroups(const Skeleton& skeleton) {
     for (auto c = children[l].rbegin(); c != children[l].rend(); ++c) stack.push_back(*c);
   }
   SWEPTCCD_CHECK(static_cast<int>(preorder_.size()) == n);
+  children_ = children;
   position_.assign(n, 0);
   for (int i = 0; i < n; ++i) position_[preorder_[i]] = i;
   subtree_size_.assign(n, 1);
@@ -48,14 +50,40 @@ LinkGroups::LinkGroups(const Skeleton& skeleton) {
   }
 }
 
+namespace {
+double Norm(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
+// Upper end of max |u(t) - v(t)| over t in [0, 1] for u, v interpolated
+// linearly between their ends (u0, u1) and (v0, v1): u - v is too, so its
+// norm peaks at an end.
+double Apart(const Eigen::Vector3d& u0, const Eigen::Vector3d& u1, const Eigen::Vector3d& v0,
+             const Eigen::Vector3d& v1) {
+  return std::max(Norm(u0 - v0), Norm(u1 - v1));
+}
+// From child c's origin, the farthest point of its parent d's whole-pair
+// capsule: c's offset and d's segment ends are fixed or interpolated in d's
+// frame, so |c(t) - a| <= max(|c0 - a|, |c1 - a|), and the capsule adds
+// d's radius and growth (as own(d)).
+double OwnFromChild(const Skeleton& skeleton, const PairMotion& motion,
+                    const std::vector<double>& growth, LinkIndex d, LinkIndex c) {
+  const Link& link = skeleton.link(d);
+  const Eigen::Vector3d& c0 = motion.offset(c, 0);
+  const Eigen::Vector3d& c1 = motion.offset(c, 1);
+  const double far = std::max(Apart(c0, c1, link.a_L, link.a_L), Apart(c0, c1, link.b_L, link.b_L));
+  return far + link.radius + growth[d];
+}
+}  // namespace
+
 void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const PairMotion& motion,
-                  std::vector<double>* reach) {
+                  std::vector<double>* reach, std::vector<double>* growth) {
   SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
   const std::vector<LinkIndex>& order = groups.preorder();
   reach->assign(order.size(), 0.0);
+  growth->resize(order.size());
   for (auto it = order.rbegin(); it != order.rend(); ++it) {  // Children first.
     const LinkIndex j = *it;
-    const double own = skeleton.extent(j) + skeleton.link(j).radius + motion.SweepRadius(j, 0, 1);
+    const double g = motion.SweepRadius(j, 0, 1);
+    (*growth)[j] = g;
+    const double own = skeleton.extent(j) + skeleton.link(j).radius + g;
     double& r = (*reach)[j];
     r = std::max(r, own);
     const int parent = skeleton.link(j).parent;
@@ -66,15 +94,61 @@ void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const Pair
   }
 }
 
-LinkCapsule GroupBall(const Skeleton& skeleton, const PairMotion& motion,
-                      const std::vector<double>& reach, LinkIndex root, double tolerance_m) {
+LinkIndex BallCentre(const LinkGroups& groups, const Skeleton& skeleton, const PairMotion& motion,
+                     const std::vector<double>& reach, const std::vector<double>& growth,
+                     LinkIndex root, double* radius) {
   SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
-  (void)skeleton;
+  LinkIndex d = root;
+  double bound = reach[root];
+  double up = 0;  // Bounds the distance from d's origin to members outside d's subtree.
+  for (int step = 0; step < kMaxCentreSteps; ++step) {
+    const std::vector<LinkIndex>& kids = groups.children(d);
+    if (kids.empty()) break;
+    // The child whose subtree reaches farthest from d's origin.
+    LinkIndex c;
+    double first = -1;
+    for (const LinkIndex k : kids) {
+      const double far = motion.lever(k) + reach[k];
+      if (far > first) {
+        first = far;
+        c = k;
+      }
+    }
+    // From c's origin: d's own capsule, d's other subtrees (their origins
+    // and c's are interpolated in d's frame alike) and what lies above d;
+    // the cheap terms first, each able to end the walk.
+    double up_c = motion.lever(c) + up;
+    if (!(std::max(reach[c], up_c) < bound)) break;
+    up_c = std::max(up_c, OwnFromChild(skeleton, motion, growth, d, c));
+    if (!(up_c < bound)) break;
+    bool narrower = true;
+    for (const LinkIndex s : kids) {
+      if (s == c) continue;
+      const double apart =
+          Apart(motion.offset(c, 0), motion.offset(c, 1), motion.offset(s, 0), motion.offset(s, 1));
+      up_c = std::max(up_c, apart + reach[s]);
+      if (!(up_c < bound)) {
+        narrower = false;
+        break;
+      }
+    }
+    if (!narrower) break;
+    d = c;
+    bound = std::max(reach[c], up_c);
+    up = up_c;
+  }
+  *radius = bound;
+  return d;
+}
+
+LinkCapsule GroupBall(const PairMotion& motion, LinkIndex centre, double radius,
+                      double tolerance_m) {
+  SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
   LinkCapsule ball;
-  ball.a = ball.b = motion.PoseAt(root, 0.5).p;
+  ball.a = ball.b = motion.PoseAt(centre, 0.5).p;
   ball.radius =
-      reach[root] + tolerance_m + 4 * motion.rounding_slack() + BoxPad(motion.coordinate_scale());
-  ball.link = root;
+      radius + tolerance_m + 4 * motion.rounding_slack() + BoxPad(motion.coordinate_scale());
+  ball.link = centre;
   return ball;
 }
 

@@ -37,9 +37,12 @@ class LinkGroups {
   }
   /// Every link, parents before their descendants (preorder).
   const std::vector<LinkIndex>& preorder() const { return preorder_; }
+  /// The children of `link`, in index order.
+  const std::vector<LinkIndex>& children(LinkIndex link) const { return children_[link]; }
 
  private:
   std::vector<LinkIndex> preorder_;
+  std::vector<std::vector<LinkIndex>> children_;
   std::vector<int> position_;      // By link: its place in preorder_.
   std::vector<int> subtree_size_;  // By link, itself included.
   std::vector<bool> is_root_;
@@ -54,18 +57,41 @@ class LinkGroups {
 /// lever_c + reach(c)), g_j the first-order growth over [0, 1]
 /// (PairMotion::SweepRadius, never below the capsule's growth) and lever_c
 /// the child's offset bound (PairMotion::lever: SPEC 3's c, interpolated
-/// linearly, stays within it). Needs no pose composed. O(links).
+/// linearly, stays within it). Needs no pose composed. O(links). *growth
+/// gets every link's g_j.
 void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const PairMotion& motion,
-                  std::vector<double>* reach);
+                  std::vector<double>* reach, std::vector<double>* growth);
 
-/// The ball of the group rooted at `root`: centred at the root's origin at
-/// s = 0.5 (its ends must be composed), radius reach(root) + `tolerance_m`
-/// (the query's, which every capsule carries) + 4 rounding slacks of the
-/// motion (the composition from the root down) + BoxPad of the motion's
+/// Where the ball of the group rooted at `root` is centred: a link d of the
+/// group (its origin at s = 0.5), and in *radius an upper bound on the
+/// distance from there to any point of any member's whole-pair capsule
+/// (tolerance excluded, as reach). From the root, d moves to the child c
+/// with the largest lever_c + reach(c) while that narrows the bound:
+/// radius(c) = max(reach(c), up(c)), up(c) = max(own_c(d), lever_c + up(d),
+/// apart(c, s) + reach(s) over d's other children s), up(root) = 0, where
+/// own_c(d) = max over d's segment ends e and c's offsets c_0, c_1 of
+/// |c_k - e| + radius_d + g_d and apart(c, s) = max(|c_0 - s_0|, |c_1 -
+/// s_1|) (norms rounded up): a member in c's subtree is within reach(c) of
+/// c's origin; d's own capsule and d's other children's origins are
+/// interpolated in d's frame as c's origin is (SPEC 3: c is linear in s), so
+/// their distance from it peaks at s = 0 or 1; what lies above d is reached
+/// through d's origin, lever_c away. A finger's ball moves from its
+/// metacarpal's origin (at the wrist) to its knuckle, a forearm's to the
+/// wrist: about half the radius. At most kMaxCentreSteps steps (so O(steps x children),
+/// and a group's whole chain is never walked); needs no pose composed.
+constexpr int kMaxCentreSteps = 8;
+LinkIndex BallCentre(const LinkGroups& groups, const Skeleton& skeleton, const PairMotion& motion,
+                     const std::vector<double>& reach, const std::vector<double>& growth,
+                     LinkIndex root, double* radius);
+
+/// The ball of a group: centred at the origin of `centre` at s = 0.5 (as
+/// BallCentre gives it; its ends must be composed), radius `radius` (ditto)
+/// + `tolerance_m` (the query's, which every capsule carries) + 4 rounding
+/// slacks of the motion (the two composed points) + BoxPad of the motion's
 /// scale (far above the rounding of these sums and of the distance tests).
 /// It holds the whole-pair capsule of every link of the group, so a
 /// triangle that no test finds within it is not found within any of them.
-LinkCapsule GroupBall(const Skeleton& skeleton, const PairMotion& motion,
-                      const std::vector<double>& reach, LinkIndex root, double tolerance_m);
+LinkCapsule GroupBall(const PairMotion& motion, LinkIndex centre, double radius,
+                      double tolerance_m);
 
 }  // namespace sweptccd::internal

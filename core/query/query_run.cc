@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <vector>
 
+#include "core/errors.h"
 #include "core/query/certificate.h"
 
 namespace sweptccd::internal {
@@ -64,6 +65,7 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.pool, kKeptCandidates);
   FreeIfAbove(&b.queue, kKeptIntervals);
   FreeIfAbove(&b.reach, kKeptLinks);
+  FreeIfAbove(&b.growth, kKeptLinks);
 }
 
 QueryResult QueryRun::Run() {
@@ -122,16 +124,36 @@ void QueryRun::ClearGroups() {
     motion.CompleteEnds(l);
     if (groups_.IsRoot(l)) {
       if (!have_reach) {
-        SubtreeReach(groups_, skeleton, motion, &buffers_->reach);
+        SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
         have_reach = true;
       }
-      if (GroupBallClear(l,
-                         GroupBall(skeleton, motion, buffers_->reach, l, bounds_.tolerance_m()))) {
+      // A group reaching past twice the largest ball tested is not
+      // centred (its ball would hardly be narrow enough): skipped.
+      if (!(buffers_->reach[l] <= 2 * kGroupMaxRadiusM)) continue;
+      double radius = 0;
+      const LinkIndex centre =
+          BallCentre(groups_, skeleton, motion, buffers_->reach, buffers_->growth, l, &radius);
+      if (!(radius <= kGroupMaxRadiusM)) continue;  // GroupBallClear would refuse it.
+      // The ball's centre is composed (its chain from l down: the same
+      // bits as when its links' turn comes; harmless if the group clears).
+      CompleteChain(l, centre);
+      if (GroupBallClear(l, GroupBall(motion, centre, radius, bounds_.tolerance_m()))) {
         group_cleared_[l] = 1;
         ++stats_.groups_cleared;
       }
     }
   }
+}
+
+void QueryRun::CompleteChain(LinkIndex top, LinkIndex link) {
+  LinkIndex chain[kMaxCentreSteps + 1];  // BallCentre's steps: at most this far below top.
+  int count = 0;
+  for (LinkIndex l = link; l != top && !own_motion_->EndsReady(l);
+       l = own_motion_->motion_parent(l)) {
+    SWEPTCCD_CHECK(count < kMaxCentreSteps + 1);
+    chain[count++] = l;
+  }
+  while (count > 0) own_motion_->CompleteEnds(chain[--count]);
 }
 
 bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {

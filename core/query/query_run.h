@@ -27,7 +27,8 @@ struct QueryBuffers {
   RootCandidates::Buffers roots;
   std::vector<Candidate> pool;
   std::vector<Interval> queue;
-  std::vector<double> reach;  // ClearGroups: SubtreeReach.
+  std::vector<double> reach;   // ClearGroups: SubtreeReach.
+  std::vector<double> growth;  // Ditto.
 };
 
 /// Runs one query. Single-use and single-threaded; holds references to the
@@ -66,6 +67,8 @@ class QueryRun {
   // Whether no test finds a triangle of an object some link of the group
   // does not ignore within `ball`.
   bool GroupBallClear(LinkIndex root, LinkCapsule ball);
+  // Composes the ends of `link` and of its ancestors below `top` (composed).
+  void CompleteChain(LinkIndex top, LinkIndex link);
   enum class Step { kNext, kStop };
   // One interval of the descent: cleared, closed, or split into the queue.
   Step Visit(const Interval& interval);

@@ -13,11 +13,15 @@
 // is asserted about them.
 //
 //   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
+//       [--scene NAME] [--clip NAME] [--only 16|on|off]
 //   build/bin/sweptccd_full_body_bench --convert SKEL16.json POSES16.jsonl OUT_DIR
 //
 // --clock thread times this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
 // which leaves out time other processes held the core (on a shared machine,
-// most of a wall-clock tail).
+// most of a wall-clock tail). --scene and --clip keep one scene or clip;
+// --only runs one avatar (16 links, or 81 with groups on or off) and skips
+// the on/off answer check, so that callgrind (tools/bench_callgrind.sh's
+// --toggle-collect on CcdEngine::Query*) counts one avatar's instructions.
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -272,12 +276,20 @@ int Main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--convert") return Convert(argv[2], argv[3], argv[4]);
   int max_pairs = 600;
   double rate_hz = 120;
+  std::string only_scene, only_clip, only;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--pairs") max_pairs = std::atoi(argv[i + 1]);
     if (a == "--rate") rate_hz = std::atof(argv[i + 1]);
     if (a == "--clock") g_thread_clock = std::string(argv[i + 1]) == "thread";
+    if (a == "--scene") only_scene = argv[i + 1];
+    if (a == "--clip") only_clip = argv[i + 1];
+    if (a == "--only") only = argv[i + 1];
   }
+  SWEPTCCD_CHECK(only.empty() || only == "16" || only == "on" || only == "off");
+  const bool run16 = only.empty() || only == "16";
+  const bool run_on = only.empty() || only == "on";
+  const bool run_off = only.empty() || only == "off";
   const std::string dir = SWEPTCCD_DATA_DIR;
   struct Scene {
     const char* name;
@@ -293,8 +305,10 @@ int Main(int argc, char** argv) {
   const JointSet& set = FindJointSet("meta-full-body");
   std::vector<Row> rows;
   for (const Scene& sc : scenes) {
+    if (!only_scene.empty() && only_scene != sc.name) continue;
     const Environment env = Environment::LoadFiles({bench::DataFile(dir + "/env/" + sc.file)});
     for (const char* clip_name : clips) {
+      if (!only_clip.empty() && only_clip != clip_name) continue;
       MocapImportOptions mo;
       mo.up_axis = 'y';
       MocapClip clip = ImportBvhFile(bench::DataFile(dir + "/mocap/" + clip_name), mo);
@@ -336,9 +350,9 @@ int Main(int argc, char** argv) {
       const int n = std::min<int>(max_pairs, static_cast<int>(clip.poses.size()) - 1);
       // Warm-up, untimed, the same first pairs through both.
       for (int k = 0; k < std::min(n, 10); ++k) {
-        (void)small.Query(clip.poses[k], clip.poses[k + 1], q);
-        if (full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q);
-        if (full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q_flat);
+        if (run16) (void)small.Query(clip.poses[k], clip.poses[k + 1], q);
+        if (run_on && full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q);
+        if (run_off && full[k] && full[k + 1]) (void)big.Query(*full[k], *full[k + 1], q_flat);
       }
       for (int k = 0; k < n; ++k) {
         if (!full[k] || !full[k + 1]) {
@@ -346,17 +360,21 @@ int Main(int argc, char** argv) {
           continue;
         }
         double a = NowS();
-        const QueryResult x = small.Query(clip.poses[k], clip.poses[k + 1], q);
-        t16.push_back(1e6 * (NowS() - a));
+        QueryResult x;
+        if (run16) {
+          x = small.Query(clip.poses[k], clip.poses[k + 1], q);
+          t16.push_back(1e6 * (NowS() - a));
+        }
         // Groups on and off alternate which goes first, pair by pair.
         QueryResult y, z;
         for (int turn = 0; turn < 2; ++turn) {
           const bool flat = (turn == 0) == (k % 2 == 0);
+          if (!(flat ? run_off : run_on)) continue;
           a = NowS();
           (flat ? z : y) = big.Query(*full[k], *full[k + 1], flat ? q_flat : q);
           (flat ? t84_flat : t84).push_back(1e6 * (NowS() - a));
         }
-        SWEPTCCD_CHECK(SameAnswer(y, z));
+        if (run_on && run_off) SWEPTCCD_CHECK(SameAnswer(y, z));
         ++r16.pairs;
         ++r84.pairs;
         ++r84_flat.pairs;
@@ -371,9 +389,9 @@ int Main(int argc, char** argv) {
       r16.us = bench::Summarise(t16);
       r84.us = bench::Summarise(t84);
       r84_flat.us = bench::Summarise(t84_flat);
-      rows.push_back(r16);
-      rows.push_back(r84_flat);
-      rows.push_back(r84);
+      if (run16) rows.push_back(r16);
+      if (run_off) rows.push_back(r84_flat);
+      if (run_on) rows.push_back(r84);
     }
   }
   std::printf(

@@ -1,10 +1,12 @@
 // Hierarchical link bounds (core/query/link_groups.*, QueryRun::ClearGroups),
 // seeded and randomized:
 // - the groups' subtrees against a brute-force walk up the parents;
-// - the group ball holds every member's whole-pair capsule (the property the
-//   engine's answer rests on) and every point of the members' motion, sampled
-//   densely by an independent composition of SPEC 3 written here; a ball 30 %
-//   narrower fails somewhere (the check can fail);
+// - the group ball (centred by BallCentre, often below the group root, never
+//   wider than the root-centred one) holds every member's whole-pair capsule
+//   (the property the engine's answer rests on) and every point of the
+//   members' motion, sampled densely by an independent composition of SPEC 3
+//   written here; a ball 30 % or 5 % narrower fails somewhere (the check can
+//   fail);
 // - PairMotion's ends composed on demand are the same bits as all at once;
 // - CcdEngine::Query with link groups and without gives the same answers
 //   (every field but the stats) on the 81-link meta-full-body skeleton and on
@@ -39,6 +41,7 @@
 namespace sweptccd {
 namespace {
 
+using internal::BallCentre;
 using internal::GroupBall;
 using internal::LinkGroups;
 using internal::SubtreeReach;
@@ -221,6 +224,8 @@ TEST(LinkGroups, SubtreesMatchTheParentWalk) {
 // motion; `shrink` < 1 narrows the ball (the twin must then fail somewhere).
 struct Holding {
   int groups = 0;
+  int centred = 0;  // Balls BallCentre moved off the group root.
+  int wider = 0;    // Balls wider than reach(root), the root-centred ball's.
   int capsule_outside = 0;
   int sample_outside = 0;
 };
@@ -237,14 +242,19 @@ Holding CheckBalls(uint64_t seed, int cases, double shrink) {
     const internal::SweptBounds bounds(rig.skeleton, motion, tol);
     const LinkGroups groups(rig.skeleton);
     std::vector<double> reach;
-    SubtreeReach(groups, rig.skeleton, motion, &reach);
+    std::vector<double> growth;
+    SubtreeReach(groups, rig.skeleton, motion, &reach, &growth);
     const RefMotion ref{rig.skeleton, p0, p1};
     std::vector<std::vector<LinkPose>> samples;
     for (int k = 0; k <= 64; ++k) samples.push_back(ref.At(k / 64.0));
     for (LinkIndex r(0); r < rig.skeleton.num_links(); ++r) {
       if (!groups.IsRoot(r)) continue;
       ++h.groups;
-      LinkCapsule ball = GroupBall(rig.skeleton, motion, reach, r, tol);
+      double radius = 0;
+      const LinkIndex centre = BallCentre(groups, rig.skeleton, motion, reach, growth, r, &radius);
+      LinkCapsule ball = GroupBall(motion, centre, radius, tol);
+      h.centred += centre != r;
+      h.wider += radius > reach[r];
       ball.radius *= shrink;
       bool capsule_out = false, sample_out = false;
       for (const LinkIndex* m = groups.begin(r); m != groups.end(r); ++m) {
@@ -272,9 +282,16 @@ TEST(LinkGroups, BallHoldsEveryMembersCapsuleAndMotion) {
   EXPECT_GT(h.groups, cases);
   EXPECT_EQ(h.capsule_outside, 0);
   EXPECT_EQ(h.sample_outside, 0);
-  // The same cases with a ball 30 % narrower: some capsule pokes out.
+  // BallCentre moves many balls, never to a wider one.
+  EXPECT_GT(h.centred, h.groups / 4);
+  EXPECT_EQ(h.wider, 0);
+  // The same cases with a ball 30 % and 5 % narrower: some capsule pokes
+  // out, and some sampled point (the bound is not loose everywhere).
   const Holding narrow = CheckBalls(31002, cases, 0.7);
   EXPECT_GT(narrow.capsule_outside, 0);
+  EXPECT_GT(narrow.sample_outside, 0);
+  const Holding slightly = CheckBalls(31002, cases, 0.95);
+  EXPECT_GT(slightly.capsule_outside, 0);
 }
 
 TEST(LinkGroups, EndsOnDemandAreTheSameBits) {
