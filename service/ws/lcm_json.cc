@@ -46,21 +46,7 @@ OrderedJson Record(const contact_record_t& c) {
   return j;
 }
 
-OrderedJson Bracket(const link_bracket_t& b) {
-  OrderedJson j;
-  j["link"] = b.link;
-  j["s_lo"] = b.s_lo;
-  j["s_hi"] = b.s_hi;
-  j["t_lo"] = b.t_lo;
-  j["t_hi"] = b.t_hi;
-  j["initially_colliding"] = b.initially_colliding != 0;
-  j["undecided"] = b.undecided != 0;
-  j["has_witness"] = b.has_witness != 0;
-  j["witness"] = Record(b.witness);
-  return j;
-}
-
-OrderedJson EntityRecord(const entity_contact_t& c) {
+OrderedJson Record(const entity_contact_t& c) {
   OrderedJson j;
   j["link"] = c.link;
   j["other_link"] = c.other_link;
@@ -73,7 +59,11 @@ OrderedJson EntityRecord(const entity_contact_t& c) {
   return j;
 }
 
-OrderedJson EntityBracket(const entity_link_bracket_t& b) {
+// A link's bracket: the same fields for an avatar against the scene
+// (link_bracket_t) and against another entity (entity_link_bracket_t); only
+// the witness's record differs (Record's overloads).
+template <class LinkBracket>
+OrderedJson Bracket(const LinkBracket& b) {
   OrderedJson j;
   j["link"] = b.link;
   j["s_lo"] = b.s_lo;
@@ -83,7 +73,7 @@ OrderedJson EntityBracket(const entity_link_bracket_t& b) {
   j["initially_colliding"] = b.initially_colliding != 0;
   j["undecided"] = b.undecided != 0;
   j["has_witness"] = b.has_witness != 0;
-  j["witness"] = EntityRecord(b.witness);
+  j["witness"] = Record(b.witness);
   return j;
 }
 
@@ -106,10 +96,10 @@ OrderedJson Entry(const shared_entry_t& e) {
   j["t_lo"] = e.t_lo;
   j["t_hi"] = e.t_hi;
   OrderedJson contacts = OrderedJson::array();
-  for (const auto& c : e.contacts) contacts.push_back(EntityRecord(c));
+  for (const auto& c : e.contacts) contacts.push_back(Record(c));
   j["contacts"] = std::move(contacts);
   OrderedJson links = OrderedJson::array();
-  for (const auto& b : e.links) links.push_back(EntityBracket(b));
+  for (const auto& b : e.links) links.push_back(Bracket(b));
   j["links"] = std::move(links);
   j["waited_us"] = e.waited_us;
   j["ended_by_timeout"] = e.ended_by_timeout != 0;
@@ -132,20 +122,7 @@ void RecordFrom(const nlohmann::json& v, const std::string& where, contact_recor
   c->separation = f.RealOrNull("separation");
 }
 
-void BracketFrom(const nlohmann::json& v, const std::string& where, link_bracket_t* b) {
-  const Fields f(v, where);
-  b->link = static_cast<int32_t>(f.Int("link", kI32Min, kI32Max));
-  b->s_lo = f.RealOrNull("s_lo");
-  b->s_hi = f.RealOrNull("s_hi");
-  b->t_lo = f.RealOrNull("t_lo");
-  b->t_hi = f.RealOrNull("t_hi");
-  b->initially_colliding = f.Bool("initially_colliding");
-  b->undecided = f.Bool("undecided");
-  b->has_witness = f.Bool("has_witness");
-  RecordFrom(f.Get("witness"), f.Path("witness"), &b->witness);
-}
-
-void EntityRecordFrom(const nlohmann::json& v, const std::string& where, entity_contact_t* c) {
+void RecordFrom(const nlohmann::json& v, const std::string& where, entity_contact_t* c) {
   const Fields f(v, where);
   c->link = static_cast<int32_t>(f.Int("link", kI32Min, kI32Max));
   c->other_link = static_cast<int32_t>(f.Int("other_link", kI32Min, kI32Max));
@@ -157,8 +134,9 @@ void EntityRecordFrom(const nlohmann::json& v, const std::string& where, entity_
   c->separation = f.RealOrNull("separation");
 }
 
-void EntityBracketFrom(const nlohmann::json& v, const std::string& where,
-                       entity_link_bracket_t* b) {
+// Reads either bracket type (Bracket above); the witness by RecordFrom's overloads.
+template <class LinkBracket>
+void BracketFrom(const nlohmann::json& v, const std::string& where, LinkBracket* b) {
   const Fields f(v, where);
   b->link = static_cast<int32_t>(f.Int("link", kI32Min, kI32Max));
   b->s_lo = f.RealOrNull("s_lo");
@@ -168,7 +146,7 @@ void EntityBracketFrom(const nlohmann::json& v, const std::string& where,
   b->initially_colliding = f.Bool("initially_colliding");
   b->undecided = f.Bool("undecided");
   b->has_witness = f.Bool("has_witness");
-  EntityRecordFrom(f.Get("witness"), f.Path("witness"), &b->witness);
+  RecordFrom(f.Get("witness"), f.Path("witness"), &b->witness);
 }
 
 void EntryFrom(const nlohmann::json& v, const std::string& where, const WireLimits& L,
@@ -189,14 +167,13 @@ void EntryFrom(const nlohmann::json& v, const std::string& where, const WireLimi
   const auto& contacts = f.Array("contacts", static_cast<size_t>(L.max_contacts));
   e->contacts.resize(contacts.size());
   for (size_t i = 0; i < contacts.size(); ++i) {
-    EntityRecordFrom(contacts[i], f.Path("contacts") + "[" + std::to_string(i) + "]",
-                     &e->contacts[i]);
+    RecordFrom(contacts[i], f.Path("contacts") + "[" + std::to_string(i) + "]", &e->contacts[i]);
   }
   e->num_contacts = static_cast<int32_t>(contacts.size());
   const auto& links = f.Array("links", static_cast<size_t>(L.max_links));
   e->links.resize(links.size());
   for (size_t i = 0; i < links.size(); ++i) {
-    EntityBracketFrom(links[i], f.Path("links") + "[" + std::to_string(i) + "]", &e->links[i]);
+    BracketFrom(links[i], f.Path("links") + "[" + std::to_string(i) + "]", &e->links[i]);
   }
   e->num_links = static_cast<int32_t>(links.size());
   e->waited_us = f.Int("waited_us", -kAny, kAny);
