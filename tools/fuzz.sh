@@ -53,6 +53,12 @@ launcher=()
 if command -v ccache >/dev/null; then
   launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
   export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
+  # These builds carry debug information (-g), and ccache then hashes the
+  # working folder by default (hash_dir), so no other clone ever hit: CI's
+  # clean clone recompiled every sanitizer and fuzzer object. Off here: a hit
+  # keeps the first clone's folder in its debug information (file and line
+  # in a sanitizer's report stay right).
+  export CCACHE_NOHASHDIR=${CCACHE_NOHASHDIR:-1}
 fi
 CC=clang CXX=clang++ cmake -S . -B "$build" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DSWEPTCCD_FUZZ=ON -DSWEPTCCD_FUZZ_PLAIN="$plain_flag" -DSWEPTCCD_BUILD_TESTS=OFF \
