@@ -366,6 +366,7 @@ int RunWorldBenchCommand(const WorldBenchOptions& o) {
     }
     const std::string data = o.data_dir.empty() ? SWEPTCCD_DATA_DIR : o.data_dir;
     if (o.scenario == "hands") {
+      if (o.threads != 1) throw InputError("world-bench: --scenario hands runs on one thread");
       RunHandsScenario(o, data);
       return 0;
     }

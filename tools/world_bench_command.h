@@ -27,8 +27,8 @@ struct WorldBenchOptions {
   int threads = 1;  // --threads: workers answering the records (tallies equal for any number).
   /// "grid" (issue 12's world above) or "hands" (issue 31: hands reaching
   /// for, grasping and carrying objects, 81-link avatars beside 16-link
-  /// ones; tools/world_bench_hands.h). --objects and --threads do not apply
-  /// to "hands" (one object per avatar, one thread).
+  /// ones; tools/world_bench_hands.h). --objects does not apply to "hands"
+  /// (one object per avatar); it runs on one thread (--threads 1).
   std::string scenario = "grid";
   uint64_t seed = 31;  // --seed: the hands scenario's grasp times, boxes and grips.
 };

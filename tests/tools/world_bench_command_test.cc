@@ -262,6 +262,10 @@ TEST_F(WorldBenchCommandTest, RefusesBadSizes) {
   const RunResult r = Run({"world-bench", "--out", Path("w"), "--avatars", "1"});
   EXPECT_TRUE(r.exited && r.code == 2) << r.Describe();
   EXPECT_NE(r.err.find("--avatars >= 2"), std::string::npos) << r.err;
+  const RunResult h =
+      Run({"world-bench", "--out", Path("h"), "--scenario", "hands", "--threads", "2"});
+  EXPECT_TRUE(h.exited && h.code == 2) << h.Describe();
+  EXPECT_NE(h.err.find("--scenario hands runs on one thread"), std::string::npos) << h.err;
 }
 
 }  // namespace
