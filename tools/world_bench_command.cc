@@ -23,6 +23,8 @@
 #include "mocap/mocap_import.h"
 #include "msgs/text.h"
 #include "tools/bench_common.h"
+#include "tools/world_bench_hands.h"
+#include "tools/world_bench_scene.h"
 
 namespace sweptccd {
 
@@ -43,101 +45,25 @@ void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* o) {
                   "Workers answering the records (default 1: the per-record times of one "
                   "thread; the tallies are the same for any number)")
       ->check(CLI::Range(1, 1024));
+  app->add_option("--scenario", o->scenario,
+                  "grid (default: held and thrown boxes among the avatars) or hands (each avatar "
+                  "reaches for, grasps and carries its own box; 81-link full-body avatars beside "
+                  "16-link ones, same run)")
+      ->check(CLI::IsMember({"grid", "hands"}));
+  app->add_option("--seed", o->seed, "Seed of the hands scenario's grasps (default 31)");
 }
 
 namespace {
 
 using ojson = nlohmann::ordered_json;
-
-// The room and where the group stands: the breakfast room (Y-up, floor at
-// y = -1.42), the grid centred on the free strip between the table's chairs
-// (the centre `sweptccd bench` walks around).
-constexpr char kRoom[] = "bitterli_breakfast_room.ply";
-constexpr double kFloor = -1.42;
-const Eigen::Vector2d kCentre(-0.67, -1.9);
-constexpr int64_t kUtime0 = 1'000'000;
-
-// Clips that stay roughly in place (a grid of walkers would leave it), each
-// avatar from its own start second; rates cycle 90 / 72 / 60 Hz.
-struct ClipChoice {
-  const char* file;
-  double start_s;
-};
-constexpr ClipChoice kClips[] = {
-    {"boxing_toes.bvh", 0},
-    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 0},
-    {"cmu_01_03_playground_climb_hang_swing.bvh", 0},
-    {"cmu_02_04_jump_balance.bvh", 0},
-    {"boxing_toes.bvh", 5},
-    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 6},
-    {"cmu_05_06_dance_cartwheel_pirouettes_jete.bvh", 0},
-    {"cmu_03_01_walk_uneven_terrain.bvh", 0},
-    {"boxing_toes.bvh", 10},
-    {"cmu_13_10_jump_grab_reach_tiptoe.bvh", 12},
-    {"cmu_01_03_playground_climb_hang_swing.bvh", 10},
-    {"cmu_01_01_playground_forward_jumps.bvh", 0},
-    {"boxing_toes.bvh", 15},
-    {"cmu_01_03_playground_climb_hang_swing.bvh", 20},
-    {"boxing_toes.bvh", 20},
-    {"cmu_01_01_playground_forward_jumps.bvh", 10},
-};
-constexpr double kRates[] = {90, 72, 60};
-constexpr double kThrownRate = 120;
-
-void WriteText(const std::filesystem::path& path, const std::string& text) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out << text;
-  out.flush();
-  if (!out) throw InputError(path.string() + ": cannot write");
-}
-
-// A closed box mesh (12 triangles) centred at the object frame's origin.
-std::string BoxObj(const Eigen::Vector3d& half) {
-  std::string s;
-  for (int c = 0; c < 8; ++c) {
-    s += "v " + std::to_string((c & 1) ? half.x() : -half.x()) + ' ' +
-         std::to_string((c & 2) ? half.y() : -half.y()) + ' ' +
-         std::to_string((c & 4) ? half.z() : -half.z()) + '\n';
-  }
-  // Faces as quads of corner indices (1-based), outward.
-  static const int kQuads[6][4] = {{1, 3, 7, 5}, {2, 6, 8, 4}, {1, 5, 6, 2},
-                                   {3, 4, 8, 7}, {1, 2, 4, 3}, {5, 7, 8, 6}};
-  for (const auto& q : kQuads) {
-    s += "f " + std::to_string(q[0]) + ' ' + std::to_string(q[1]) + ' ' + std::to_string(q[2]) +
-         '\n';
-    s += "f " + std::to_string(q[0]) + ' ' + std::to_string(q[2]) + ' ' + std::to_string(q[3]) +
-         '\n';
-  }
-  return s;
-}
-
-std::string ObjectPoseLine(int64_t utime, const Eigen::Vector3d& p, const Eigen::Quaterniond& q) {
-  ojson j;
-  j["utime"] = utime;
-  j["pose"] = {p.x(), p.y(), p.z(), q.w(), q.x(), q.y(), q.z()};
-  return j.dump() + '\n';
-}
-
-// `seconds` of the clip from `start_s` (moved earlier when the clip ends
-// first), resampled at `rate_hz` by the clip's articulated motion between
-// its frames (so bone lengths stay those of the clip).
-std::vector<Pose> Resample(const MocapClip& clip, double start_s, double rate_hz, double seconds) {
-  if (clip.poses.size() < 2) throw InputError("world-bench: a clip with fewer than two frames");
-  const double length_s = clip.frame_time_s * static_cast<double>(clip.poses.size() - 1);
-  start_s = std::min(start_s, std::max(0.0, length_s - seconds));
-  const double end_s = std::min(length_s, start_s + seconds);
-  std::vector<Pose> out;
-  for (int k = 0; start_s + k / rate_hz <= end_s; ++k) {
-    const double f = (start_s + k / rate_hz) / clip.frame_time_s;
-    const size_t i = std::min(static_cast<size_t>(f), clip.poses.size() - 2);
-    const PairMotion m(clip.skeleton, clip.poses[i], clip.poses[i + 1], MotionModel::kArticulated);
-    Pose pose;
-    pose.utime = std::llround(k * 1e6 / rate_hz);
-    m.PosesAt(std::clamp(f - static_cast<double>(i), 0.0, 1.0), &pose.links);
-    out.push_back(std::move(pose));
-  }
-  return out;
-}
+using world_bench::BoxObj;
+using world_bench::kCentre;
+using world_bench::kFloor;
+using world_bench::kRoom;
+using world_bench::kThrownRate;
+using world_bench::kUtime0;
+using world_bench::ObjectPoseLine;
+using world_bench::WriteText;
 
 struct GeneratedWorld {
   std::string path;
@@ -161,21 +87,10 @@ GeneratedWorld Generate(const WorldBenchOptions& o, const std::string& data) {
   std::vector<Skeleton> skeletons;
   std::vector<std::vector<Pose>> streams;
   for (int k = 0; k < o.avatars; ++k) {
-    const ClipChoice& choice = kClips[k % std::size(kClips)];
-    MocapImportOptions mo;
-    mo.up_axis = 'y';
-    MocapClip clip = ImportBvhFile(bench::DataFile(data + "/mocap/" + choice.file), mo);
-    const double rate = kRates[k % std::size(kRates)];
-    clip.poses = Resample(clip, choice.start_s, rate, o.seconds);
-    const Eigen::Vector2d cell((k % cols - 0.5 * (cols - 1)) * o.spacing,
-                               (k / cols - 0.5 * (rows - 1)) * o.spacing);
-    bench::PlaceClipOnFloor(&clip, 'y', kFloor, kCentre + cell);
+    MocapClip clip = world_bench::GridAvatarClip(data, k, cols, rows, o.spacing, o.seconds);
     const std::string id = "avatar" + std::to_string(k);
     std::string lines;
-    for (Pose& pose : clip.poses) {
-      pose.utime += kUtime0 + 1000 * k;  // Clocks a little apart too.
-      lines += PoseToJsonLine(pose) + '\n';
-    }
+    for (const Pose& pose : clip.poses) lines += PoseToJsonLine(pose) + '\n';
     WriteText(out / (id + ".json"), SkeletonToJson(clip.skeleton) + '\n');
     WriteText(out / (id + ".jsonl"), lines);
     ojson a = {{"id", id}, {"skeleton", id + ".json"}, {"poses", id + ".jsonl"}};
@@ -450,6 +365,11 @@ int RunWorldBenchCommand(const WorldBenchOptions& o) {
           "--spacing > 0 and --warmup >= 0");
     }
     const std::string data = o.data_dir.empty() ? SWEPTCCD_DATA_DIR : o.data_dir;
+    if (o.scenario == "hands") {
+      if (o.threads != 1) throw InputError("world-bench: --scenario hands runs on one thread");
+      RunHandsScenario(o, data);
+      return 0;
+    }
     const GeneratedWorld g = Generate(o, data);
     std::fprintf(stderr, "world-bench: wrote %s\n", g.path.c_str());
     if (!o.generate_only) Bench(o, g);

@@ -6,6 +6,7 @@
 // prints a table: the environment-only part beside the whole answer (every
 // other entity through the broad phase), on the thread CPU clock.
 
+#include <cstdint>
 #include <string>
 
 namespace CLI {
@@ -24,6 +25,12 @@ struct WorldBenchOptions {
   int warmup = 10;       // Records per avatar answered untimed first.
   bool generate_only = false;
   int threads = 1;  // --threads: workers answering the records (tallies equal for any number).
+  /// "grid" (issue 12's world above) or "hands" (issue 31: hands reaching
+  /// for, grasping and carrying objects, 81-link avatars beside 16-link
+  /// ones; tools/world_bench_hands.h). --objects does not apply to "hands"
+  /// (one object per avatar); it runs on one thread (--threads 1).
+  std::string scenario = "grid";
+  uint64_t seed = 31;  // --seed: the hands scenario's grasp times, boxes and grips.
 };
 
 void AddWorldBenchOptions(CLI::App* app, WorldBenchOptions* options);

@@ -155,10 +155,117 @@ TEST_F(WorldBenchCommandTest, CountsAreTheSameForAnyNumberOfThreads) {
   EXPECT_EQ(out1.find("records with a shared contact: 0 of"), std::string::npos) << out1;
 }
 
+// --scenario hands (issue 31): every avatar reaches for, grasps and carries
+// its own box, as a 16-link and as an 81-link (meta-full-body, procedural
+// fingers) avatar. The bench's tallies of what its answers found equal what
+// `sweptccd world` answers on the two worlds it wrote (entry by entry
+// counted from the records), the boxes are touched (by finger links for the
+// 81-link avatars), and the table has a row per part and avatar size over
+// every valid record.
+struct HandsTally {
+  int64_t records = 0, own_entries = 0, own_contacts = 0, own_initially = 0, own_undecided = 0;
+  int64_t other_objects = 0, avatars = 0, entries = 0;
+  std::string Describe() const {
+    std::ostringstream os;
+    os << "records " << records << " own " << own_entries << "/" << own_contacts << "/"
+       << own_initially << "/" << own_undecided << " other objects " << other_objects << " avatars "
+       << avatars << " entries " << entries;
+    return os.str();
+  }
+};
+
+TEST_F(WorldBenchCommandTest, HandsScenarioMatchesTheWorldCommand) {
+  const RunResult r = Run({"world-bench", "--scenario", "hands", "--out", Path("h"), "--avatars",
+                           "2", "--seconds", "1.5", "--warmup", "1", "--seed", "7"});
+  ASSERT_TRUE(r.exited && r.code == 0) << r.Describe();
+  const std::string& out = r.out;
+  EXPECT_NE(out.find("PROCEDURALLY ANIMATED"), std::string::npos) << out;
+  for (const char* links : {"16", "81"}) {
+    SCOPED_TRACE(std::string(links) + " links");
+    const json world = json::parse(std::ifstream(Path(std::string("h/world") + links + ".json")));
+    ASSERT_EQ(world["avatars"].size(), 2u);
+    ASSERT_EQ(world["objects"].size(), 2u);
+    EXPECT_FALSE(world["avatars"][0].contains("ignore"));  // No rules: the grasp is answered.
+    const json skeleton =
+        json::parse(std::ifstream(Path(std::string("h/avatar0_") + links + ".json")));
+    ASSERT_EQ(skeleton["links"].size(), std::string(links) == "16" ? 16u : 81u);
+
+    // The world command's records, counted as the bench counts its answers.
+    const RunResult q = Run(
+        {"world", "--world", Path(std::string("h/world") + links + ".json"), "--backend", "cpu"});
+    ASSERT_TRUE(q.exited && q.code == 0) << q.Describe();
+    HandsTally want;
+    int64_t finger_witnesses = 0;
+    std::istringstream lines(q.out);
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line.empty()) continue;
+      const json rec = json::parse(line);
+      if (rec["result"] == "invalid") continue;
+      ++want.records;
+      const std::string avatar = rec["avatar"];
+      const std::string own = "object" + avatar.substr(std::string("avatar").size());
+      for (const json& e : rec["others"]) {
+        ++want.entries;
+        const bool contact = e["result"] == "contact";
+        if (e["entity"] == own) {
+          ++want.own_entries;
+          want.own_contacts += contact;
+          want.own_initially += contact && e["initially_colliding"].get<bool>();
+          want.own_undecided += contact && e["undecided"].get<bool>();
+          if (!contact || avatar != "avatar0") continue;
+          for (const json& c : e["contacts"]) {
+            const std::string name = skeleton["links"][c["link"].get<int>()]["name"];
+            finger_witnesses += name.find("HAND_") != std::string::npos;
+          }
+        } else if (e["kind"] == "object") {
+          want.other_objects += contact;
+        } else {
+          want.avatars += contact;
+        }
+      }
+    }
+    // The bench's line for this size.
+    const std::regex tally_re(std::string("links ") + links +
+                              ": own-object entries ([0-9]+): contact ([0-9]+) \\(initially "
+                              "colliding ([0-9]+), undecided ([0-9]+)\\); other objects: contact "
+                              "([0-9]+); avatars: contact ([0-9]+); entity entries ([0-9]+) ");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(out, m, tally_re)) << out;
+    HandsTally got;
+    got.records =
+        static_cast<int64_t>(Field(out, std::string("| ") + links + " | whole record | "));
+    got.own_entries = std::stoll(m[1]);
+    got.own_contacts = std::stoll(m[2]);
+    got.own_initially = std::stoll(m[3]);
+    got.own_undecided = std::stoll(m[4]);
+    got.other_objects = std::stoll(m[5]);
+    got.avatars = std::stoll(m[6]);
+    got.entries = std::stoll(m[7]);
+    EXPECT_EQ(got.Describe(), want.Describe());
+    EXPECT_EQ(Field(out, std::string("| ") + links + " | env-only | "), want.records);
+    EXPECT_EQ(Field(out, std::string("| ") + links +
+                             " | own object (reach, grasp, carry, "
+                             "release) | "),
+              want.records);
+    // The scenario does what it says: each avatar's hand meets its box,
+    // the full body's fingers among its links.
+    EXPECT_GT(want.own_contacts, 0);
+    EXPECT_EQ(want.own_undecided, 0);
+    if (std::string(links) == "81") {
+      EXPECT_GT(finger_witnesses, 0);
+    }
+  }
+}
+
 TEST_F(WorldBenchCommandTest, RefusesBadSizes) {
   const RunResult r = Run({"world-bench", "--out", Path("w"), "--avatars", "1"});
   EXPECT_TRUE(r.exited && r.code == 2) << r.Describe();
   EXPECT_NE(r.err.find("--avatars >= 2"), std::string::npos) << r.err;
+  const RunResult h =
+      Run({"world-bench", "--out", Path("h"), "--scenario", "hands", "--threads", "2"});
+  EXPECT_TRUE(h.exited && h.code == 2) << h.Describe();
+  EXPECT_NE(h.err.find("--scenario hands runs on one thread"), std::string::npos) << h.err;
 }
 
 }  // namespace

@@ -3,14 +3,13 @@
 // 16-link CMU avatar, the same clips, scenes and pairs, same run.
 //
 // The body joints follow the CMU clip's 16 links (each joint on a link's
-// segment). THE FINGERS ARE PROCEDURALLY ANIMATED, NOT CAPTURED: every hand
-// cycles reach (open), grasp (curl), hold and release, 3 s a cycle, in the
-// hand link's frame. The 81-link avatar is timed twice, with the engine's
-// hierarchical link bounds (QueryOptions::link_groups, the default) and
-// without (every link on its own, as before them), alternating which goes
-// first; their answers must be equal (checked, the run aborts otherwise).
-// Timings are wall-clock per pair (median, p99, max, microseconds); nothing
-// is asserted about them.
+// segment; mocap/full_body_frames.h). THE FINGERS ARE PROCEDURALLY ANIMATED,
+// NOT CAPTURED: every hand cycles reach (open), grasp (curl), hold and
+// release, 3 s a cycle, in the hand link's frame. The 81-link avatar is timed twice, with the
+// engine's hierarchical link bounds (QueryOptions::link_groups, the default) and without (every
+// link on its own, as before them), alternating which goes first; their answers must be equal
+// (checked, the run aborts otherwise). Timings are wall-clock per pair (median, p99, max,
+// microseconds); nothing is asserted about them.
 //
 //   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
 //       [--scene NAME] [--clip NAME] [--only 16|on|off]
@@ -41,13 +40,12 @@
 #include "core/errors.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/environment.h"
+#include "mocap/full_body_frames.h"
 #include "mocap/mocap_import.h"
 #include "tools/bench_common.h"
 
 namespace sweptccd {
 namespace {
-
-using Eigen::Vector3d;
 
 bool g_thread_clock = false;  // --clock thread: this thread's CPU time.
 
@@ -55,147 +53,6 @@ double NowS() {
   if (g_thread_clock) return bench::ThreadCpuSeconds();
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
-
-double SmoothStep(double x) {
-  x = std::clamp(x, 0.0, 1.0);
-  return x * x * (3 - 2 * x);
-}
-
-// Grasp cycle, 3 s: open 0-1 s (reach), curl 1-1.4 s (grasp), closed to
-// 2.2 s (hold), open 2.2-2.6 s (release), open to 3 s.
-double Curl(double t_s) {
-  const double t = std::fmod(t_s, 3.0);
-  if (t < 1.0) return 0;
-  if (t < 1.4) return SmoothStep((t - 1.0) / 0.4);
-  if (t < 2.2) return 1;
-  if (t < 2.6) return 1 - SmoothStep((t - 2.2) / 0.4);
-  return 0;
-}
-
-class FrameBuilder {
- public:
-  FrameBuilder(const JointSet& set, const Skeleton& mocap) : set_(set), mocap_(mocap) {}
-
-  JointFrame Build(const Pose& pose) const {
-    JointFrame f;
-    f.utime = pose.utime;
-    f.joints.resize(set_.num_joints());
-    auto A = [&](const char* link) { return pose.links[Index(link)].p; };
-    auto B = [&](const char* link) {
-      const int i = Index(link);
-      return Vector3d(pose.links[i].p + pose.links[i].q * mocap_.link(i).b_L);
-    };
-    auto Q = [&](const char* link) { return pose.links[Index(link)].q; };
-    auto lerp = [](const Vector3d& a, const Vector3d& b, double s) -> Vector3d {
-      return a + s * (b - a);
-    };
-    auto put = [&](const std::string& word, const Vector3d& p, const Eigen::Quaterniond& q) {
-      const int j = set_.FindJoint("XR_FULL_BODY_JOINT_" + word + "_META");
-      if (j < 0) std::abort();
-      f.joints[j].p = p;
-      f.joints[j].q = q;
-    };
-    put("ROOT", A("pelvis"), Q("pelvis"));
-    put("HIPS", A("pelvis"), Q("pelvis"));
-    put("SPINE_LOWER", A("spine"), Q("spine"));
-    put("SPINE_MIDDLE", lerp(A("spine"), B("spine"), 0.5), Q("spine"));
-    put("SPINE_UPPER", A("chest"), Q("chest"));
-    const Vector3d chest = lerp(A("chest"), B("chest"), 0.5);
-    put("CHEST", chest, Q("chest"));
-    put("NECK", A("head"), Q("head"));
-    put("HEAD", lerp(A("head"), B("head"), 0.3), Q("head"));
-    for (const char* side : {"LEFT", "RIGHT"}) {
-      const bool left = side[0] == 'L';
-      const std::string s = side;
-      auto m = [&](const char* base) {
-        static thread_local std::string name;
-        name = std::string(base) + (left ? "_l" : "_r");
-        return name;
-      };
-      const std::string ua = m("upper_arm"), fa = m("forearm"), ha = m("hand");
-      const std::string th = m("thigh"), sh = m("shin"), fo = m("foot");
-      put(s + "_SHOULDER", lerp(chest, A(ua.c_str()), 0.3), Q(ua.c_str()));
-      put(s + "_SCAPULA", lerp(chest, A(ua.c_str()), 0.6), Q(ua.c_str()));
-      put(s + "_ARM_UPPER", A(ua.c_str()), Q(ua.c_str()));
-      put(s + "_ARM_LOWER", A(fa.c_str()), Q(fa.c_str()));
-      put(s + "_HAND_WRIST_TWIST", lerp(A(fa.c_str()), A(ha.c_str()), 0.8), Q(fa.c_str()));
-      Hand(s, A(ha.c_str()), B(ha.c_str()), Q(ha.c_str()),
-           Curl(1e-6 * pose.utime + (left ? 1.5 : 0)), put);
-      put(s + "_UPPER_LEG", A(th.c_str()), Q(th.c_str()));
-      put(s + "_LOWER_LEG", A(sh.c_str()), Q(sh.c_str()));
-      put(s + "_FOOT_ANKLE_TWIST", lerp(A(sh.c_str()), A(fo.c_str()), 0.9), Q(sh.c_str()));
-      put(s + "_FOOT_ANKLE", A(fo.c_str()), Q(fo.c_str()));
-      put(s + "_FOOT_SUBTALAR", lerp(A(fo.c_str()), B(fo.c_str()), 0.15), Q(fo.c_str()));
-      put(s + "_FOOT_TRANSVERSE", lerp(A(fo.c_str()), B(fo.c_str()), 0.55), Q(fo.c_str()));
-      put(s + "_FOOT_BALL", B(fo.c_str()), Q(fo.c_str()));
-    }
-    return f;
-  }
-
- private:
-  int Index(const char* link) const {
-    const int i = mocap_.FindLink(link);
-    if (i < 0) std::abort();
-    return i;
-  }
-
-  // Procedural fingers in the hand link's frame: forward (wrist to the hand
-  // link's end), lateral and palm normal; each finger curls about the
-  // lateral axis by `curl` (0 open .. 1 closed).
-  template <class Put>
-  static void Hand(const std::string& s, const Vector3d& wrist, const Vector3d& end,
-                   const Eigen::Quaterniond& q, double curl, const Put& put) {
-    const Vector3d fwd = (end - wrist).normalized();
-    Vector3d lat = q * Vector3d::UnitX();
-    lat -= lat.dot(fwd) * fwd;
-    if (lat.norm() < 1e-6) lat = fwd.unitOrthogonal();
-    lat.normalize();
-    const Vector3d normal = fwd.cross(lat);
-    const std::string h = s + "_HAND_";
-    put(h + "WRIST", wrist, q);
-    put(h + "PALM", wrist + 0.05 * fwd, q);
-    struct Finger {
-      const char* name;
-      double spread;     // Along lat, metres, at the knuckle.
-      double meta;       // Wrist to knuckle, metres.
-      double bones[3];   // Proximal, intermediate, distal to the tip.
-      double angles[3];  // Full curl per joint, radians.
-    };
-    const Finger fingers[4] = {{"INDEX", 0.025, 0.085, {0.040, 0.024, 0.020}, {1.2, 1.5, 1.0}},
-                               {"MIDDLE", 0.007, 0.085, {0.045, 0.027, 0.021}, {1.2, 1.5, 1.0}},
-                               {"RING", -0.011, 0.080, {0.042, 0.026, 0.020}, {1.2, 1.5, 1.0}},
-                               {"LITTLE", -0.028, 0.072, {0.034, 0.020, 0.018}, {1.2, 1.5, 1.0}}};
-    for (const Finger& fg : fingers) {
-      const std::string n = h + fg.name;
-      put(n + "_METACARPAL", wrist + 0.015 * fwd + 0.5 * fg.spread * lat, q);
-      Vector3d p = wrist + fg.meta * fwd + fg.spread * lat;
-      put(n + "_PROXIMAL", p, q);
-      Eigen::Quaterniond bend = Eigen::Quaterniond::Identity();
-      const char* parts[3] = {"_INTERMEDIATE", "_DISTAL", "_TIP"};
-      for (int k = 0; k < 3; ++k) {
-        bend = Eigen::Quaterniond(Eigen::AngleAxisd(curl * fg.angles[k], lat)) * bend;
-        p += fg.bones[k] * (bend * fwd);
-        put(n + parts[k], p, bend * q);
-      }
-    }
-    // Thumb: from the wrist's side, along (fwd + lat), curling about the
-    // palm normal.
-    const Vector3d dir0 = (fwd + lat).normalized();
-    Vector3d p = wrist + 0.02 * fwd + 0.02 * lat;
-    put(h + "THUMB_METACARPAL", p, q);
-    const double lens[3] = {0.045, 0.032, 0.028};
-    const char* parts[3] = {"_THUMB_PROXIMAL", "_THUMB_DISTAL", "_THUMB_TIP"};
-    Eigen::Quaterniond bend = Eigen::Quaterniond::Identity();
-    for (int k = 0; k < 3; ++k) {
-      p += lens[k] * (bend * dir0);
-      put(s + "_HAND" + parts[k], p, bend * q);
-      bend = Eigen::Quaterniond(Eigen::AngleAxisd(-curl * 0.6, normal)) * bend;
-    }
-  }
-
-  const JointSet& set_;
-  const Skeleton& mocap_;
-};
 
 struct Row {
   std::string scene, clip, groups;
@@ -247,14 +104,8 @@ int Convert(const std::string& skeleton_path, const std::string& poses_path,
     return 1;
   }
   const JointSet& set = FindJointSet("meta-full-body");
-  const FrameBuilder fb(set, mocap);
-  const JointFrame cal = fb.Build(poses[0]);
-  JointSkeletonOptions so;
-  so.calibration = &cal;
-  so.hands = HandsOption::kFull;
-  so.length_tolerance_m = 0.05;  // As the bench: the clip's clavicles move a little.
-  so.length_tolerance_fraction = 0.25;
-  const JointSkeleton js = JointSkeleton::Build(set, so);
+  const full_body::FrameBuilder fb(set, mocap);
+  const JointSkeleton js = full_body::CalibratedFullBody(set, fb.Build(poses[0]));
   std::ofstream skel_out(out_dir + "/skeleton.json");
   skel_out << SkeletonToJson(js.skeleton()) << "\n";
   std::ofstream poses_out(out_dir + "/poses.jsonl");
@@ -318,16 +169,11 @@ int Main(int argc, char** argv) {
       for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
       clip.poses = poses;
       bench::PlaceClipOnFloor(&clip, 'y', sc.floor, sc.centre);
-      const FrameBuilder fb(set, clip.skeleton);
-      const JointFrame cal = fb.Build(clip.poses[0]);
-      JointSkeletonOptions so;
-      so.calibration = &cal;
-      so.hands = HandsOption::kFull;
-      // The clip's clavicles move the shoulder joints against the chest a
-      // little: a generous tolerance keeps those frames.
-      so.length_tolerance_m = 0.05;
-      so.length_tolerance_fraction = 0.25;
-      const JointSkeleton js = JointSkeleton::Build(set, so);
+      const full_body::FrameBuilder fb(set, clip.skeleton);
+      // Calibrated on the first frame; the clip's clavicles move the
+      // shoulder joints against the chest a little: a generous tolerance
+      // keeps those frames.
+      const JointSkeleton js = full_body::CalibratedFullBody(set, fb.Build(clip.poses[0]));
       std::vector<std::optional<Pose>> full(clip.poses.size());
       for (size_t k = 0; k < clip.poses.size(); ++k) {
         Pose p;

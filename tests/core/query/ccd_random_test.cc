@@ -66,6 +66,8 @@
 #include "core/query/ccd_query.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
+#include "mocap/full_body_frames.h"
+#include "mocap/mocap_import.h"
 #include "tests/common/random.h"
 #include "tests/common/test_scale.h"
 #include "tests/core/query/backend_under_test.h"
@@ -346,10 +348,26 @@ RefSamples EvaluateSamples(const SceneUnderTest& sut, const RefMotion& motion,
   std::vector<Vec3> A(static_cast<size_t>(n) * L), B(static_cast<size_t>(n) * L);
   for (int k = 0; k < n; ++k)
     motion.Segments(s[k], &A[static_cast<size_t>(k) * L], &B[static_cast<size_t>(k) * L]);
-  std::vector<const RefTri*> cand;
+  std::vector<const RefTri*> cand, near;
   constexpr int kChunk = 16;
   for (int l = 0; l < L; ++l) {
     const double grow = sut.skeleton().link(l).radius + kFar;
+    // The triangles near the link's box over all samples (every chunk's box
+    // lies inside it, so this drops only triangles no chunk would keep).
+    Vec3 llo = Vec3::Constant(1e300), lhi = Vec3::Constant(-1e300);
+    for (int k = 0; k < n; ++k) {
+      llo = llo.cwiseMin(A[static_cast<size_t>(k) * L + l])
+                .cwiseMin(B[static_cast<size_t>(k) * L + l]);
+      lhi = lhi.cwiseMax(A[static_cast<size_t>(k) * L + l])
+                .cwiseMax(B[static_cast<size_t>(k) * L + l]);
+    }
+    llo.array() -= grow;
+    lhi.array() += grow;
+    near.clear();
+    for (const RefTri& t : sut.tris()) {
+      if (!sut.Ignored(l, t.object) && BoxesOverlap(llo, lhi, t.lo, t.hi)) near.push_back(&t);
+    }
+    if (near.empty()) continue;
     for (int c0 = 0; c0 < n; c0 += kChunk) {
       const int c1 = std::min(n, c0 + kChunk);
       Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
@@ -362,8 +380,8 @@ RefSamples EvaluateSamples(const SceneUnderTest& sut, const RefMotion& motion,
       lo.array() -= grow;
       hi.array() += grow;
       cand.clear();
-      for (const RefTri& t : sut.tris()) {
-        if (!sut.Ignored(l, t.object) && BoxesOverlap(lo, hi, t.lo, t.hi)) cand.push_back(&t);
+      for (const RefTri* t : near) {
+        if (BoxesOverlap(lo, hi, t->lo, t->hi)) cand.push_back(t);
       }
       if (cand.empty()) continue;
       const double radius = sut.skeleton().link(l).radius;
@@ -2124,6 +2142,288 @@ TEST(CcdRandomTest, FingersOnATableEdgeAndAThinRod) {
   // The scenes do what they say: finger bones touch the edge and the rod.
   EXPECT_GT(table_contacts, static_cast<int64_t>(20 * testing::TestScale()));
   EXPECT_GT(rod_contacts, static_cast<int64_t>(20 * testing::TestScale()));
+}
+
+// ---------------------------------------------------------------------------
+// Full bodies (issue 31) through the joint-set adapter, in the bundled
+// rooms: the 81-link XR_META_body_tracking_full_body skeleton and the
+// 67-link XR_FB_body_tracking one (no legs), both --hands full, calibrated
+// on a CMU clip's first frame (its bone lengths), their joint frames built
+// from the clip's 16 links with PROCEDURALLY ANIMATED fingers
+// (mocap/full_body_frames.h) and converted by JointSkeleton::Convert. Each
+// case: a random clip and frame, a step of 1 to 12 frames at 120 Hz (up to
+// 0.1 s of motion), a random yaw and place in the Bitterli breakfast or grey
+// & white room: standing on the floor near `sweptccd bench`'s spot, or (60 %)
+// with a hand's knuckles a few centimetres off a random large furniture
+// triangle 0.4-1.8 m above the floor, moving towards it; clear of the room at the start (up to 12
+// placements), random finger curls at both ends. The room is cropped to the triangles whose boxes
+// come within 0.3 m of the box of the pair's link segments (nothing farther can touch), and engine
+// and dense reference see the same crop. Link groups on (the default from
+// 32 links).
+
+struct FullBodyRoom {
+  const char* file;
+  double floor;        // Y-up.
+  Eigen::Vector2d at;  // (x, z) the avatars stand around (`sweptccd bench`'s placements).
+};
+
+const FullBodyRoom kRooms[2] = {{"bitterli_breakfast_room.ply.gz", -1.42, {-0.67, -1.9}},
+                                {"bitterli_grey_white_room.ply.gz", 0.0, {2.3, -1.5}}};
+
+const TriangleMesh& RoomMesh(int room) {
+  static TriangleMesh meshes[2];
+  if (meshes[room].num_triangles() == 0) {
+    meshes[room] = LoadMeshFile(std::string(SWEPTCCD_DATA_DIR) + "/env/" + kRooms[room].file);
+  }
+  return meshes[room];
+}
+
+// The triangles of `mesh` whose boxes overlap [lo, hi].
+TriangleMesh Crop(const TriangleMesh& mesh, const Vec3& lo, const Vec3& hi) {
+  TriangleMesh out;
+  for (size_t t = 0; t < mesh.num_triangles(); ++t) {
+    Vec3 v[3];
+    for (int k = 0; k < 3; ++k) v[k] = mesh.vertices[mesh.indices[3 * t + k]].cast<double>();
+    const Vec3 tlo = v[0].cwiseMin(v[1]).cwiseMin(v[2]), thi = v[0].cwiseMax(v[1]).cwiseMax(v[2]);
+    if (BoxesOverlap(lo, hi, tlo, thi)) AddTri(&out, v[0], v[1], v[2]);
+  }
+  return out;
+}
+
+// Where a hand reaches in a room: large triangles (20 cm^2 or more: a
+// furniture surface, not a detail) 0.4-1.8 m above the floor within 1.5 m
+// of the spot, with at most 300 triangles within 0.25 m (a finely meshed
+// detail nearby costs the dense reference seconds a query).
+struct ReachTarget {
+  Vec3 centroid, normal;
+};
+
+const std::vector<ReachTarget>& ReachTargets(int room) {
+  static std::vector<ReachTarget> targets[2];
+  if (!targets[room].empty()) return targets[room];
+  const TriangleMesh& mesh = RoomMesh(room);
+  const FullBodyRoom& r = kRooms[room];
+  const auto vertex = [&](size_t t, int c) -> Vec3 {
+    return mesh.vertices[mesh.indices[3 * t + c]].cast<double>();
+  };
+  for (size_t t = 0; t < mesh.num_triangles(); ++t) {
+    const Vec3 centroid = (vertex(t, 0) + vertex(t, 1) + vertex(t, 2)) / 3;
+    const Vec3 n = (vertex(t, 1) - vertex(t, 0)).cross(vertex(t, 2) - vertex(t, 0));
+    const double height = centroid.y() - r.floor;
+    if (n.norm() < 2 * 20e-4 || height < 0.4 || height > 1.8 ||
+        std::fabs(centroid.x() - r.at.x()) > 1.5 || std::fabs(centroid.z() - r.at.y()) > 1.5) {
+      continue;
+    }
+    int close = 0;
+    for (size_t u = 0; u < mesh.num_triangles() && close <= 300; ++u) {
+      close += (vertex(u, 0) - centroid).norm() < 0.25;
+    }
+    if (close <= 300) targets[room].push_back({centroid, n.normalized()});
+  }
+  std::printf("[full bodies] room %d: %zu reach targets\n", room, targets[room].size());
+  EXPECT_GE(targets[room].size(), 20u) << "room " << room;
+  if (targets[room].empty())
+    targets[room].push_back({Vec3(r.at.x(), r.floor + 1, r.at.y()), Vec3::UnitY()});
+  return targets[room];
+}
+
+struct FullBodyClip {
+  MocapClip clip;
+  JointFrame first;  // Its first frame as meta-full-body joints (the calibration).
+};
+
+const FullBodyClip& FullBodyClipAt(int i) {
+  static const char* kFiles[3] = {"cmu_13_10_jump_grab_reach_tiptoe.bvh.gz", "boxing_toes.bvh.gz",
+                                  "cmu_02_01_walk.bvh.gz"};
+  static std::unique_ptr<FullBodyClip> clips[3];
+  if (!clips[i]) {
+    clips[i] = std::make_unique<FullBodyClip>();
+    MocapImportOptions mo;
+    mo.up_axis = 'y';
+    clips[i]->clip = ImportBvhFile(std::string(SWEPTCCD_DATA_DIR) + "/mocap/" + kFiles[i], mo);
+    const full_body::FrameBuilder fb(FindJointSet("meta-full-body"), clips[i]->clip.skeleton);
+    clips[i]->first = fb.Build(clips[i]->clip.poses[0], 0, 0);
+  }
+  return *clips[i];
+}
+
+// The first 70 joints of a meta-full-body frame are XR_FB_body_tracking's,
+// same order and meaning (docs/SKELETONS.md).
+JointFrame AsFbBody(JointFrame f) {
+  f.joints.resize(FindJointSet("fb-body").num_joints());
+  return f;
+}
+
+void FullBodySuite(const std::string& set_id, int links, uint64_t seed0, int scenes,
+                   int64_t min_queries) {
+  Suite suite(set_id + " (" + std::to_string(links) + " links) in the bundled rooms");
+  const JointSet& meta = FindJointSet("meta-full-body");
+  const JointSet& set = FindJointSet(set_id);
+  const bool fb = set_id == "fb-body";
+  int64_t finger_contacts = 0, refused = 0, contacts = 0;
+  for (int scene_i = 0; scene_i < ScaledCount(scenes); ++scene_i) {
+    const uint64_t seed = seed0 + scene_i;
+    Rng rng(seed);
+    const int clip_i = rng.I(3), room = rng.I(2);
+    const FullBodyClip& fc = FullBodyClipAt(clip_i);
+    JointSkeletonOptions so;
+    const JointFrame cal = fb ? AsFbBody(fc.first) : fc.first;
+    so.calibration = &cal;
+    so.length_tolerance_m = 0.05;  // The clip's clavicles move a little (as the bench).
+    so.length_tolerance_fraction = 0.25;
+    const JointSkeleton js = JointSkeleton::Build(set, so);
+    ASSERT_EQ(js.skeleton().num_links(), links);
+    const full_body::FrameBuilder builder(meta, fc.clip.skeleton);
+    const std::vector<Pose>& poses = fc.clip.poses;
+    for (int i = 0; i < 6; ++i) {
+      // A pair of the clip, turned about the vertical and stood near the
+      // room's spot (its lowest point 0-3 cm above the floor at the start).
+      const int step = 1 + rng.I(12);
+      const int k = rng.I(static_cast<int>(poses.size()) - step);
+      QuerySpec q;
+      q.options = RandomOptions(
+          rng, rng.P(0.85) ? MotionModel::kArticulated : MotionModel::kIndependent, 0.3);
+      SetTimes(rng, &q, 8e3 * step, 8.4e3 * step);
+      const double curls[4] = {rng.U(0, 1), rng.U(0, 1), rng.U(0, 1), rng.U(0, 1)};
+      const bool reach = rng.P(0.6);
+      // Up to 12 placements until the start pose touches nothing (a body
+      // deep inside a dense mesh at s = 0 costs the reference seconds;
+      // starting inside is the InitiallyColliding suite's).
+      std::unique_ptr<SceneUnderTest> sut;
+      Pose x0, x1;
+      bool refused_frames = false;
+      for (int attempt = 0; attempt < 12; ++attempt) {
+        Pose m0 = poses[k], m1 = poses[k + step];
+        Eigen::Quaterniond yaw(Eigen::AngleAxisd(rng.U(0, 2 * kPi), Vec3::UnitY()));
+        const Vec3 root = m0.links[0].p;
+        double lowest = 1e300;
+        for (int l = 0; l < fc.clip.skeleton.num_links(); ++l) {
+          const Link& link = fc.clip.skeleton.link(l);
+          for (const Vec3& e : {link.a_L, link.b_L}) {
+            lowest = std::min(lowest,
+                              (yaw * (m0.links[l].p + m0.links[l].q * e - root)).y() - link.radius);
+          }
+        }
+        const FullBodyRoom& r = kRooms[room];
+        Vec3 place(r.at.x() + rng.U(-0.8, 0.8), r.floor - lowest + rng.U(0.01, 0.05),
+                   r.at.y() + rng.U(-0.8, 0.8));
+        Vec3 approach = Vec3::Zero();  // The body's move over the pair, on top of the clip's.
+        if (reach) {
+          // A hand reaching for the furniture: the hand link's far end (the
+          // knuckles) 2-12 cm off a large triangle 0.4-1.8 m above the floor near
+          // the spot, on a random side of it, the body turned to stand back
+          // on that side (the floor wherever that puts it) and moving 3-15 cm
+          // towards it over the pair.
+          const std::vector<ReachTarget>& targets = ReachTargets(room);
+          const int hand = fc.clip.skeleton.FindLink(rng.P(0.5) ? "hand_l" : "hand_r");
+          const Vec3 knuckles =
+              m0.links[hand].p + m0.links[hand].q * fc.clip.skeleton.link(hand).b_L - root;
+          // A body with legs stays on the floor: a target at its standing
+          // knuckles' height (within 20 cm), or none this time.
+          std::vector<const ReachTarget*> fit;
+          for (const ReachTarget& t : targets) {
+            if (fb || std::fabs(t.centroid.y() - (place.y() + knuckles.y())) < 0.2) {
+              fit.push_back(&t);
+            }
+          }
+          if (fit.empty()) continue;
+          const ReachTarget& t = *fit[rng.I(static_cast<int>(fit.size()))];
+          const Vec3 side = t.normal * (rng.P(0.5) ? 1.0 : -1.0);
+          // Yaw about +Y taking the root-to-knuckles direction onto -side
+          // (horizontally), when both have a horizontal direction.
+          const double hk = std::hypot(knuckles.x(), knuckles.z());
+          const double hs = std::hypot(side.x(), side.z());
+          if (hk > 0.05 && hs > 0.3) {
+            yaw = Eigen::AngleAxisd(
+                std::atan2(-side.x(), -side.z()) - std::atan2(knuckles.x(), knuckles.z()),
+                Vec3::UnitY());
+          }
+          const double stand_y = place.y();
+          place = t.centroid + side * rng.U(0.02, 0.12) - yaw * knuckles;
+          approach = -side * rng.U(0.03, 0.15);
+          if (!fb) {
+            place.y() = stand_y;
+            approach.y() = 0;
+          }
+        }
+        for (Pose* m : {&m0, &m1}) {
+          for (LinkPose& x : m->links) {
+            x.p = place + (m == &m1 ? approach : Vec3::Zero()) + yaw * (x.p - root);
+            x.q = yaw * x.q;
+          }
+        }
+        m0.utime = q.pose0.utime;
+        m1.utime = q.pose1.utime;
+        JointFrame f0 = builder.Build(m0, curls[0], curls[1]);
+        JointFrame f1 = builder.Build(m1, curls[2], curls[3]);
+        if (fb) {
+          f0 = AsFbBody(f0);
+          f1 = AsFbBody(f1);
+        }
+        refused_frames = !js.Convert(f0, &x0).empty() || !js.Convert(f1, &x1).empty();
+        if (refused_frames) break;  // The frames, not the place, are beyond the tolerance.
+        // The room within 0.3 m of the box of the pair's link segments
+        // (both motion models, 33 times each); no link reaches farther.
+        const RefMotion motion(js.skeleton(), x0, x1, true), motion_i(js.skeleton(), x0, x1, false);
+        Vec3 lo = Vec3::Constant(1e300), hi = Vec3::Constant(-1e300);
+        std::vector<Vec3> A(links), B(links);
+        for (const RefMotion* mo : {&motion, &motion_i}) {
+          for (int j = 0; j <= 32; ++j) {
+            mo->Segments(j / 32.0, A.data(), B.data());
+            for (int l = 0; l < links; ++l) {
+              lo = lo.cwiseMin(A[l]).cwiseMin(B[l]);
+              hi = hi.cwiseMax(A[l]).cwiseMax(B[l]);
+            }
+          }
+        }
+        Scene scene;
+        scene.skeleton = js.skeleton();
+        scene.meshes = {Crop(RoomMesh(room), lo.array() - 0.3, hi.array() + 0.3)};
+        if (scene.meshes[0].num_triangles() == 0) continue;  // Nothing within reach.
+        sut = std::make_unique<SceneUnderTest>(std::move(scene));
+        Pose still = x0;
+        still.utime = x0.utime + 1;
+        if (!sut->engine().Query(x0, still, QueryOptions()).contact) break;
+        sut.reset();
+      }
+      if (refused_frames) {
+        ++refused;  // Beyond the length tolerance: the adapter's refusal, not a query.
+        continue;
+      }
+      // No clear placement with the room within reach in 12 tries (Finish
+      // counts the queries against its minimum).
+      if (!sut) continue;
+      ASSERT_EQ(ValidateAndNormalizePose(&x0, links), "");
+      ASSERT_EQ(ValidateAndNormalizePose(&x1, links), "");
+      q.pose0 = x0;
+      q.pose1 = x1;
+      q.note = set_id + " in room " + std::to_string(room) + ", clip " + std::to_string(clip_i) +
+               " frame " + std::to_string(k) + " step " + std::to_string(step);
+      q.uniform_samples = 301;  // Many links and triangles: the reference's time is the cost.
+      const Outcome out = suite.Run(*sut, q, seed, i);
+      contacts += out.result.contact;
+      for (const ContactRecord& c : out.result.contacts) {
+        finger_contacts +=
+            js.skeleton().link(c.link.value()).name.find("HAND_") != std::string::npos;
+      }
+    }
+  }
+  std::printf("[%s] %lld refused pairs, %lld contacts, %lld witnesses on hand links\n",
+              set_id.c_str(), static_cast<long long>(refused), static_cast<long long>(contacts),
+              static_cast<long long>(finger_contacts));
+  suite.Finish(min_queries);
+  EXPECT_LE(refused, static_cast<int64_t>(suite.queries() / 10)) << "the adapter refused too many";
+  // The cases do what they say: the room is touched, by hands among others.
+  EXPECT_GE(contacts, testing::ScaledMinimum(5)) << set_id;
+  EXPECT_GE(finger_contacts, testing::ScaledMinimum(2)) << set_id;
+}
+
+TEST(CcdRandomTest, MetaFullBody81LinksInBundledRooms) {
+  FullBodySuite("meta-full-body", 81, 0xFB810000, 12, 36);
+}
+
+TEST(CcdRandomTest, FbBody67LinksInBundledRooms) {
+  FullBodySuite("fb-body", 67, 0xFB670000, 10, 24);
 }
 
 // ---------------------------------------------------------------------------
