@@ -474,7 +474,9 @@ int RunBenchCommand(const BenchCommandOptions& options) {
           "GPU backend on %d threads (%s), in turn, batch by batch (wall clock); pairs/s = the "
           "batches' pairs over their summed wall time; the pairs cycle to fill at least 3 "
           "batches; differ: pairs whose answer differs between the methods (must be 0); "
-          "dispatches: the GPU's, shared by the workers' requests\n\n",
+          "dispatches: the GPU's, shared by the workers' requests; gpu descent: the batch's "
+          "free intervals cleared on the GPU first (capsules = intervals tested there, "
+          "requests = batches), then the CPU on the same threads\n\n",
           options.rate_hz, options.eps_s, options.delta_m, options.motion.c_str(),
           options.per_link ? ", per-link" : "", options.threads, options.threads,
           gpu_backend ? gpu_backend->context()->info().Summary().c_str() : "not run");

@@ -27,7 +27,8 @@ Brief BriefOf(const QueryResult& r) {
   return Brief{r.contact, r.undecided, r.initially_colliding, r.s_lo, r.s_hi};
 }
 
-const char* const kMethods[3] = {"cpu, 1 thread", "cpu, all threads", "gpu, all threads"};
+const char* const kMethods[4] = {"cpu, 1 thread", "cpu, all threads", "gpu, all threads",
+                                 "gpu descent, all threads"};
 
 }  // namespace
 
@@ -50,28 +51,55 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
   std::vector<SweepRow> rows;
   if (pairs.empty()) return rows;
   const size_t num_pairs = pairs.size();
+  // The device descent (docs/GPU.md): the batch's free intervals cleared on
+  // the GPU in a few dispatches, then the CPU engines' queries on the
+  // workers, skipping them.
+  std::unique_ptr<gpu::DeviceDescent> descent;
+  std::vector<int> descent_engine;
+  if (with_gpu) descent = gpu->MakeDescent(env, gpu::DescentOptions());
+  if (descent != nullptr) {
+    for (const auto& engine : cpu_engines) descent_engine.push_back(descent->AddEngine(*engine));
+  }
   WorkerPool pool(options.threads);
-  auto query = [&](const std::vector<std::unique_ptr<CcdEngine>>& engines, size_t p) {
+  auto query = [&](const std::vector<std::unique_ptr<CcdEngine>>& engines, size_t p,
+                   const PairClears* clears = nullptr) {
     const PairRef& r = pairs[p % num_pairs];
     const std::vector<Pose>& poses = *clips[r.clip].poses;
-    return BriefOf(engines[r.clip]->Query(poses[r.k], poses[r.k + 1], options.query));
+    return BriefOf(engines[r.clip]->Query(poses[r.k], poses[r.k + 1], options.query, clears));
+  };
+  std::vector<gpu::DeviceDescent::Pair> descent_pairs;
+  std::vector<PairClears> clears;
+  // The batch [first, first + batch) by the device descent, then the workers.
+  auto descend = [&](size_t first, size_t batch, std::vector<Brief>* out) {
+    descent_pairs.clear();
+    for (size_t i = 0; i < batch; ++i) {
+      const PairRef& r = pairs[(first + i) % num_pairs];
+      const std::vector<Pose>& poses = *clips[r.clip].poses;
+      descent_pairs.push_back({descent_engine[r.clip], &poses[r.k], &poses[r.k + 1]});
+    }
+    (void)descent->Run(descent_pairs, options.query, &clears);  // Failed: clears nothing.
+    pool.Run(batch, [&](size_t i, int) { (*out)[i] = query(cpu_engines, first + i, &clears[i]); });
   };
   // Warm-up, untimed, every method alike.
   for (size_t p = 0; p < std::min<size_t>(20, num_pairs); ++p) {
     (void)query(cpu_engines, p);
     if (with_gpu) (void)query(gpu_engines, p);
   }
-  const int methods = with_gpu ? 3 : 2;
+  std::vector<Brief> warm(20);
+  if (descent != nullptr) descend(0, std::min<size_t>(20, num_pairs), &warm);
+  const int methods = descent != nullptr ? 4 : with_gpu ? 3 : 2;
   for (const int size : options.batch_sizes) {
     const size_t batch = static_cast<size_t>(size);
     const size_t batches =
         std::max<size_t>(static_cast<size_t>(options.min_batches), (num_pairs + batch - 1) / batch);
-    std::vector<double> us[3];
-    double seconds[3] = {0, 0, 0};
-    std::vector<Brief> answers[3];
+    std::vector<double> us[4];
+    double seconds[4] = {0, 0, 0, 0};
+    std::vector<Brief> answers[4];
     for (auto& a : answers) a.resize(batch);
     int64_t differ = 0;
     const gpu::DispatchStats before = with_gpu ? gpu->dispatch_stats() : gpu::DispatchStats();
+    const gpu::DescentStats descent_before =
+        descent != nullptr ? descent->stats() : gpu::DescentStats();
     for (size_t j = 0; j < batches; ++j) {
       const size_t first = j * batch;
       for (int turn = 0; turn < methods; ++turn) {
@@ -79,6 +107,8 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
         const auto start = Clock::now();
         if (m == 0) {
           for (size_t i = 0; i < batch; ++i) answers[0][i] = query(cpu_engines, first + i);
+        } else if (m == 3) {
+          descend(first, batch, &answers[3]);
         } else {
           const auto& engines = m == 1 ? cpu_engines : gpu_engines;
           pool.Run(batch, [&](size_t i, int) { answers[m][i] = query(engines, first + i); });
@@ -90,10 +120,13 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
       for (size_t i = 0; i < batch; ++i) {
         bool same = answers[1][i] == answers[0][i];
         if (with_gpu) same = same && answers[2][i] == answers[0][i];
+        if (descent != nullptr) same = same && answers[3][i] == answers[0][i];
         differ += !same;
       }
     }
     const gpu::DispatchStats after = with_gpu ? gpu->dispatch_stats() : gpu::DispatchStats();
+    const gpu::DescentStats descent_after =
+        descent != nullptr ? descent->stats() : gpu::DescentStats();
     for (int m = 0; m < methods; ++m) {
       SweepRow row;
       row.scene = scene;
@@ -107,6 +140,13 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
         row.dispatches = after.dispatches - before.dispatches;
         row.requests = after.requests - before.requests;
         row.capsules = after.capsules - before.capsules;
+      }
+      if (m == 3) {  // Capsules: intervals tested on the device; requests: batches.
+        row.dispatches = descent_after.dispatches - descent_before.dispatches;
+        row.requests = descent_after.batches - descent_before.batches;
+        row.capsules = descent_after.items - descent_before.items;
+        row.cleared = descent_after.cleared - descent_before.cleared;
+        row.over_budget = descent_after.over_budget - descent_before.over_budget;
       }
       rows.push_back(row);
     }

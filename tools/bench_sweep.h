@@ -3,7 +3,10 @@
 // 1, 16, 64, 256 and 4,096 pairs, each batch answered by the CPU backend on
 // one thread, by the CPU backend on --threads workers, and by the GPU
 // backend on the same workers (their swept tests coalesced into shared
-// dispatches), alternating batch by batch in one run. Per method: pairs per
+// dispatches), and by the device descent (the batch's free intervals
+// cleared on the GPU in a few dispatches, then the CPU engines' queries on
+// the same workers skipping them; core/gpu/device_descent.h), alternating
+// batch by batch in one run. Per method: pairs per
 // second at saturation (the batch's pairs over the batch's wall time, summed
 // over the batches) and the batch's latency (median, p99, max); for the GPU,
 // its dispatches and capsules per dispatch, and the pairs whose answer
@@ -42,8 +45,11 @@ struct SweepRow {
   int64_t pairs = 0;
   double pairs_per_s = 0;
   Summary batch_us;
-  // GPU only.
+  // GPU only. For the device descent: capsules = intervals tested on the
+  // device, requests = batches, and the intervals it cleared and the pairs
+  // it left to the CPU past their budget.
   int64_t dispatches = 0, requests = 0, capsules = 0, differ = -1;
+  int64_t cleared = 0, over_budget = 0;
 };
 
 /// Runs the sweep on one scene; `gpu` null: the CPU methods only.

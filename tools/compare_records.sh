@@ -9,8 +9,13 @@
 #   DATA_DIR  default the project's data/ (NAME or NAME.gz, whichever is there)
 #   WORK_DIR  default a fresh temporary folder (kept, printed at the end)
 # Environment: CLIPS (space-separated .bvh names), FRAMES (poses per clip,
-# default 90), RATE (Hz, default 30), BACKEND (default cpu), SCENES
-# (space-separated scene names from the list below; default all).
+# default 90), RATE (Hz, default 30), BACKEND (default cpu; OLD_BACKEND and
+# NEW_BACKEND, default BACKEND, for each binary alone), NEW_FLAGS (more
+# query flags for the new binary, e.g. `--device-descent`), SCENES
+# (space-separated scene names from the list below; default all). E.g. the
+# device descent on llvmpipe against the CPU, one binary:
+#   NEW_BACKEND=gpu NEW_FLAGS=--device-descent tools/compare_records.sh \
+#     build/bin/sweptccd build/bin/sweptccd
 # Exit status 0 when no record differs, 1 when some do, 2 on a usage error.
 set -euo pipefail
 
@@ -36,6 +41,9 @@ clips=${CLIPS:-"cmu_02_01_walk.bvh cmu_02_03_run_jog.bvh cmu_13_10_jump_grab_rea
 frames=${FRAMES:-90}
 rate=${RATE:-30}
 backend=${BACKEND:-cpu}
+old_backend=${OLD_BACKEND:-$backend}
+new_backend=${NEW_BACKEND:-$backend}
+new_flags=${NEW_FLAGS:-}
 
 # Scenes: name, mesh, up axis, height of the avatar's lowest point, centre
 # (the two other axes). Rooms are placed as the bench places them (2 cm over
@@ -108,9 +116,10 @@ for scene in "${scenes[@]}"; do
         variant=${variant//--per-link/_perlink}
         tag="${name}_${clip%.bvh}_${motion}${variant// /}"
         for which in old new; do
-          bin=$old; [[ $which == new ]] && bin=$new
-          "$bin" query --backend "$backend" --skeleton "$skel" --poses "$poses" \
-            --env "$(datafile "$data/env/$mesh")" --motion "$motion" $per_link \
+          bin=$old; which_backend=$old_backend; flags=""
+          if [[ $which == new ]]; then bin=$new; which_backend=$new_backend; flags=$new_flags; fi
+          "$bin" query --backend "$which_backend" --skeleton "$skel" --poses "$poses" \
+            --env "$(datafile "$data/env/$mesh")" --motion "$motion" $per_link $flags \
             --output "$work/$tag.$which.jsonl" 2>"$work/$tag.$which.log"
         done
         runs=$((runs + 1))

@@ -6,9 +6,10 @@
 # and a script that runs the GPU suites, the round-trip micro-benchmark
 # (read-back against persistent mapped buffers), `sweptccd bench --sweep`
 # (batches of 1 to 4,096 pairs: CPU on 1 and on all threads, GPU on all
-# threads, one run), `sweptccd bench --gpu hardware` and `--backend auto` on
+# threads, and the device descent on all threads, one run), `sweptccd bench --gpu hardware` and `--backend auto` on
 # every bundled scene there, and the records of `--backend gpu --threads
-# $(nproc)` against `--backend cpu --threads 1`, the same sweep on the
+# $(nproc)` and of `--backend gpu --device-descent --threads $(nproc)`
+# against `--backend cpu --threads 1`, the same sweep on the
 # 10.7 M-triangle scene (breakfast+dragons_10M), and the daemon on the CPU
 # then the GPU backend (tools/service_bench/backends.sh): 64 clients at 120
 # Hz, and 32 avatars in one room with the shared world on. The GL vendor
@@ -30,7 +31,7 @@ build=${1:-build}
 out=${2:-.gpu}
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/lib"
-tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test"
+tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test device_descent_test"
 for b in sweptccd sweptccd-service sweptccd_latency_bench sweptccd_gpu_roundtrip_bench $tests; do
   strip -o "$out/bin/$b" "$build/bin/$b"
 done
@@ -86,8 +87,8 @@ part() { echo "== $1 at $((SECONDS - start)) s" >> "$results/times.txt"; }
 # The GPU suites at once (correctness only; they share the GPU).
 part tests
 t_cap=$(cap 150)
-for t in gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test \
-  real_data_gpu_test; do
+for t in gl_context_test gpu_culler_test backend_calibration_test device_descent_test \
+  ccd_random_gpu_test real_data_gpu_test; do
   (
     s=$SECONDS
     timeout "$t_cap" "$B/$t" --gtest_brief=1 > "/tmp/gpu_bundle_$t.log" 2>&1
@@ -146,6 +147,13 @@ for e in morse_apartment.ply.gz bitterli_breakfast_room.ply.gz \
   grep -E 'dispatches|capsules cross' /tmp/gpu_bundle_log
   echo "records: gpu --threads $(nproc) $(wc -l < /tmp/gpu_bundle_gpu_threads)," \
     "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu_threads | grep -c '^>')"
+  # The device descent (docs/GPU.md): the chunk's free intervals on the GPU.
+  timeout "$(cap 15)" "${q[@]}" --backend gpu --device-descent --threads "$(nproc)" \
+    --log-level info 2> /tmp/gpu_bundle_log |
+    sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > /tmp/gpu_bundle_gpu_descent
+  grep -E 'device descent' /tmp/gpu_bundle_log
+  echo "records: gpu --device-descent --threads $(nproc) $(wc -l < /tmp/gpu_bundle_gpu_descent)," \
+    "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu_descent | grep -c '^>')"
 done > "$results/auto.txt" 2>&1
 # The bench alone: the CPU and GPU backends on the same pairs, wall clock.
 part bench

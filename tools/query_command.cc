@@ -56,7 +56,22 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd query: backend %s\n", backend.reason().c_str());
     }
-    backend.Attach(&engine);
+    // --device-descent: the chunk's free intervals on the GPU, then the CPU
+    // engine (no culler: what the device left is decided by the CPU).
+    std::unique_ptr<gpu::DeviceDescent> descent;
+    if (options.device_descent && backend.gpu()) {
+      descent = backend.MakeDescent(env, gpu::DescentOptions());
+    }
+    int descent_engine = 0;
+    if (descent != nullptr) {
+      descent_engine = descent->AddEngine(engine);
+    } else {
+      backend.Attach(&engine);
+    }
+    std::vector<gpu::DeviceDescent::Pair> descent_pairs;
+    std::vector<size_t> descent_slot;  // The outcome of each descent pair.
+    std::vector<PairClears> clears;
+    std::vector<const PairClears*> clears_of;
     PoseStreamReader reader(poses, skeleton.num_links());
     // The pairs are read in chunks; a chunk's valid pairs are answered by the
     // workers (each into its own slot), then written in input order, so the
@@ -78,6 +93,18 @@ int RunQueryCommand(const QueryCommandOptions& options) {
       }
       lines.assign(outcomes.size(), std::string());
       std::vector<uint8_t> contact(outcomes.size(), 0);
+      clears_of.assign(outcomes.size(), nullptr);
+      if (descent != nullptr) {
+        descent_pairs.clear();
+        descent_slot.clear();
+        for (size_t i = 0; i < outcomes.size(); ++i) {
+          if (!outcomes[i].valid) continue;
+          descent_pairs.push_back({descent_engine, &outcomes[i].pose0, &outcomes[i].pose1});
+          descent_slot.push_back(i);
+        }
+        (void)descent->Run(descent_pairs, options.query, &clears);  // Failed: clears nothing.
+        for (size_t j = 0; j < descent_slot.size(); ++j) clears_of[descent_slot[j]] = &clears[j];
+      }
       pool.Run(outcomes.size(), [&](size_t i, int) {
         const PairOutcome& o = outcomes[i];
         if (!o.valid) {
@@ -85,7 +112,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
           return;
         }
         const auto start = std::chrono::steady_clock::now();
-        const QueryResult result = engine.Query(o.pose0, o.pose1, options.query);
+        const QueryResult result = engine.Query(o.pose0, o.pose1, options.query, clears_of[i]);
         const double elapsed_us =
             std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
                 .count();
@@ -109,7 +136,15 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} pairs queried ({} contact), {} invalid", pairs, contacts, invalid);
-    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
+    if (descent != nullptr) {
+      const gpu::DescentStats d = descent->stats();
+      spdlog::info(
+          "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
+          "pairs over budget",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+    } else if (backend.gpu()) {
+      spdlog::info("GPU: {}", backend.DispatchSummary());
+    }
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

@@ -25,6 +25,10 @@ struct QueryCommandOptions {
   MeshLoadOptions mesh;                // --max-mesh-bytes.
   int max_links = kDefaultMaxLinks;    // --max-links.
   int threads = DefaultThreadCount();  // --threads: workers answering the pairs.
+  /// --device-descent: with the GPU chosen, each chunk's free intervals are
+  /// cleared on the GPU (core/gpu/device_descent.h) and the CPU engine
+  /// answers the pairs skipping them, instead of the per-pair round trips.
+  bool device_descent = false;
 };
 
 /// Runs the command. Returns the exit status: 0 when the inputs could be

@@ -48,6 +48,9 @@ int main(int argc, char** argv) {
   sweptccd::AddBackendFlags(
       query, &q.backend, "cpu, gpu or auto (default auto: the faster on a calibration at start)");
   query->add_flag("--per-link", q.query.per_link, "A bracket for every touching link");
+  query->add_flag("--device-descent", q.device_descent,
+                  "With the GPU chosen: clear each chunk's free time intervals on the GPU in a "
+                  "few dispatches, then answer on the CPU skipping them (docs/GPU.md)");
   query->add_option("--output", q.output_path, "Results file (default: standard output)");
   query->add_option("--filter", q.filter_path,
                     "Collision filter JSON: {\"ignore\": [{\"link\": L, \"object\": O}]}");

@@ -149,22 +149,38 @@ void Backend::Attach(CcdEngine* engine) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (attach_failed_) return;
   try {
-    const uint64_t id = engine->environment().content_id();
-    std::shared_ptr<const GpuEnvironment> env;
-    for (const auto& [key, upload] : uploaded_) {
-      if (key == id) env = upload;
-    }
-    if (env == nullptr) {
-      env = std::make_shared<const GpuEnvironment>(context_, engine->environment());
-      uploaded_.emplace_back(id, env);
-      if (uploaded_.size() > kKeptUploads) uploaded_.pop_front();
-    }
+    const std::shared_ptr<const GpuEnvironment> env = UploadLocked(engine->environment());
     engine->SetCuller(
         std::make_shared<GpuCuller>(env, engine->filter(), engine->skeleton().num_links()));
   } catch (const GpuError& e) {
     attach_failed_ = true;
     failure_ = e.what();
     spdlog::error("GPU backend failed, queries continue on the CPU: {}", e.what());
+  }
+}
+
+std::shared_ptr<const GpuEnvironment> Backend::UploadLocked(const Environment& environment) {
+  const uint64_t id = environment.content_id();
+  for (const auto& [key, upload] : uploaded_) {
+    if (key == id) return upload;
+  }
+  auto env = std::make_shared<const GpuEnvironment>(context_, environment);
+  uploaded_.emplace_back(id, env);
+  if (uploaded_.size() > kKeptUploads) uploaded_.pop_front();
+  return env;
+}
+
+std::unique_ptr<DeviceDescent> Backend::MakeDescent(const Environment& environment,
+                                                    const DescentOptions& options) {
+  SWEPTCCD_CHECK(!auto_pending_);  // ResolveAuto first (backend.h).
+  if (!gpu()) return nullptr;
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (attach_failed_) return nullptr;
+  try {
+    return std::make_unique<DeviceDescent>(UploadLocked(environment), environment, options);
+  } catch (const GpuError& e) {
+    spdlog::error("GPU device descent unavailable, queries run on the CPU: {}", e.what());
+    return nullptr;
   }
 }
 

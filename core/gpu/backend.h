@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "core/gpu/device_descent.h"
 #include "core/gpu/gl_context.h"
 #include "core/gpu/gpu_culler.h"
 #include "core/query/ccd_query.h"
@@ -95,7 +96,16 @@ class Backend {
   /// bug otherwise).
   void Attach(CcdEngine* engine);
 
+  /// The device descent (core/gpu/device_descent.h) on `environment`'s
+  /// upload (the one Attach uses). nullptr on the CPU, or when the upload
+  /// or the program fails (logged; the CPU answers alone). Thread-safe.
+  std::unique_ptr<DeviceDescent> MakeDescent(const Environment& environment,
+                                             const DescentOptions& options);
+
  private:
+  // The upload of `environment` (kept, shared); the mutex held. Throws GpuError.
+  std::shared_ptr<const GpuEnvironment> UploadLocked(const Environment& environment);
+
   std::shared_ptr<GlContext> context_;
   std::string reason_;
   bool auto_pending_ = false;  // auto with a context, not yet resolved.

@@ -17,19 +17,19 @@ namespace {
 // BVH (box overlap, exact in float), then per triangle a certificate of
 // separation along two axes. Writes 1 unless every triangle is certified
 // farther than the radius. See docs/GPU.md for the rounding argument.
-constexpr char kCullShader[] = R"GLSL(
+constexpr char kShaderHead[] = R"GLSL(
 #version 430
 layout(local_size_x = 64) in;
+)GLSL";
 
+// The search, shared by this dispatch's shader and the device descent's
+// (core/gpu/descent_dispatch.cc): bindings 0-3 and the search functions.
+constexpr char kSearchGlsl[] = R"GLSL(
 layout(std430, binding = 0) readonly buffer Nodes { uint node_words[]; };  // 8 words per node
 layout(std430, binding = 1) readonly buffer Tris { float tri[]; };         // 9 floats per slot
 layout(std430, binding = 2) readonly buffer Objects { uvec4 objects[]; };  // node offset, slot offset, nodes
 layout(std430, binding = 3) readonly buffer Masks { uint masks[]; };       // ignored objects per link, per filter
-struct Capsule { vec4 a_r; vec4 b; vec4 lo; vec4 hi; uvec4 meta; };
-layout(std430, binding = 4) readonly buffer Capsules { Capsule caps[]; };
-layout(std430, binding = 5) writeonly buffer Hits { uint hits[]; };
 
-uniform uint u_num_capsules;
 uniform uint u_num_objects;
 uniform uint u_mask_words;
 
@@ -161,15 +161,10 @@ bool BoxesOverlap(vec3 lo0, vec3 hi0, vec3 lo1, vec3 hi1) {
 // The cap also bounds one capsule's time on a real GPU.
 const uint kMaxSteps = 16384u;
 
-void main() {
-  uint id = gl_GlobalInvocationID.x;
-  if (id >= u_num_capsules) return;
-  Capsule cap = caps[id];
-  vec3 a = cap.a_r.xyz, b = cap.b.xyz;
-  float r = cap.a_r.w;
-  vec3 lo = cap.lo.xyz, hi = cap.hi.xyz;
-  uint link = cap.meta.x;
-  uint mask_base = cap.meta.y;  // This capsule's filter's table (one buffer holds every filter's).
+// kCleared when every unfiltered triangle is certified farther than r from
+// segment a-b (lo, hi: a box holding the capsule; link and mask_base: whose
+// collision filter), anything else when not.
+uint Search(vec3 a, vec3 b, float r, vec3 lo, vec3 hi, uint link, uint mask_base) {
   uint hit = 0u;
   bool searched = false;  // Every object searched to its end.
   uint stack[128];
@@ -219,7 +214,24 @@ void main() {
   }
   // Only a search that ran to its end clears: a loop ended any other way
   // (the cap, a driver's limit) answers "may touch".
-  hits[id] = hit == 0u && searched ? kCleared : 1u;
+  return hit == 0u && searched ? kCleared : 1u;
+}
+)GLSL";
+
+// One invocation per capsule sent by the host.
+constexpr char kCullMain[] = R"GLSL(
+struct Capsule { vec4 a_r; vec4 b; vec4 lo; vec4 hi; uvec4 meta; };
+layout(std430, binding = 4) readonly buffer Capsules { Capsule caps[]; };
+layout(std430, binding = 5) writeonly buffer Hits { uint hits[]; };
+uniform uint u_num_capsules;
+
+void main() {
+  uint id = gl_GlobalInvocationID.x;
+  if (id >= u_num_capsules) return;
+  Capsule cap = caps[id];
+  // meta.y: this capsule's filter's table (one buffer holds every filter's).
+  hits[id] = Search(cap.a_r.xyz, cap.b.xyz, cap.a_r.w, cap.lo.xyz, cap.hi.xyz, cap.meta.x,
+                    cap.meta.y);
 }
 )GLSL";
 
@@ -266,6 +278,9 @@ void WaitFor(GLsync sync) {
 
 }  // namespace
 
+std::string SearchGlsl() { return kSearchGlsl; }
+std::string ShaderHead() { return kShaderHead; }
+
 CullDispatch::CullDispatch(const EnvironmentBuffers& env, Transfer transfer)
     : env_(env), transfer_(transfer) {
   mask_words_ = std::max<uint32_t>(1, (env.num_objects + 31) / 32);
@@ -279,7 +294,7 @@ CullDispatch::CullDispatch(const EnvironmentBuffers& env, Transfer transfer)
       transfer_ = Transfer::kReadBack;
     }
   }
-  program_ = CompileProgram(kCullShader);
+  program_ = CompileProgram((std::string(kShaderHead) + kSearchGlsl + kCullMain).c_str());
   loc_num_capsules_ = glGetUniformLocation(program_, "u_num_capsules");
   loc_num_objects_ = glGetUniformLocation(program_, "u_num_objects");
   loc_mask_words_ = glGetUniformLocation(program_, "u_mask_words");

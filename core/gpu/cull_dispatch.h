@@ -15,6 +15,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/gpu/gl_api.h"
@@ -46,6 +47,14 @@ struct EnvironmentBuffers {
   GLuint num_objects = 0;
 };
 
+/// The compute shaders' first lines (#version, the work group size), and
+/// the swept-volume search they share: bindings 0-3 (nodes, triangles,
+/// objects, masks), uniforms u_num_objects and u_mask_words, and
+/// `uint Search(vec3 a, vec3 b, float r, vec3 lo, vec3 hi, uint link, uint
+/// mask_base)`, kCleared (0xC1EA4ED) only for a capsule proved clear.
+std::string ShaderHead();
+std::string SearchGlsl();
+
 class CullDispatch {
  public:
   /// Compiles the program and makes the buffers; `transfer` kBest or
@@ -66,6 +75,10 @@ class CullDispatch {
   uint32_t AddMasks(const std::vector<uint32_t>& masks);
   /// Gives back a table (its offset and size) for reuse.
   void RemoveMasks(uint32_t offset, size_t size);
+  /// The buffer of every filter's masks (binding 3 of SearchGlsl) and the
+  /// words per link in it (u_mask_words).
+  GLuint masks_buffer() const { return masks_buffer_; }
+  uint32_t mask_words() const { return mask_words_; }
 
   /// Tests `n` capsules in one dispatch; answers[i] is the shader's word for
   /// capsule i (kClearedAnswer or anything else). Throws GpuError.

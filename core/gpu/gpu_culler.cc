@@ -12,6 +12,7 @@
 #include "core/gpu/cull_combiner.h"
 #include "core/gpu/cull_dispatch.h"
 #include "core/gpu/gl_api.h"
+#include "core/gpu/gpu_environment_buffers.h"
 
 namespace sweptccd::gpu {
 
@@ -55,14 +56,6 @@ GpuCapsule ToGpu(const LinkCapsule& c) {
 }
 
 }  // namespace
-
-struct GpuEnvironment::Buffers {
-  GLuint nodes = 0, tris = 0, objects = 0;
-  // The program, the filters' masks and the capsule buffers (owner thread).
-  std::unique_ptr<internal::CullDispatch> dispatch;
-  // Every culler's requests, from every thread, coalesced into dispatches.
-  std::unique_ptr<internal::CullCombiner> combiner;
-};
 
 GpuEnvironment::GpuEnvironment(std::shared_ptr<GlContext> context, const Environment& environment,
                                Transfer transfer)

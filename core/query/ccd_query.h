@@ -12,6 +12,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/query/capsule_culler.h"
+#include "core/query/pair_clears.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
 #include "core/typed_index.h"
@@ -131,6 +132,12 @@ class CcdEngine {
   /// options.motion) of this engine's skeleton. The same answer.
   QueryResult Query(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
                     const QueryOptions& options) const;
+  /// The same, skipping the intervals `clears` holds (the device descent,
+  /// docs/GPU.md: each is one this query's own test would clear, so the
+  /// answer is the same; stats.cull_cleared counts those skipped). nullptr:
+  /// as Query above.
+  QueryResult Query(const Pose& pose0, const Pose& pose1, const QueryOptions& options,
+                    const PairClears* clears) const;
 
   /// Exact separation of `link` at s (distance to the nearest unfiltered
   /// triangle minus the radius), searching only within `search_radius` of the

@@ -23,8 +23,9 @@ constexpr double kGroupMaxRadiusM = 0.5;
 }  // namespace
 
 QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
-                   const QueryOptions& options, const PairMotion* motion)
+                   const QueryOptions& options, const PairMotion* motion, const PairClears* clears)
     : options_(options),
+      clears_(clears),
       num_links_(engine.skeleton().num_links()),
       groups_(engine.link_groups()),
       use_groups_(motion == nullptr && options.link_groups &&
@@ -262,6 +263,13 @@ void QueryRun::SeedRoots() {
       ++stats_.links_culled;
       continue;
     }
+    // The device descent cleared the whole pair for the link (as a culler
+    // would: the same skip as cleared_by_culler_).
+    if (clears_ != nullptr && clears_->Cleared(l, 0, 0.0, 1.0)) {
+      ++stats_.links_culled;
+      ++stats_.cull_cleared;
+      continue;
+    }
     ++stats_.links_tested;
     Interval root;
     root.link = l;
@@ -292,6 +300,12 @@ void QueryRun::Descend() {
 
 QueryRun::Step QueryRun::Visit(const Interval& interval) {
   const CullAnswer* answer = nullptr;
+  // Proved free by the device descent: an interval this test would clear.
+  if (!interval.prefiltered && clears_ != nullptr &&
+      clears_->Cleared(interval.link, interval.depth, interval.s0, interval.s1)) {
+    ++stats_.cull_cleared;
+    return Step::kNext;
+  }
   if (!interval.prefiltered) {
     answer = cull_.AnswerFor(interval, queue_.pending(), witnesses_.done());
     if (answer != nullptr && answer->cleared) {

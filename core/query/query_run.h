@@ -37,8 +37,11 @@ class QueryRun {
  public:
   /// `motion`: the pair's motion when the caller has it (built from the
   /// engine's skeleton, pose0, pose1 and options.motion), else built here.
+  /// `clears`: intervals proved free ahead of the descent (the device
+  /// descent), skipped; nullptr: none.
   QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
-           const QueryOptions& options, const PairMotion* motion = nullptr);
+           const QueryOptions& options, const PairMotion* motion = nullptr,
+           const PairClears* clears = nullptr);
   /// Hands the arrays back to the thread for its next query.
   ~QueryRun();
   QueryRun(const QueryRun&) = delete;
@@ -78,6 +81,7 @@ class QueryRun {
   CandidateList CandidatesOf(const Interval& interval, const LinkCapsule& capsule);
 
   const QueryOptions& options_;
+  const PairClears* const clears_;  // May be null.
   const int num_links_;
   const LinkGroups& groups_;
   // Link groups apply: `articulated`, options.link_groups, the skeleton has

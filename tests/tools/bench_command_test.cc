@@ -133,8 +133,9 @@ TEST_F(BenchCommandTest, PrintsOursBesideBulletAndFcl) {
 }
 
 // Issue 30: `bench --sweep` prints, for every batch size, the CPU on one
-// thread, the CPU on --threads threads and the GPU backend (llvmpipe here)
-// with its dispatches; every method answered every pair alike (differ 0);
+// thread, the CPU on --threads threads, the GPU backend (llvmpipe here)
+// with its dispatches, and the device descent with its own; every method
+// answered every pair alike (differ 0);
 // the pairs cycle to fill at least 3 batches. Counts only, never times.
 TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
   const RunResult r = Run({"bench", "--sweep", "--scene", "morse_apartment", "--clip",
@@ -148,7 +149,8 @@ TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
   std::string line;
   std::map<std::string, int> rows;
   const std::regex row(
-      "\\| morse_apartment \\| ([0-9]+) \\| (cpu, 1 thread|cpu, all threads|gpu, all threads) "
+      "\\| morse_apartment \\| ([0-9]+) \\| (cpu, 1 thread|cpu, all threads|gpu, all "
+      "threads|gpu descent, all threads) "
       "\\| ([0-9]+) \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| ([-0-9]+) \\| "
       "([-0-9.]+) \\| ([-0-9.]+) \\| ([0-9]+) \\|");
   while (std::getline(in, line)) {
@@ -159,13 +161,13 @@ TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
     // 150 pairs in whole batches, at least 3 batches.
     EXPECT_EQ(std::stoi(m[3]), std::max(150 + (batch - 150 % batch) % batch, 3 * batch)) << line;
     EXPECT_EQ(m[7], "0") << "methods disagree: " << line;
-    if (m[2] == "gpu, all threads") {
+    if (m[2] == "gpu, all threads" || m[2] == "gpu descent, all threads") {
       EXPECT_GT(std::stoi(m[4]), 0) << "the GPU never dispatched: " << line;
     } else {
       EXPECT_EQ(m[4], "-") << line;
     }
   }
-  EXPECT_EQ(rows.size(), 9u) << r.out;
+  EXPECT_EQ(rows.size(), 12u) << r.out;
   for (const auto& [key, n] : rows) EXPECT_EQ(n, 1) << key;
 }
 

@@ -164,5 +164,29 @@ TEST_F(ThreadsCommandTest, GpuWithThreadsGivesTheCpuRecords) {
   EXPECT_EQ(WithoutTiming(g.out), WithoutTiming(c.out));
 }
 
+// Issue 30: `query --device-descent` (the chunk's free intervals cleared on
+// the GPU, llvmpipe here, in a few dispatches; the CPU answers the rest)
+// gives the CPU's records, first contact and per link.
+TEST_F(ThreadsCommandTest, QueryDeviceDescentGivesTheCpuRecords) {
+  Import("boxing_toes.bvh.gz");
+  const std::string env = "morse_apartment.ply.gz";
+  const RunResult d = Run({"query", "--skeleton", Path("skel.json"), "--poses", Path("poses.jsonl"),
+                           "--env", kData + "/env/" + env, "--backend", "gpu", "--device-descent",
+                           "--threads", "2", "--log-level", "info"});
+  ASSERT_TRUE(d.exited && d.code == 0) << d.Describe();
+  EXPECT_TRUE(std::regex_search(
+      d.err, std::regex("GPU device descent: [1-9][0-9]* batches, [1-9][0-9]* dispatches, "
+                        "[1-9][0-9]* intervals tested, [1-9][0-9]* cleared")))
+      << d.err;
+  const std::vector<std::string> cpu =
+      WithoutTiming(Query(env, {"--backend", "cpu", "--threads", "1"}));
+  EXPECT_GE(Count(cpu, "\"contact\""), 20);
+  EXPECT_GE(Count(cpu, "\"free\""), 20);
+  EXPECT_EQ(WithoutTiming(d.out), cpu);
+  EXPECT_EQ(WithoutTiming(Query(
+                env, {"--backend", "gpu", "--device-descent", "--threads", "3", "--per-link"})),
+            WithoutTiming(Query(env, {"--backend", "cpu", "--threads", "1", "--per-link"})));
+}
+
 }  // namespace
 }  // namespace sweptccd

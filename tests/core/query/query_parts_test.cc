@@ -16,6 +16,7 @@
 #include "core/query/candidate_pool.h"
 #include "core/query/cull_batcher.h"
 #include "core/query/environment_target.h"
+#include "core/query/pair_clears.h"
 #include "core/query/swept_bounds.h"
 #include "core/query/time_slicer.h"
 #include "core/scene/collision_filter.h"
@@ -395,6 +396,39 @@ TEST(QueryPartsTest, CullBatcherGoesInactiveWhenTheCullerFails) {
   EXPECT_EQ(stats.cull_round_trips, 0);
   EXPECT_EQ(batcher.AnswerFor(root, {}, std::vector<bool>(3, false)), nullptr);
   EXPECT_EQ(culler.round_trips, 1);  // Not asked again.
+}
+
+// What a query skips for the device descent: exactly the dyadic intervals
+// marked, at their own depth, and nothing outside the recorded levels.
+TEST(QueryPartsTest, PairClearsMatchOnlyTheMarkedDyadicIntervals) {
+  PairClears c;
+  c.Reset(3, 4);
+  EXPECT_EQ(c.count(), 0);
+  c.Set(LinkIndex(1), 0, 0);  // [0, 1]
+  c.Set(LinkIndex(1), 3, 5);  // [5/8, 6/8]
+  c.Set(LinkIndex(2), 2, 3);  // [3/4, 1]
+  c.Set(LinkIndex(2), 4, 0);  // Depth 4 is not recorded: ignored.
+  c.Set(LinkIndex(2), 1, 2);  // k out of range: ignored.
+  c.Set(LinkIndex(7), 0, 0);  // No such link: ignored.
+  EXPECT_EQ(c.count(), 3);
+  EXPECT_TRUE(c.Cleared(LinkIndex(1), 0, 0.0, 1.0));
+  EXPECT_TRUE(c.Cleared(LinkIndex(1), 3, 0.625, 0.75));
+  EXPECT_TRUE(c.Cleared(LinkIndex(2), 2, 0.75, 1.0));
+  EXPECT_FALSE(c.Cleared(LinkIndex(0), 0, 0.0, 1.0));     // Another link.
+  EXPECT_FALSE(c.Cleared(LinkIndex(1), 3, 0.5, 0.625));   // Another interval.
+  EXPECT_FALSE(c.Cleared(LinkIndex(1), 2, 0.625, 0.75));  // Not its depth.
+  EXPECT_FALSE(c.Cleared(LinkIndex(1), 3, 0.625, 0.7));   // Not its end.
+  EXPECT_FALSE(c.Cleared(LinkIndex(1), 3, std::nextafter(0.625, 1.0), 0.75));
+  EXPECT_FALSE(c.Cleared(LinkIndex(2), 4, 0.0, 0.0625));  // Below the levels.
+  EXPECT_FALSE(c.Cleared(LinkIndex(2), 2, std::nan(""), 1.0));
+  EXPECT_FALSE(c.Cleared(LinkIndex(), 0, 0.0, 1.0));
+  // A word: only the bits of recorded depths (15 for 4 levels) are kept.
+  c.SetWord(LinkIndex(0), 0xFFFFFFFFu);
+  EXPECT_EQ(c.count(), 3 + 15);
+  EXPECT_TRUE(c.Cleared(LinkIndex(0), 3, 0.875, 1.0));
+  c.Reset(3, PairClears::kMaxLevels + 3);  // Clamped.
+  EXPECT_EQ(c.levels(), PairClears::kMaxLevels);
+  EXPECT_EQ(c.count(), 0);
 }
 
 }  // namespace

@@ -1,0 +1,294 @@
+#include "core/gpu/device_descent.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/avatar/motion.h"
+#include "core/errors.h"
+#include "core/gpu/descent_dispatch.h"
+#include "core/gpu/gpu_environment_buffers.h"
+#include "core/query/swept_bounds.h"
+
+namespace sweptccd::gpu {
+
+namespace {
+
+using internal::DescentItem;
+using internal::DescentPoint;
+using internal::DescentTrack;
+
+float RoundUp(double x) {
+  float f = static_cast<float>(x);
+  if (static_cast<double>(f) < x) f = std::nextafter(f, std::numeric_limits<float>::infinity());
+  return f;
+}
+
+// What a float holds safely (the shader never sees more; docs/GPU.md).
+bool Usable(double x) { return std::fabs(x) <= 1e30; }  // NaN: false.
+
+// The grid point of `link` at s: the segment as SegmentAt computes it (the
+// bits the CPU's descent computes for the same s), rounded to nearest, and
+// the larger endpoint displacement of that rounding, rounded up. False when
+// a float cannot hold it.
+bool GridPoint(const PairMotion& motion, LinkIndex link, double s, DescentPoint* out) {
+  Eigen::Vector3d a, b;
+  motion.SegmentAt(link, s, &a, &b);
+  for (int k = 0; k < 3; ++k) {
+    if (!Usable(a[k]) || !Usable(b[k])) return false;
+    out->a_d[k] = static_cast<float>(a[k]);
+    out->b[k] = static_cast<float>(b[k]);
+  }
+  const Eigen::Vector3d af(out->a_d[0], out->a_d[1], out->a_d[2]);
+  const Eigen::Vector3d bf(out->b[0], out->b[1], out->b[2]);
+  const double moved = std::max((af - a).norm(), (bf - b).norm()) * (1 + 1e-12);
+  if (!Usable(moved)) return false;
+  out->a_d[3] = RoundUp(moved);
+  out->b[3] = 0;
+  return true;
+}
+
+// The track's growth constants (rad), rounded up, such that for every depth
+// d below `levels` the device's radius before its own rounding,
+// rad[0] + rad[1] 2^-(d + 1) + rad[2], is at least the CPU's radius of
+// every interval at that depth with its first-order growth (SweptBounds:
+// (link radius + growth) + tolerance, growth = min(first order, second
+// order) <= SweepRadius, which depends on the width alone). Checked here
+// for every depth, with a relative margin of 2^-40 that covers this
+// check's own double roundings. False when not (the track is not sent).
+bool Radii(const PairMotion& motion, double link_radius, double tolerance, LinkIndex link,
+           int levels, float rad[4]) {
+  const double whole = motion.SweepRadius(link, 0.0, 1.0);
+  const double slack = motion.rounding_slack();
+  rad[0] = RoundUp((link_radius + tolerance) * (1 + 1e-12));
+  rad[1] = RoundUp(2 * whole * (1 + 1e-12));
+  rad[2] = RoundUp(slack * (1 + 1e-12));
+  rad[3] = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (!Usable(rad[k]) || !(rad[k] >= 0)) return false;
+  }
+  // The shader's box growth needs r >= 1e-20 (device_descent.cc's shader).
+  if (!(rad[0] >= 1e-20f)) return false;
+  for (int d = 0; d < levels; ++d) {
+    const double width = std::ldexp(1.0, -d);
+    const double cpu = (link_radius + motion.SweepRadius(link, 0.0, width)) + tolerance;
+    const double device = static_cast<double>(rad[0]) +
+                          static_cast<double>(rad[1]) * std::ldexp(1.0, -(d + 1)) +
+                          static_cast<double>(rad[2]);
+    if (!(device >= cpu * (1 + std::ldexp(1.0, -40)))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+struct DeviceDescent::State {
+  struct EngineEntry {
+    const CcdEngine* engine;
+    uint32_t masks_offset;
+    size_t masks_size;
+  };
+  std::vector<EngineEntry> engines;
+  std::unique_ptr<internal::DescentDispatch> dispatch;
+  DescentStats stats;
+  bool failed = false;
+};
+
+DeviceDescent::DeviceDescent(std::shared_ptr<const GpuEnvironment> environment,
+                             const Environment& source, DescentOptions options)
+    : env_(std::move(environment)),
+      content_id_(source.content_id()),
+      options_(options),
+      state_(std::make_unique<State>()) {
+  options_.levels = std::clamp(options_.levels, 1, PairClears::kMaxLevels);
+  options_.pair_budget = std::max(0, options_.pair_budget);
+  options_.queue_capacity = std::max(2, options_.queue_capacity);
+  const GpuEnvironment::Buffers& b = env_->buffers();
+  State& s = *state_;
+  env_->context().Run([&] {
+    s.dispatch = std::make_unique<internal::DescentDispatch>(
+        b.nodes, b.tris, b.objects, static_cast<GLuint>(env_->num_objects()));
+  });
+}
+
+DeviceDescent::~DeviceDescent() {
+  State* s = state_.get();
+  internal::CullDispatch* dispatch = env_->buffers().dispatch.get();
+  try {
+    env_->context().Run([s, dispatch] {
+      for (const State::EngineEntry& e : s->engines) {
+        dispatch->RemoveMasks(e.masks_offset, e.masks_size);
+      }
+      s->dispatch.reset();
+    });
+  } catch (const GpuError&) {
+    (void)s->dispatch.release();  // A lost context took its objects with it.
+  }
+}
+
+int DeviceDescent::AddEngine(const CcdEngine& engine) {
+  if (engine.environment().content_id() != content_id_) {
+    throw GpuError("the device descent was made for another environment");
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  State& s = *state_;
+  const int num_links = engine.skeleton().num_links();
+  const int mask_words = std::max(1, (env_->num_objects() + 31) / 32);
+  std::vector<uint32_t> masks(static_cast<size_t>(std::max(1, num_links)) * mask_words, 0u);
+  for (LinkIndex l(0); l < num_links; ++l) {
+    for (ObjectIndex o(0); o < env_->num_objects(); ++o) {
+      if (engine.filter().Ignores(l, o)) masks[l * mask_words + o / 32] |= 1u << (o % 32);
+    }
+  }
+  internal::CullDispatch& dispatch = *env_->buffers().dispatch;
+  uint32_t offset = 0;
+  env_->context().Run([&] { offset = dispatch.AddMasks(masks); });
+  s.engines.push_back({&engine, offset, masks.size()});
+  return static_cast<int>(s.engines.size()) - 1;
+}
+
+DescentStats DeviceDescent::stats() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return state_->stats;
+}
+
+bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& options,
+                        std::vector<PairClears>* clears) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  State& s = *state_;
+  const int levels = options_.levels;
+  clears->resize(pairs.size());
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    SWEPTCCD_CHECK(pairs[i].engine >= 0 && pairs[i].engine < static_cast<int>(s.engines.size()));
+    (*clears)[i].Reset(s.engines[pairs[i].engine].engine->skeleton().num_links(), levels);
+  }
+  if (s.failed || pairs.empty()) return !s.failed;
+  ++s.stats.batches;
+  s.stats.pairs += static_cast<int64_t>(pairs.size());
+
+  // The pairs' motions, as their queries will build them.
+  std::vector<std::unique_ptr<PairMotion>> motions(pairs.size());
+  struct TrackOf {
+    uint32_t pair;
+    LinkIndex link;
+  };
+  std::vector<TrackOf> owners;
+  std::vector<DescentTrack> tracks;
+  const size_t per_track = (size_t{1} << levels) + 1;
+  const uint32_t mid = 1u << (levels - 1);
+  std::vector<DescentPoint> grid;
+  std::vector<DescentItem> items;
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const State::EngineEntry& e = s.engines[pairs[i].engine];
+    const Skeleton& skeleton = e.engine->skeleton();
+    SWEPTCCD_CHECK(pairs[i].pose1->utime > pairs[i].pose0->utime);
+    motions[i] =
+        std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1, options.motion);
+    const PairMotion& motion = *motions[i];
+    const double tolerance =
+        sweptccd::internal::SweptBounds::Tolerance(e.engine->environment(), motion);
+    for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
+      DescentTrack t{};
+      if (!Radii(motion, skeleton.link(l).radius, tolerance, l, levels, t.rad)) {
+        ++s.stats.refused;
+        continue;
+      }
+      DescentPoint centre{};
+      if (!GridPoint(motion, l, 0.5, &centre)) {
+        ++s.stats.refused;
+        continue;
+      }
+      const auto index = static_cast<uint32_t>(tracks.size());
+      t.meta[0] = static_cast<uint32_t>(l.value());
+      t.meta[1] = e.masks_offset;
+      t.meta[2] = static_cast<uint32_t>(i);
+      t.meta[3] = static_cast<uint32_t>(index * per_track);
+      tracks.push_back(t);
+      owners.push_back({static_cast<uint32_t>(i), l});
+      grid.resize(tracks.size() * per_track);
+      grid[index * per_track + mid] = centre;
+      items.push_back({index, 0u});
+    }
+  }
+  s.stats.tracks += static_cast<int64_t>(tracks.size());
+  std::vector<uint32_t> cleared(tracks.size(), 0u), pushed(pairs.size(), 0u),
+      flags(pairs.size(), 0u);
+  internal::DescentLevels run;
+  run.grid_levels = levels;
+  run.pair_budget = static_cast<uint32_t>(options_.pair_budget);
+  run.capacity = static_cast<uint32_t>(options_.queue_capacity);
+  internal::CullDispatch& cull = *env_->buffers().dispatch;
+  try {
+    // The whole pair first (the link culling step), for every link.
+    run.stop_depth = 1;
+    int dispatches = 0;
+    int64_t tested = 0;
+    env_->context().Run([&] {
+      dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
+                                    cull.mask_words(), &pushed, &flags, &cleared, &tested);
+    });
+    // The open links' trees: their grids (only for them), then the levels
+    // below, appended on the device.
+    items.clear();
+    if (levels > 1) {
+      std::vector<uint32_t> open_links(pairs.size(), 0u);
+      std::vector<uint8_t> grid_ok(tracks.size(), 0);
+      for (size_t t = 0; t < tracks.size(); ++t) {
+        if (cleared[t] & 1u) continue;
+        const PairMotion& motion = *motions[owners[t].pair];
+        bool ok = true;
+        for (uint32_t j = 0; j < per_track && ok; ++j) {
+          if (j == mid) continue;
+          ok = GridPoint(motion, owners[t].link, std::ldexp(static_cast<double>(j), -levels),
+                         &grid[t * per_track + j]);
+        }
+        if (!ok) {
+          ++s.stats.refused;
+          continue;
+        }
+        grid_ok[t] = 1;
+        ++open_links[owners[t].pair];
+      }
+      for (size_t t = 0; t < tracks.size(); ++t) {
+        if (grid_ok[t] == 0) continue;
+        const uint32_t p = owners[t].pair;
+        if (2u * open_links[p] > run.pair_budget) {
+          flags[p] |= internal::kOverPairBudget;  // Its halves are left to the CPU.
+          continue;
+        }
+        items.push_back({static_cast<uint32_t>(t), 1u << 24});
+        items.push_back({static_cast<uint32_t>(t), (1u << 24) | 1u});
+        pushed[p] += 2;
+      }
+      run.stop_depth = levels;
+      if (!items.empty()) {
+        env_->context().Run([&] {
+          dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
+                                        cull.mask_words(), &pushed, &flags, &cleared, &tested);
+        });
+      }
+    }
+    s.stats.dispatches += dispatches;
+    s.stats.items += tested;
+  } catch (const GpuError& e) {
+    s.failed = true;
+    spdlog::error("GPU device descent failed, queries continue on the CPU: {}", e.what());
+    for (size_t i = 0; i < pairs.size(); ++i) {
+      (*clears)[i].Reset(s.engines[pairs[i].engine].engine->skeleton().num_links(), levels);
+    }
+    return false;
+  }
+  for (size_t t = 0; t < tracks.size(); ++t) {
+    PairClears& c = (*clears)[owners[t].pair];
+    c.SetWord(owners[t].link, cleared[t]);
+  }
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    s.stats.cleared += (*clears)[i].count();
+    if (flags[i] != 0) ++s.stats.over_budget;
+  }
+  return true;
+}
+
+}  // namespace sweptccd::gpu

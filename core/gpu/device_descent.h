@@ -1,0 +1,90 @@
+#pragma once
+// The device descent (issue 30; docs/GPU.md, "The free part of the descent
+// on the device"): for a batch of pairs, the GPU clears the free intervals
+// of every (pair, link)'s dyadic time-slicing tree down to a few levels, in
+// a few dispatches for the whole batch (breadth first, one dispatch per
+// level, the next level's work appended on the device with atomic
+// counters). The device only clears: it proves an interval's swept capsule
+// meets no unfiltered triangle, never closes one with a witness. Each pair's
+// query then runs on the CPU (CcdEngine::Query with the pair's PairClears),
+// skipping the cleared intervals, and decides everything else with its
+// unchanged code: the same records as the CPU backend.
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "core/avatar/pose.h"
+#include "core/gpu/gpu_culler.h"
+#include "core/query/ccd_query.h"
+#include "core/query/pair_clears.h"
+
+namespace sweptccd::gpu {
+
+struct DescentOptions {
+  /// Depths of the tree cleared on the device: 0 .. levels - 1 (1 to
+  /// PairClears::kMaxLevels; 5: 31 intervals per link).
+  int levels = PairClears::kMaxLevels;
+  /// Intervals below the whole pair that one pair may have tested on the
+  /// device (all its links together); past it the pair's deeper intervals
+  /// are left to the CPU (its record is the same either way).
+  int pair_budget = 256;
+  /// Work items one level's queue holds (all pairs); past it alike.
+  int queue_capacity = 1 << 18;
+};
+
+/// Counts over every batch so far.
+struct DescentStats {
+  int64_t batches = 0;
+  int64_t dispatches = 0;
+  int64_t pairs = 0;
+  int64_t tracks = 0;       // (pair, link) trees sent.
+  int64_t refused = 0;      // (pair, link) trees a float could not hold (left to the CPU).
+  int64_t items = 0;        // Intervals tested on the device.
+  int64_t cleared = 0;      // Intervals cleared on the device.
+  int64_t over_budget = 0;  // Pairs cut short by their budget or the queue's capacity.
+};
+
+class DeviceDescent {
+ public:
+  /// On `environment`'s upload; the engines added must query `source`
+  /// (the environment uploaded, compared by content_id). Throws GpuError.
+  DeviceDescent(std::shared_ptr<const GpuEnvironment> environment, const Environment& source,
+                DescentOptions options);
+  ~DeviceDescent();
+  DeviceDescent(const DeviceDescent&) = delete;
+  DeviceDescent& operator=(const DeviceDescent&) = delete;
+
+  /// Registers an engine (its skeleton and collision filter) whose pairs Run
+  /// clears; returns its index for DescentPair::engine. The engine must
+  /// outlive this object. Throws GpuError (a GPU failure, or an engine on
+  /// another environment).
+  int AddEngine(const CcdEngine& engine);
+
+  struct Pair {
+    int engine = 0;
+    const Pose* pose0 = nullptr;
+    const Pose* pose1 = nullptr;
+  };
+  /// Sets (*clears)[i] to what the device cleared of pairs[i] (poses valid,
+  /// pose1 later; `options` as the queries will use them). Returns false when
+  /// the GPU failed (logged once; every clears[i] is then empty, and from
+  /// then on Run clears nothing: the CPU answers alone). Thread-safe (one
+  /// batch at a time).
+  bool Run(const std::vector<Pair>& pairs, const QueryOptions& options,
+           std::vector<PairClears>* clears);
+
+  DescentStats stats() const;
+  const DescentOptions& options() const { return options_; }
+
+ private:
+  struct State;
+  std::shared_ptr<const GpuEnvironment> env_;
+  uint64_t content_id_;
+  DescentOptions options_;
+  std::unique_ptr<State> state_;
+  mutable std::mutex mutex_;
+};
+
+}  // namespace sweptccd::gpu
