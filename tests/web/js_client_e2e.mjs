@@ -3,6 +3,9 @@
 //   - a viewer subscribes and sees the room, the joined client's skeleton,
 //     its forwarded poses, its contact events and status;
 //   - a wrong key is refused (bad_proof) and not retried;
+//   - a client of another room is refused by the door (409 to ?room=)
+//     before any frame; the room's own clients name it (js_client_e2e.sh:
+//     --room js-room) and pass the hello's room check;
 //   - the client streams the bundled walk lock-step (each pose after the
 //     previous pair's answer) and every contact_event equals `sweptccd
 //     query` on the same samples (result, s_lo, s_hi, initially_colliding,
@@ -50,7 +53,18 @@ await assert.rejects(wrong.connect(), (e) => e.code === "bad_proof");
 assert.equal(wrong.connects, 1);
 log("a wrong key is refused: bad_proof");
 
-const alice = new lib.NodeLiveClient({ url, key, clientId: "jsalice", skeleton, backoffInitialMs: 50 });
+// Another room's client: the door refuses the upgrade with 409, one clear error.
+const lost = new lib.NodeLiveClient({ url, key, clientId: "jslost", skeleton, room: "other-room", reconnect: false });
+const lostErrors = [];
+lost.on("protocolError", (m) => lostErrors.push(m));
+lost.on("contact", () => assert.fail("an event delivered to another room's client"));
+await assert.rejects(lost.connect());
+assert.equal(lost.wrongRooms, 1);
+assert.equal(lost.serverHello, null);
+assert.match(lostErrors.join("\n"), /refused room 'other-room' \(409\)/);
+log("a client of another room is refused: 409");
+
+const alice = new lib.NodeLiveClient({ url, key, clientId: "jsalice", skeleton, room: "js-room", backoffInitialMs: 50 });
 const events = [];
 const rejections = [];
 const joins = [];

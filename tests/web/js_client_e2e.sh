@@ -16,7 +16,7 @@ query_walk "$sweptccd" "$src/data/env/morse_apartment.ply.gz" "$work"
 "$sweptccd" keygen --out "$work/room.key"
 port=7701
 "$service" --lcm-url "$SWEPTCCD_URL" --env "$src/data/env/morse_apartment.ply.gz" \
-  --room-key "$work/room.key" --max-live-clients 8 --status-period 0.2 \
+  --room-key "$work/room.key" --max-live-clients 8 --status-period 0.2 --room js-room \
   --ws-listen "127.0.0.1:$port" --log-level info 2> "$work/daemon.log" &
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT

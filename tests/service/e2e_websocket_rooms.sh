@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# One room, many doors (docs/WEBSOCKET.md), inside a private network
+# namespace this script creates (never the host network): a signed daemon
+# holding room arcade-7 with its WebSocket door on 127.0.0.1 and one client
+# of its configuration, "walker", with a key of its own.
+#  - The C++ client names its room (/ws?room=): a client of another room is
+#    refused with 409 before any frame, one clear error; arcade-7's joins.
+#  - walker joins through the door with its own key (the room key is
+#    bad_proof for it) and streams the bundled walk: every pair equal to
+#    `sweptccd query`, the LCM door's session rules and rejection codes; a
+#    second instance gets id_in_use while it holds the id, and a new one
+#    takes it (a greater session) once it left.
+#   e2e_websocket_rooms.sh SWEPTCCD SERVICE WS_ROOM_TOOL SOURCE_DIR WORK_DIR
+set -euo pipefail
+source "$(dirname "$0")/../../tools/netns.sh"
+enter_private_netns "$@"
+sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
+rm -rf "$work"
+mkdir -p "$work"
+setup_loopback_multicast
+port=18781
+import_walk "$sweptccd" "$src" 30 "$work"
+env=$src/data/env/morse_apartment.ply.gz
+query_walk "$sweptccd" "$env" "$work"
+"$sweptccd" keygen --out "$work/room.key"
+"$sweptccd" keygen --out "$work/walker.key"
+# Lock-step outruns any tracker: the pose rate limit is raised.
+"$service" --lcm-url "$SWEPTCCD_URL" --env "$env" --client "walker=$work/skeleton.json" \
+  --client-key "walker=$work/walker.key" --room-key "$work/room.key" --room arcade-7 \
+  --backend cpu --max-pose-rate 100000 --ws-listen "127.0.0.1:$port" --log-level info \
+  2> "$work/daemon.log" &
+daemon=$!
+trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
+wait_for "$work/daemon.log" "websocket door on ws://127.0.0.1:$port"
+wait_for "$work/daemon.log" ready
+"$tool" rooms $port arcade-7 "$work/room.key" "$work/skeleton.json" | tee "$work/rooms.out"
+grep -q "^ok rooms:" "$work/rooms.out"
+"$tool" configured $port walker "$work/walker.key" "$work/room.key" "$work/skeleton.json" \
+  "$work/poses.jsonl" "$work/expected.jsonl" | tee "$work/configured.out"
+grep -q "^ok configured:" "$work/configured.out"
+grep -q "'walker' joined, session" "$work/daemon.log"
+grep -q "configured client 'walker' joined: session" "$work/daemon.log"
+kill -TERM $daemon
+wait $daemon
+grep -q stopped "$work/daemon.log"
+# Nothing raw from the network reached the log.
+! grep -q $'\x1b' "$work/daemon.log"
+echo "ok: rooms and configured clients through the WebSocket door"
