@@ -14,14 +14,16 @@
 //   - the connection drops: the client reconnects, joins again with a
 //     greater session, and its new stream is answered exactly again;
 //   - leave: the viewer's room no longer holds the client.
-//   node js_client_e2e.mjs URL KEY_FILE SKELETON POSES EXPECTED
+//   - a client of the daemon's configuration (jswalker, its own key) joins
+//     through the door; the walk is answered equal to `sweptccd query`.
+//   node js_client_e2e.mjs URL KEY_FILE SKELETON POSES EXPECTED WALKER_KEY_FILE
 import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import path from "node:path";
 import { pathToFileURL } from "node:url";
 
 const lib = await import(pathToFileURL(path.join(process.env.SWEPTCCD_JS_DIR, "dist", "node.js")).href);
-const [url, keyFile, skeletonFile, posesFile, expectedFile] = process.argv.slice(2);
+const [url, keyFile, skeletonFile, posesFile, expectedFile, walkerKeyFile] = process.argv.slice(2);
 const key = readFileSync(keyFile, "utf8");
 const skeleton = JSON.parse(readFileSync(skeletonFile, "utf8"));
 const poses = lib.parsePoseLines(readFileSync(posesFile, "utf8"));
@@ -151,5 +153,24 @@ log(`re-joined: session ${alice.session}, 11 more events equal to sweptccd query
 const rooms = seen.rooms.length;
 alice.leave();
 await until(() => seen.rooms.length > rooms && !seen.rooms.at(-1).clients.some((c) => c.client_id === "jsalice"), 5000, "the room without jsalice");
+
+// A configured client (docs/WEBSOCKET.md "Configured clients"): its own key
+// proves the join; answered as over LCM; the viewer sees it as "config".
+const walkerEvents = [];
+const walker = new lib.NodeLiveClient({ url, key: readFileSync(walkerKeyFile, "utf8"), clientId: "jswalker", skeleton, room: "js-room" });
+walker.on("contact", (e) => walkerEvents.push(e));
+await walker.connect();
+let walkerContacts = 0;
+for (let k = 0; k < poses.length; k++) {
+  const p = poses[k];
+  assert.ok(walker.publishPose({ utime: p.utime, seq: k, position: p.position, orientation: p.orientation }));
+  if (k === 0) continue;
+  await until(() => walkerEvents.length >= k, 10000, `jswalker: the event of pair ${k - 1}`);
+  walkerContacts += check(walkerEvents[k - 1], expected[k - 1], k, `jswalker pair ${k - 1}`);
+}
+assert.equal(walkerContacts, wantContacts);
+assert.equal(seen.rooms.at(-1).clients.find((c) => c.client_id === "jswalker").door, "config");
+walker.leave();
+log(`configured client jswalker: ${walkerEvents.length} events equal to sweptccd query`);
 viewer.close();
 log("left; passed");
