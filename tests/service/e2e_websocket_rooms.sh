@@ -10,6 +10,9 @@
 #    `sweptccd query`, the LCM door's session rules and rejection codes; a
 #    second instance gets id_in_use while it holds the id, and a new one
 #    takes it (a greater session) once it left.
+#  - The epoch fence: a stale server of arcade-7 (started first: an older
+#    instance) answered once by the resolver after the daemon is killed and
+#    restarted: its hello is fenced, the restarted daemon joined.
 #   e2e_websocket_rooms.sh SWEPTCCD SERVICE WS_ROOM_TOOL SOURCE_DIR WORK_DIR
 set -euo pipefail
 source "$(dirname "$0")/../../tools/netns.sh"
@@ -18,19 +21,29 @@ sweptccd=$1 service=$2 tool=$3 src=$4 work=$5
 rm -rf "$work"
 mkdir -p "$work"
 setup_loopback_multicast
-port=18781
+port=18781 stale=18782
 import_walk "$sweptccd" "$src" 30 "$work"
 env=$src/data/env/morse_apartment.ply.gz
 query_walk "$sweptccd" "$env" "$work"
 "$sweptccd" keygen --out "$work/room.key"
 "$sweptccd" keygen --out "$work/walker.key"
+# The stale server of the room: started first, so its instance is older.
+"$service" --lcm-url "udpm://239.255.76.68:7668?ttl=0" --env "$env" --room-key "$work/room.key" \
+  --room arcade-7 --backend cpu --ws-listen "127.0.0.1:$stale" 2> "$work/stale.log" &
+stale_daemon=$!
+trap 'kill -KILL $stale_daemon 2>/dev/null || true' EXIT
+wait_for "$work/stale.log" ready
+sleep 0.01
 # Lock-step outruns any tracker: the pose rate limit is raised.
-"$service" --lcm-url "$SWEPTCCD_URL" --env "$env" --client "walker=$work/skeleton.json" \
-  --client-key "walker=$work/walker.key" --room-key "$work/room.key" --room arcade-7 \
-  --backend cpu --max-pose-rate 100000 --ws-listen "127.0.0.1:$port" --log-level info \
-  2> "$work/daemon.log" &
-daemon=$!
-trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
+start_daemon() {
+  "$service" --lcm-url "$SWEPTCCD_URL" --env "$env" --client "walker=$work/skeleton.json" \
+    --client-key "walker=$work/walker.key" --room-key "$work/room.key" --room arcade-7 \
+    --backend cpu --max-pose-rate 100000 --ws-listen "127.0.0.1:$port" --log-level info \
+    2> "$1" &
+  daemon=$!
+}
+start_daemon "$work/daemon.log"
+trap 'kill -KILL $daemon $stale_daemon 2>/dev/null || true' EXIT
 wait_for "$work/daemon.log" "websocket door on ws://127.0.0.1:$port"
 wait_for "$work/daemon.log" ready
 "$tool" rooms $port arcade-7 "$work/room.key" "$work/skeleton.json" | tee "$work/rooms.out"
@@ -40,9 +53,21 @@ grep -q "^ok rooms:" "$work/rooms.out"
 grep -q "^ok configured:" "$work/configured.out"
 grep -q "'walker' joined, session" "$work/daemon.log"
 grep -q "configured client 'walker' joined: session" "$work/daemon.log"
-kill -TERM $daemon
+# The fence: the client joins the daemon, which dies (SIGKILL) and starts
+# again; the resolver's stale answer (the older server) is refused.
+"$tool" fence $port $stale arcade-7 "$work/room.key" "$work/skeleton.json" > "$work/fence.out" &
+client=$!
+wait_for "$work/fence.out" "joined instance"
+kill -KILL $daemon
+wait $daemon || true
+start_daemon "$work/daemon2.log"
+wait $client || { cat "$work/fence.out"; exit 1; }
+cat "$work/fence.out"
+grep -q "^ok fence:" "$work/fence.out"
+kill -TERM $daemon $stale_daemon
 wait $daemon
-grep -q stopped "$work/daemon.log"
+wait $stale_daemon
+grep -q stopped "$work/daemon2.log"
 # Nothing raw from the network reached the log.
 ! grep -q $'\x1b' "$work/daemon.log"
 echo "ok: rooms and configured clients through the WebSocket door"

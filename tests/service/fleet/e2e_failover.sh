@@ -139,8 +139,8 @@ for c in c0 c1 c2 c3; do
 done
 # Refused: D (another room's server, an older instance) was offered once (the
 # stale answer); the client names its room (/ws?room=arcade-7), so D's door
-# refuses it with 409 before any frame (the instance fence behind it is
-# tested in the clients' unit suites). (C's door may refuse too, while its
+# refuses it with 409 before any frame (the instance fence behind it:
+# e2e_websocket_rooms.sh and the clients' unit suites). (C's door may refuse too, while its
 # daemon has not yet read the allocation's room label: the client retries.)
 [ "$(grep -o "[0-9]* doors of another room refused" clients.out | awk '{s += $1} END {print s}')" -ge 1 ] ||
   fail "D's door was not refused"

@@ -12,7 +12,15 @@
 //     bad_skeleton; the walk streamed lock-step, each pair equal to `sweptccd
 //     query`'s record (EXPECTED) and answered once; a repeated seq gets the
 //     LCM door's rejection non_increasing_seq.
+//   ws_room_tool fence PORT STALE_PORT ROOM ROOM_KEY SKELETON
+//     a resolver that answers PORT, then once STALE_PORT (a server of ROOM
+//     started earlier: an older instance, a stale answer), then PORT: the
+//     client joins PORT's daemon and prints "joined instance I"; the script
+//     SIGKILLs that daemon and starts it again; the client must refuse the
+//     stale server's hello (older than the instance it joined: fenced) and
+//     join the restarted one.
 // Prints "ok MODE: ..." on success, else "FAIL MODE: ..." and exits 1.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -97,6 +105,53 @@ int Rooms(uint16_t port, const std::string& room, const MacKey& key, const Skele
   }
   right.Leave();
   std::printf("ok rooms: another room's client refused with 409, '%s' joined\n", room.c_str());
+  return 0;
+}
+
+// Answers its doors in turn, then the last one for good.
+class SequenceResolver : public RoomResolver {
+ public:
+  explicit SequenceResolver(std::vector<DoorAddress> doors) : doors_(std::move(doors)) {}
+  DoorAddress Resolve(const std::string&) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return doors_[std::min(next_++, doors_.size() - 1)];
+  }
+
+ private:
+  std::mutex mutex_;
+  std::vector<DoorAddress> doors_;
+  size_t next_ = 0;
+};
+
+int Fence(uint16_t port, uint16_t stale_port, const std::string& room, const MacKey& key,
+          const Skeleton& skeleton) {
+  const auto door = [](uint16_t p) { return DoorAddress{"127.0.0.1", p, false, "test"}; };
+  WsLiveClient::Options o = Base(port, "fencer", key, skeleton);
+  o.resolver = std::make_shared<SequenceResolver>(
+      std::vector<DoorAddress>{door(port), door(stale_port), door(port)});
+  o.room = room;
+  o.reconnect = true;
+  o.max_backoff_s = 0.25;
+  WsLiveClient client(o);
+  const JoinResult first = client.Join();
+  if (!first.ok()) return Fail("fence", "no first join: " + first.message);
+  std::printf("joined instance %lld\n", static_cast<long long>(first.instance));
+  std::fflush(stdout);
+  const auto deadline = Clock::now() + std::chrono::seconds(15);
+  while (Clock::now() < deadline && !(client.joined() && client.instance() > first.instance)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const auto f = client.failover();
+  if (!client.joined() || client.instance() <= first.instance || f.fenced_hellos != 1 ||
+      f.wrong_rooms != 0) {
+    return Fail("fence", "joined " + std::to_string(client.joined()) + " instance " +
+                             std::to_string(client.instance()) + ", fenced hellos " +
+                             std::to_string(f.fenced_hellos) + ", wrong rooms " +
+                             std::to_string(f.wrong_rooms) + ", last error '" + f.last_error + "'");
+  }
+  std::printf("ok fence: the stale server's older instance fenced (%s), joined instance %lld\n",
+              f.last_error.c_str(), static_cast<long long>(client.instance()));
+  client.Leave();
   return 0;
 }
 
@@ -234,6 +289,11 @@ int main(int argc, char** argv) {
                         LoadKeyFile(argv[5]), LoadSkeletonFile(argv[6]), ReadLines(argv[7]),
                         ReadLines(argv[8]));
     }
+    if (mode == "fence" && argc == 7) {
+      return Fence(static_cast<uint16_t>(std::stoi(argv[2])),
+                   static_cast<uint16_t>(std::stoi(argv[3])), argv[4], LoadKeyFile(argv[5]),
+                   LoadSkeletonFile(argv[6]));
+    }
   } catch (const std::exception& e) {
     std::printf("FAIL: %s\n", e.what());
     return 1;
@@ -241,6 +301,7 @@ int main(int argc, char** argv) {
   std::fprintf(stderr,
                "usage: ws_room_tool rooms PORT ROOM ROOM_KEY SKELETON\n"
                "       ws_room_tool configured PORT ID OWN_KEY ROOM_KEY SKELETON POSES "
-               "EXPECTED\n");
+               "EXPECTED\n"
+               "       ws_room_tool fence PORT STALE_PORT ROOM ROOM_KEY SKELETON\n");
   return 2;
 }
