@@ -9,7 +9,8 @@
 #    bad_proof for it) and streams the bundled walk: every pair equal to
 #    `sweptccd query`, the LCM door's session rules and rejection codes; a
 #    second instance gets id_in_use while it holds the id, and a new one
-#    takes it (a greater session) once it left.
+#    takes it (a greater session) once it left; the same in unsigned mode
+#    (no proofs).
 #  - The epoch fence: a stale server of arcade-7 (started first: an older
 #    instance) answered once by the resolver after the daemon is killed and
 #    restarted: its hello is fenced, the restarted daemon joined.
@@ -53,6 +54,19 @@ grep -q "^ok rooms:" "$work/rooms.out"
 grep -q "^ok configured:" "$work/configured.out"
 grep -q "'walker' joined, session" "$work/daemon.log"
 grep -q "configured client 'walker' joined: session" "$work/daemon.log"
+# Unsigned mode (a lab bench): the configured client joins without a proof,
+# the same rules otherwise.
+"$service" --lcm-url "udpm://239.255.76.69:7669?ttl=0" --env "$env" --security-mode unsigned \
+  --client "walker=$work/skeleton.json" --room arcade-7 --backend cpu --max-pose-rate 100000 \
+  --ws-listen "127.0.0.1:18783" 2> "$work/unsigned.log" &
+unsigned_daemon=$!
+trap 'kill -KILL $daemon $stale_daemon $unsigned_daemon 2>/dev/null || true' EXIT
+wait_for "$work/unsigned.log" ready
+"$tool" configured 18783 walker - - "$work/skeleton.json" "$work/poses.jsonl" \
+  "$work/expected.jsonl" | tee "$work/unsigned.out"
+grep -q "^ok configured: 'walker' over the door (unsigned)" "$work/unsigned.out"
+kill -TERM $unsigned_daemon
+wait $unsigned_daemon
 # The fence: the client joins the daemon, which dies (SIGKILL) and starts
 # again; the resolver's stale answer (the older server) is refused.
 "$tool" fence $port $stale arcade-7 "$work/room.key" "$work/skeleton.json" > "$work/fence.out" &

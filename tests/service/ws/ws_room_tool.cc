@@ -11,7 +11,8 @@
 //     instance (another nonce) gets id_in_use, a join with another skeleton
 //     bad_skeleton; the walk streamed lock-step, each pair equal to `sweptccd
 //     query`'s record (EXPECTED) and answered once; a repeated seq gets the
-//     LCM door's rejection non_increasing_seq.
+//     LCM door's rejection non_increasing_seq. OWN_KEY and ROOM_KEY "-": an
+//     unsigned room (no proofs; the bad_proof step is left out).
 //   ws_room_tool fence PORT STALE_PORT ROOM ROOM_KEY SKELETON
 //     a resolver that answers PORT, then once STALE_PORT (a server of ROOM
 //     started earlier: an older instance, a stale answer), then PORT: the
@@ -29,6 +30,7 @@
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -58,7 +60,13 @@ std::vector<std::string> ReadLines(const std::string& path) {
   return out;
 }
 
-WsLiveClient::Options Base(uint16_t port, const std::string& id, const MacKey& key,
+// A key file, or "-": none (an unsigned room).
+std::optional<MacKey> KeyArg(const std::string& path) {
+  if (path == "-") return std::nullopt;
+  return LoadKeyFile(path);
+}
+
+WsLiveClient::Options Base(uint16_t port, const std::string& id, const std::optional<MacKey>& key,
                            const Skeleton& skeleton) {
   WsLiveClient::Options o;
   o.host = "127.0.0.1";
@@ -155,15 +163,15 @@ int Fence(uint16_t port, uint16_t stale_port, const std::string& room, const Mac
   return 0;
 }
 
-int Configured(uint16_t port, const std::string& id, const MacKey& own, const MacKey& room_key,
-               const Skeleton& skeleton, const std::vector<std::string>& poses,
-               const std::vector<std::string>& expected) {
+int Configured(uint16_t port, const std::string& id, const std::optional<MacKey>& own,
+               const std::optional<MacKey>& room_key, const Skeleton& skeleton,
+               const std::vector<std::string>& poses, const std::vector<std::string>& expected) {
   const std::string mode = "configured";
   if (poses.size() < 2 || expected.size() != poses.size() - 1) {
     return Fail(mode, std::to_string(poses.size()) + " poses, " + std::to_string(expected.size()) +
                           " expected records");
   }
-  {  // Proven with the room key, while the client has its own: bad_proof.
+  if (room_key) {  // Proven with the room key, while the client has its own: bad_proof.
     WsLiveClient wrong(Base(port, id, room_key, skeleton));
     std::string codes;
     wrong.OnError([&](const std::string& code, const std::string&) { codes += code + " "; });
@@ -269,9 +277,10 @@ int Configured(uint16_t port, const std::string& id, const MacKey& own, const Ma
     next.Leave();
   }
   std::printf(
-      "ok configured: '%s' over the door, %zu pairs equal to sweptccd query (%lld "
-      "contacts), non_increasing_seq, id_in_use, bad_proof, bad_skeleton\n",
-      id.c_str(), expected.size(), static_cast<long long>(contacts));
+      "ok configured: '%s' over the door (%s), %zu pairs equal to sweptccd query (%lld "
+      "contacts), non_increasing_seq, id_in_use, %sbad_skeleton\n",
+      id.c_str(), room_key ? "signed" : "unsigned", expected.size(),
+      static_cast<long long>(contacts), room_key ? "bad_proof, " : "");
   return 0;
 }
 
@@ -285,8 +294,8 @@ int main(int argc, char** argv) {
                    LoadSkeletonFile(argv[5]));
     }
     if (mode == "configured" && argc == 9) {
-      return Configured(static_cast<uint16_t>(std::stoi(argv[2])), argv[3], LoadKeyFile(argv[4]),
-                        LoadKeyFile(argv[5]), LoadSkeletonFile(argv[6]), ReadLines(argv[7]),
+      return Configured(static_cast<uint16_t>(std::stoi(argv[2])), argv[3], KeyArg(argv[4]),
+                        KeyArg(argv[5]), LoadSkeletonFile(argv[6]), ReadLines(argv[7]),
                         ReadLines(argv[8]));
     }
     if (mode == "fence" && argc == 7) {
