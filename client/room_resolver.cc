@@ -60,6 +60,22 @@ std::string DoorAddress::Url() const {
          std::to_string(port) + "/ws";
 }
 
+std::string DoorTarget(const std::string& room) {
+  return room.empty() ? std::string("/ws") : "/ws?room=" + room;
+}
+
+std::string HelloRoomProblem(const std::string& room, const nlohmann::json& hello,
+                             const std::string& door) {
+  if (room.empty()) return "";
+  const auto it = hello.find("room");
+  if (it != hello.end() && it->is_string() && it->get<std::string>() == room) return "";
+  const std::string held = it != hello.end() && it->is_string()
+                               ? "holds room " + Show(it->get<std::string>())
+                               : "does not say which room it holds";
+  return "door " + Show(door) + " " + held + ", not room " + Show(room) +
+         ": refused (a room mix-up; resolving again)";
+}
+
 DoorAddress ParseDoorUrl(const std::string& url) {
   DoorAddress d;
   std::string rest;

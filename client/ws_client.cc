@@ -97,6 +97,7 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
   int64_t instance = 0;
   int64_t replies = 0;
   int64_t connections = 0;
+  int64_t failures = 0;  // Connections that failed or dropped (Join without reconnect stops).
   std::optional<JoinResult> last_reply;
   std::string challenge;
   uint64_t generation = 0;  // Bumped by every connection: stale handlers ignore themselves.
@@ -187,7 +188,19 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
         }));
         ws.read_message_max(64 << 20);
         beast::get_lowest_layer(ws).expires_after(timeout);
-        ws.handshake(host + ":" + std::to_string(port), "/ws");
+        websocket::response_type res;
+        beast::error_code ec;
+        ws.handshake(res, host + ":" + std::to_string(port), DoorTarget(options.room), ec);
+        if (ec == websocket::error::upgrade_declined && res.result() == http::status::conflict) {
+          // The door holds another room (docs/WEBSOCKET.md section 1): resolve again.
+          std::lock_guard<std::mutex> lock(mutex);
+          ++stats.wrong_rooms;
+          std::string why = res.body().substr(0, 160);
+          while (!why.empty() && (why.back() == '\n' || why.back() == '\r')) why.pop_back();
+          throw std::runtime_error("door " + stats.door + " refused room '" + options.room +
+                                   "' (409): " + why);
+        }
+        if (ec) throw beast::system_error(ec);
         beast::flat_buffer b;
         ws.read(b);
         hello_text = beast::buffers_to_string(b.data());
@@ -210,6 +223,15 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
           throw std::runtime_error("door " + stats.door + " runs instance " +
                                    std::to_string(hello_instance) + ", older than instance " +
                                    std::to_string(max_instance) + " joined already: fenced");
+        }
+        if (const std::string problem = HelloRoomProblem(options.room, hello, stats.door);
+            !problem.empty()) {
+          ++stats.wrong_rooms;
+          With([](auto& ws) {
+            beast::error_code ec;
+            beast::get_lowest_layer(ws).socket().close(ec);
+          });
+          throw std::runtime_error(problem);
         }
         challenge = hello.at("challenge").get<std::string>();
         instance = hello_instance;
@@ -248,6 +270,7 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       secure.reset();
       std::lock_guard<std::mutex> lock(mutex);
       connected = false;
+      ++failures;
       last_error = EscapeForDisplay(e.what(), 300);
       stats.last_error = last_error;
       cv.notify_all();
@@ -306,6 +329,7 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       std::lock_guard<std::mutex> lock(mutex);
       connected = false;
       is_joined = false;
+      ++failures;
       ++generation;
       last_error = why;
       stats.last_error = why;
@@ -465,6 +489,7 @@ struct WsLiveClient::Impl : std::enable_shared_from_this<WsLiveClient::Impl> {
       std::lock_guard<std::mutex> lock(mutex);
       connected = false;
       is_joined = false;
+      ++failures;
       ++generation;
       again = options.reconnect && !left && !stopping;
       cv.notify_all();
@@ -662,11 +687,14 @@ WsLiveClient::~WsLiveClient() {
 
 JoinResult WsLiveClient::Join() {
   Impl* impl = impl_.get();
-  int64_t replies_before;
+  int64_t replies_before, failures_before;
   {
     std::lock_guard<std::mutex> lock(impl->mutex);
     replies_before = impl->replies;
+    failures_before = impl->failures;
   }
+  // Without reconnect a failed or dropped connection ends the wait.
+  const auto failed = [&] { return !impl->options.reconnect && impl->failures > failures_before; };
   net::post(impl->ioc, [impl] {
     if (!impl->Connect() && impl->options.reconnect) impl->ScheduleReconnect();
   });
@@ -675,18 +703,20 @@ JoinResult WsLiveClient::Join() {
       Clock::now() + std::chrono::duration_cast<Clock::duration>(
                          std::chrono::duration<double>(impl->options.join_timeout_s));
   if (!impl->options.skeleton) {
-    impl->cv.wait_until(lock, deadline, [&] { return impl->connected; });
+    impl->cv.wait_until(lock, deadline, [&] { return impl->connected || failed(); });
     JoinResult r;
     r.reason = impl->connected ? 0 : -1;
     r.instance = impl->instance;
     r.message = impl->connected ? "" : "no connection: " + impl->last_error;
     return r;
   }
-  impl->cv.wait_until(lock, deadline, [&] { return impl->replies > replies_before; });
+  impl->cv.wait_until(lock, deadline, [&] { return impl->replies > replies_before || failed(); });
   if (impl->replies > replies_before && impl->last_reply) return *impl->last_reply;
   JoinResult r;
-  r.message = "no join reply within " + std::to_string(impl->options.join_timeout_s) + " s" +
-              (impl->last_error.empty() ? "" : " (" + impl->last_error + ")");
+  r.message =
+      (failed() ? std::string("no connection")
+                : "no join reply within " + std::to_string(impl->options.join_timeout_s) + " s") +
+      (impl->last_error.empty() ? "" : " (" + impl->last_error + ")");
   return r;
 }
 

@@ -201,7 +201,9 @@ void CollisionService::OnPose(const tracker_pose_t& pose) {
       const int64_t shed_before = it->second->rate_limited;
       rejection = AdmitLocked(it->second, pose, receive_utime, receive_time);
       taken = !rejection && it->second->rate_limited == shed_before;
-      if (it->second->live) it->second->last_heard = receive_time;
+      if (it->second->live || (it->second->held && pose.session == it->second->assigned_session)) {
+        it->second->last_heard = receive_time;
+      }
     }
     queued = ready_.size() > ready_before;
   }
@@ -718,7 +720,9 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
     }
     if (configured_ids_.count(id)) {
       out = {join_reply_t::REASON_ID_IN_USE,
-             "client id '" + id + "' is a configured client of this daemon; pick another id",
+             "client id '" + id +
+                 "' is a configured client of this daemon: it sends its poses signed with its "
+                 "key without a join (or joins through the WebSocket door); pick another id",
              0,
              {}};
       return false;
@@ -763,6 +767,9 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   };
   {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!stopping_ && configured_ids_.count(id) && request.proven_with_client_key) {
+      return ClaimConfiguredLocked(request);
+    }
     if (!check()) return out;
   }
   if (!request.config.skeleton || request.config.skeleton->num_links() < 1) {
@@ -791,12 +798,75 @@ LiveJoinOutcome CollisionService::JoinLive(LiveJoinRequest request,
   return {join_reply_t::REASON_ACCEPTED, "", client->assigned_session, client->key};
 }
 
+LiveJoinOutcome CollisionService::ClaimConfiguredLocked(const LiveJoinRequest& request) {
+  const std::string& id = request.config.client_id;
+  Client& c = *client_index_.at(id);
+  const Skeleton& want = *c.config.skeleton;
+  const Skeleton* got = request.config.skeleton.get();
+  bool same = got != nullptr && got->num_links() == want.num_links();
+  for (int i = 0; same && i < want.num_links(); ++i) {
+    const Link &a = want.link(i), &b = got->link(i);
+    same = a.name == b.name && a.parent == b.parent && a.a_L == b.a_L && a.b_L == b.b_L &&
+           a.radius == b.radius;
+  }
+  if (!same) {
+    return {join_reply_t::REASON_BAD_SKELETON,
+            "'" + id + "' is a configured client: join with its configured skeleton (" +
+                std::to_string(want.num_links()) +
+                " links, the same names, parents, segments and radii)",
+            0,
+            {}};
+  }
+  if (request.config.motion != c.config.motion || request.config.eps_s != c.config.eps_s ||
+      request.config.delta_m != c.config.delta_m) {
+    return {join_reply_t::REASON_BAD_OPTIONS,
+            "'" + id +
+                "' is a configured client: its motion and tolerances are the configuration's; "
+                "join with motion " +
+                std::to_string(c.config.motion == MotionModel::kIndependent ? 1 : 0) +
+                " and eps_s, delta_m 0",
+            0,
+            {}};
+  }
+  if (request.ignore_rules > 0 || !request.config.entity_rules.empty()) {
+    return {join_reply_t::REASON_BAD_FILTER,
+            "'" + id +
+                "' is a configured client: its filters are the configuration's; join without "
+                "ignore and ignore_entity rules",
+            0,
+            {}};
+  }
+  const auto now = SteadyClock::now();
+  const auto timeout = std::chrono::milliseconds(options_.silence_timeout_ms);
+  if (c.held && c.nonce != request.nonce && now - c.last_heard < timeout) {
+    return {join_reply_t::REASON_ID_IN_USE,
+            "configured client '" + id + "' is held by another connection (session " +
+                std::to_string(c.assigned_session) + "); pick another id, or wait " +
+                std::to_string(options_.silence_timeout_ms) + " ms after its last pose",
+            0,
+            {}};
+  }
+  // A new stream: greater than every session handed out and than the
+  // client's own (an LCM tracker's start time), so older streams are stale.
+  c.held = true;
+  c.nonce = request.nonce;
+  c.assigned_session = std::max({last_session_ + 1, NowUtime(), c.session.session() + 1});
+  last_session_ = c.assigned_session;
+  c.last_heard = now;
+  return {join_reply_t::REASON_ACCEPTED, "", c.assigned_session, std::nullopt};
+}
+
 bool CollisionService::LeaveLive(const std::string& client_id, int64_t session) {
   // Declared before the lock: the client (its engine and buffers) is freed
   // after the lock is released, so no worker waits on a leave's frees.
   std::shared_ptr<Client> leaving;
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = client_index_.find(client_id);
+  if (it != client_index_.end() && it->second->held && !it->second->live &&
+      it->second->assigned_session == session) {
+    it->second->held = false;  // A configured client stays; only its hold ends.
+    return true;
+  }
   if (it == client_index_.end() || !it->second->live || it->second->assigned_session != session) {
     return false;
   }

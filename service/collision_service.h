@@ -65,6 +65,14 @@ struct LiveJoinRequest {
   ClientConfig config;
   int64_t nonce = 0;
   std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
+  /// The join was proven with the id's own key (KeyRing::KeyFor: its
+  /// security.client_keys entry, else the room key), as the WebSocket door
+  /// proves every join: a configured id may then take a stream of its own
+  /// (JoinLive). An LCM join is proven with the room key only: false.
+  bool proven_with_client_key = false;
+  /// `ignore` rules the join asked for (a configured client's are the
+  /// configuration's: it may ask for none).
+  size_t ignore_rules = 0;
 };
 
 /// The answer to a join: reason is a join_reply_t::REASON_* code.
@@ -188,7 +196,14 @@ class CollisionService {
 
   /// Adds a live client (docs/SERVICE.md, "Live clients"): refused when the id
   /// is configured, live under another nonce or public key (id in use), or
-  /// max_live_clients are live. The same id, nonce and public key while live
+  /// max_live_clients are live. A configured id joined with
+  /// `proven_with_client_key` (the WebSocket door) is not added but given a
+  /// stream of its own ("Configured clients through the WebSocket door"):
+  /// its skeleton, motion and tolerances must be the configuration's and it
+  /// asks for no filters; a new session, greater than any it had, so its
+  /// older streams' poses become stale_session; refused as id in use while
+  /// another nonce holds it and was heard within silence_timeout_ms. It
+  /// counts against no live-client limit. The same id, nonce and public key while live
   /// answer the same session and key (a lost reply). Builds the client's
   /// engine without holding the lock workers need: never stalls answers.
   /// `fresh_key` (signed mode) becomes the session key of a new session.
@@ -196,6 +211,8 @@ class CollisionService {
   LiveJoinOutcome JoinLive(LiveJoinRequest request, std::optional<MacKey> fresh_key);
   /// Ends a live client's session: true when `client_id` was live with that
   /// session (its pending pair is dropped; an in-flight one is published).
+  /// For a configured client held with that session: releases the hold
+  /// (the client stays; its poses are answered as before).
   bool LeaveLive(const std::string& client_id, int64_t session);
   /// Drops every live client silent (no pose, nor its join) for
   /// silence_timeout_ms before `now`; returns their ids.
@@ -242,11 +259,12 @@ class CollisionService {
     ClientConfig config;
     bool live = false;             // Joined over LCM (else configured).
     bool removed = false;          // Left or expired (workers skip it).
-    int64_t assigned_session = 0;  // Live: the only session accepted.
-    int64_t nonce = 0;             // Live: the join's nonce and key.
+    bool held = false;             // Configured, joined through the door (ClaimConfiguredLocked).
+    int64_t assigned_session = 0;  // Live: the only session accepted; held: the join's.
+    int64_t nonce = 0;             // Live or held: the join's nonce (live: and key).
     std::array<uint8_t, kBoxPublicKeyBytes> public_key{};
     std::optional<MacKey> key;           // Live, signed mode: the session key.
-    SteadyClock::time_point last_heard;  // Live: the join or the latest pose.
+    SteadyClock::time_point last_heard;  // Live or held: the join or the latest pose.
     std::unique_ptr<CcdEngine> engine;
     ClientSession session;
     std::deque<double> latencies_us;  // Newest at the back.
@@ -256,6 +274,9 @@ class CollisionService {
   };
 
   void WorkerLoop();
+  // Under mutex_: a configured client's join through the WebSocket door
+  // (JoinLive): checked against its configuration, then a new session.
+  LiveJoinOutcome ClaimConfiguredLocked(const LiveJoinRequest& request);
   // Due shared entries of one pair not yet taken by a worker: answered
   // together and published as one shared_contact_t (at most
   // shared_contact_t::MAX_ENTRIES entries).

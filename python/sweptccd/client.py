@@ -33,6 +33,8 @@ from typing import (Any, AsyncIterator, Callable, Dict, List, Mapping, Optional,
 import websockets.client
 import websockets.exceptions
 
+from .rooms import hello_room_problem, with_room
+
 __all__ = ["LiveClient", "JoinRefused", "ProtocolError", "proof", "parse_key", "skeleton_arrays"]
 
 Message = Dict[str, Any]
@@ -121,7 +123,8 @@ class LiveClient:
     """One avatar in a live room (see the module's docstring).
 
     url: ws:// or wss:// ... /ws. key: the room key (bytes, hex, or a key
-    file); None in an unsigned room. motion: "articulated" or "independent".
+    file), or a configured client's own key (security.client_keys); None in
+    an unsigned room. motion: "articulated" or "independent".
     eps, delta: 0 for the daemon's. ignore: LINK:OBJECT rules;
     ignore_entities: dicts {"link", "entity", ["other_link"]} (SPEC 8).
     reconnect: join again after a drop (backoff 0.25 s doubling to
@@ -134,7 +137,10 @@ class LiveClient:
     instance and events of another instance are fenced; seq goes on across
     re-joins and the poses whose pair is unanswered are re-sent after the
     re-join (lock-step, same seq and utime); an answer already delivered is
-    dropped; a rejection unknown_client re-joins at once.
+    dropped; a rejection unknown_client re-joins at once. room (with or
+    without a resolver) is sent as ``?room=`` and checked against
+    hello.room: a door of another room (409, or another hello.room) is
+    refused before any join and resolved again (wrong_rooms counts them).
     """
 
     def __init__(self, url: Optional[str], client_id: str,
@@ -153,6 +159,7 @@ class LiveClient:
         if url is None and resolver is None:
             raise ValueError("give url, or resolver and room")
         self.url = url or ""
+        with_room("", room)  # A room name breaking the id rule: RoomError now.
         self.resolver, self.room = resolver, room
         self.heartbeat_timeout, self.max_backoff = heartbeat_timeout, max_backoff
         self._max_pending = max_pending
@@ -164,6 +171,7 @@ class LiveClient:
         self._max_instance = 0
         self._last_status = 0.0
         self.fenced_events = self.fenced_hellos = self.heartbeat_losses = 0
+        self.wrong_rooms = 0  # Doors of another room (409 to ?room=, or hello.room): refused.
         self.resent_poses = self.repeated_answers = self.forgotten_poses = 0
         self.client_id = client_id
         self.skeleton = skeleton_arrays(skeleton)
@@ -300,13 +308,25 @@ class LiveClient:
             door = await asyncio.get_running_loop().run_in_executor(
                 None, self.resolver.resolve, self.room)
             self.url = door.url
-        ws = await websockets.client.connect(
-            self.url, subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
-            open_timeout=self._open_timeout, max_size=1 << 22, compression=None)
+        try:
+            ws = await websockets.client.connect(
+                with_room(self.url, self.room), subprotocols=[SUBPROTOCOL],  # type: ignore[list-item]
+                open_timeout=self._open_timeout, max_size=1 << 22, compression=None)
+        except websockets.exceptions.InvalidStatusCode as e:
+            if e.status_code != 409:
+                raise
+            self.wrong_rooms += 1  # The door holds another room (WEBSOCKET.md section 1).
+            raise ProtocolError(f"door {_display(self.url)} refused room '{self.room}' (409): "
+                                "it holds another room") from None
         self._ws = ws
         hello = await self._recv(ws, self._open_timeout)
         if hello.get("type") != "hello" or hello.get("protocol") != 1:
             raise ProtocolError(f"expected hello of protocol 1, got {_display(str(hello)[:200])}")
+        wrong_room = hello_room_problem(self.room, hello, self.url)
+        if wrong_room:
+            self.wrong_rooms += 1  # Never joined: no event of another room is delivered.
+            await ws.close(1000, "wrong room")
+            raise ProtocolError(wrong_room)
         if int(hello.get("instance", 0)) < self._max_instance:
             self.fenced_hellos += 1  # An older run of the room (a stale allocation).
             await ws.close(1000, "fenced")

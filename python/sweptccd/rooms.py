@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Union
 
 __all__ = ["DoorAddress", "RoomError", "StaticRoomMap", "AgonesAllocatorResolver",
+           "with_room", "hello_room_problem",
            "parse_door_url"]
 
 ROOM_NAME = re.compile(r"^[A-Za-z0-9_.-]{1,64}$")
@@ -61,6 +62,32 @@ class DoorAddress:
     def url(self) -> str:
         host = "[" + self.host + "]" if ":" in self.host else self.host
         return ("wss" if self.tls else "ws") + "://" + host + ":" + str(self.port) + "/ws"
+
+
+def with_room(url: str, room: str) -> str:
+    """`url` naming the room its client is for (docs/WEBSOCKET.md section 1):
+    ``?room=ROOM`` added, so a door of another room refuses the upgrade with
+    409 before any frame. room "" (no room): `url` as it is. RoomError for a
+    room breaking the id rule."""
+    if room == "":
+        return url
+    _check_room(room)
+    return url + ("&" if "?" in url else "?") + "room=" + room
+
+
+def hello_room_problem(room: str, hello: Mapping[str, Any], door: str) -> str:
+    """The one check of a hello against the room the client is for
+    (docs/WEBSOCKET.md section 5, hello.room): "" when room is "" or the
+    hello names it; else one line, safe to print: a door of another room (a
+    room mix-up after a failover) whose events must never be delivered. A
+    hello without a string room is refused too."""
+    held = hello.get("room")
+    if room == "" or held == room:
+        return ""
+    what = ("holds room " + _show(held) if isinstance(held, str)
+            else "does not say which room it holds")
+    return "door %s %s, not room %s: refused (a room mix-up; resolving again)" % (
+        _show(door), what, _show(room))
 
 
 def _check_room(room: str) -> None:

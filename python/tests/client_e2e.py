@@ -10,8 +10,13 @@ by client_e2e.sh inside a private network namespace):
   - rejoin: a greater session, seq restarting at 0, the walk answered
     exactly again;
   - the connection drops under it: it reconnects and joins by itself;
-  - leave ends the iterator.
-    python3 client_e2e.py URL KEY_FILE SKELETON POSES EXPECTED
+  - leave ends the iterator;
+  - a client of another room is refused by the door (409 to ?room=) before
+    any frame; the room's own clients name it (client_e2e.sh: --room
+    py-room) and pass the hello's room check;
+  - a client of the daemon's configuration (pywalker, its own key) joins
+    through the door and the walk is answered as for a live client.
+    python3 client_e2e.py URL KEY_FILE SKELETON POSES EXPECTED WALKER_KEY_FILE
 """
 
 from __future__ import annotations
@@ -56,7 +61,7 @@ async def stream(client: LiveClient, poses: List[Dict[str, Any]], expected: List
 
 
 async def main() -> None:
-    url, key, skeleton, poses_file, expected_file = sys.argv[1:6]
+    url, key, skeleton, poses_file, expected_file, walker_key = sys.argv[1:7]
     poses = [json.loads(line) for line in Path(poses_file).read_text().splitlines() if line]
     expected = [json.loads(line) for line in Path(expected_file).read_text().splitlines()
                 if line]
@@ -70,7 +75,17 @@ async def main() -> None:
         assert "bad_proof" in str(e), e
         log("wrong key refused:", e)
 
-    client = LiveClient(url, "pyalice", skeleton, key=key)
+    lost = LiveClient(url, "pylost", skeleton, key=key, room="other-room", reconnect=False)
+    lost.on("contact", lambda e: log("FAILED: an event of another room"))
+    try:
+        await lost.join()
+        raise AssertionError("a client of another room joined")
+    except ProtocolError as e:
+        assert "refused room 'other-room' (409)" in str(e), e
+        assert lost.wrong_rooms == 1 and not lost.hello
+        log("another room's client refused:", e)
+
+    client = LiveClient(url, "pyalice", skeleton, key=key, room="py-room")
     got: List[Dict[str, Any]] = []
     rejections: List[Dict[str, Any]] = []
     joined: List[Dict[str, Any]] = []
@@ -128,6 +143,17 @@ async def main() -> None:
     await asyncio.wait_for(it, 5)
     assert len(iterated) >= len(expected), (len(iterated), len(expected))
     log("left; callbacks and the iterator saw", len(got), "and", len(iterated), "events")
+
+    # A configured client (docs/WEBSOCKET.md "Configured clients"): its own
+    # key proves the join; answered as over LCM.
+    walker = LiveClient(url, "pywalker", skeleton, key=walker_key, room="py-room")
+    wgot: List[Dict[str, Any]] = []
+    walker.on("contact", wgot.append)
+    reply = await walker.join()
+    assert reply["reason_name"] == "accepted" and walker.session > 0, reply
+    await stream(walker, poses, expected, wgot)
+    await walker.leave()
+    log(f"configured client pywalker: {len(wgot)} events equal to sweptccd query")
 
 
 asyncio.run(main())

@@ -13,7 +13,7 @@ from typing import Any, Dict, List
 import pytest
 
 from sweptccd.rooms import (AgonesAllocatorResolver, RoomError, StaticRoomMap,
-                            parse_door_url)
+                            hello_room_problem, parse_door_url, with_room)
 
 
 def test_static_map() -> None:
@@ -115,7 +115,7 @@ def test_failover_between_two_stand_in_servers() -> None:
         async def handler(ws: Any) -> None:
             await ws.send(json.dumps({"type": "hello", "protocol": 1, "instance": instance,
                                       "security": "unsigned", "challenge": "b" * 64,
-                                      "server_utime": 1, "limits": {}}))
+                                      "server_utime": 1, "room": "arcade-7", "limits": {}}))
             first = True  # A session's first pose anchors it: no pair.
             async for text in ws:
                 msg = json.loads(text)
@@ -186,5 +186,58 @@ def test_failover_between_two_stand_in_servers() -> None:
         await client.leave()
         old.close()
         new.close()
+
+    asyncio.run(run())
+
+
+def test_room_named_and_hello_checked() -> None:
+    """The room a client is for (docs/WEBSOCKET.md sections 1 and 5): sent as
+    ?room=, a hello of another room refused with one clear error before any
+    join (the 409 of a real door: client_e2e.py)."""
+    import asyncio
+
+    import websockets.server
+
+    from sweptccd.client import LiveClient, ProtocolError
+
+    assert with_room("ws://h:1/ws", "") == "ws://h:1/ws"
+    assert with_room("ws://h:1/ws", "arcade-7") == "ws://h:1/ws?room=arcade-7"
+    with pytest.raises(RoomError):
+        with_room("ws://h:1/ws", "a&b=c")
+    assert hello_room_problem("", {"room": "x"}, "d") == ""
+    assert hello_room_problem("arcade-7", {"room": "arcade-7"}, "d") == ""
+    assert "holds room 'arcade-8', not room 'arcade-7': refused" in hello_room_problem(
+        "arcade-7", {"room": "arcade-8"}, "ws://d")
+    assert "does not say which room" in hello_room_problem("arcade-7", {}, "d")
+    hostile = hello_room_problem("arcade-7", {"room": "x\n\x1b[31m"}, "d")
+    assert "\n" not in hostile and "\x1b" not in hostile
+    skeleton = {"links": [{"name": "pelvis", "parent": None, "a": [0, 0, 0], "b": [0, 0.2, 0],
+                           "radius": 0.1}]}
+    with pytest.raises(RoomError):
+        LiveClient("ws://h:1/ws", "alice", skeleton, room="bad room")
+    paths: List[str] = []
+    received: List[Dict[str, Any]] = []
+
+    async def handler(ws: Any) -> None:
+        paths.append(ws.path)
+        await ws.send(json.dumps({"type": "hello", "protocol": 1, "instance": 3,
+                                  "security": "unsigned", "challenge": "b" * 64,
+                                  "server_utime": 1, "room": "arcade-8", "limits": {}}))
+        async for text in ws:
+            received.append(json.loads(text))
+
+    async def run() -> None:
+        server = await websockets.server.serve(handler, "127.0.0.1", 0,
+                                               subprotocols=["sweptccd.v1"])  # type: ignore[list-item]
+        port = list(server.sockets)[0].getsockname()[1]
+        client = LiveClient(f"ws://127.0.0.1:{port}/ws", "alice", skeleton, room="arcade-7",
+                            reconnect=False)
+        client.on("contact", lambda e: pytest.fail("an event of another room"))
+        with pytest.raises(ProtocolError, match="holds room 'arcade-8', not room 'arcade-7'"):
+            await client.join()
+        assert client.wrong_rooms == 1
+        await asyncio.sleep(0.05)
+        assert paths == ["/ws?room=arcade-7"] and received == []  # No join sent.
+        server.close()
 
     asyncio.run(run())

@@ -425,6 +425,10 @@ class LiveRegistry : public LiveSessionHandler {
     request.config = std::move(cc);
     request.nonce = r.nonce;
     std::copy(std::begin(r.public_key), std::end(r.public_key), request.public_key.begin());
+    // The door proves every join with the id's own key (KeyRing::KeyFor);
+    // an LCM join with the room key.
+    request.proven_with_client_key = door_keyed;
+    request.ignore_rules = r.ignore.size();
     return service_->JoinLive(std::move(request), std::move(key));
   }
 
@@ -432,8 +436,9 @@ class LiveRegistry : public LiveSessionHandler {
     const join_request_t& r = join.request;
     const LiveJoinOutcome outcome = Decide(r, static_cast<bool>(join.reply));
     if (outcome.reason == join_reply_t::REASON_ACCEPTED) {
-      spdlog::info("live client '{}' joined: session {}, {} links", r.client_id, outcome.session,
-                   r.num_links);
+      spdlog::info("{} client '{}' joined: session {}, {} links",
+                   service_->IsConfigured(r.client_id) ? "configured" : "live", r.client_id,
+                   outcome.session, r.num_links);
     } else {
       spdlog::info("join of client '{}' refused ({}): {}", EscapeForDisplay(r.client_id),
                    static_cast<int>(outcome.reason), EscapeForDisplay(outcome.message, 400));

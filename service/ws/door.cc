@@ -421,7 +421,9 @@ class WsSession : public Conn {
       return;
     }
     if (door_->ctx.signed_mode) {
-      const MacKey* key = door_->ctx.keys.RoomKey();
+      // The id's own key (a configured client's security.client_keys entry),
+      // else the room key: the LCM door's rule for poses (KeyRing::KeyFor).
+      const MacKey* key = door_->ctx.keys.KeyFor(r.client_id);
       if (key == nullptr) {
         Reply(r, join_reply_t::REASON_JOINS_DISABLED,
               "signed mode without security.room_key: joins cannot be verified; configure a "
@@ -432,8 +434,10 @@ class WsSession : public Conn {
         spdlog::info("websocket {} ({}): join of '{}' with a wrong proof", id,
                      EscapeForDisplay(slot_->address), EscapeForDisplay(r.client_id));
         Fatal("bad_proof",
-              "the join proof does not verify under the room key for this connection's "
-              "challenge (docs/WEBSOCKET.md section 4)",
+              "the join proof does not verify under the key of '" +
+                  EscapeForDisplay(r.client_id, 80) +
+                  "' (its own key, else the room key) for this connection's challenge "
+                  "(docs/WEBSOCKET.md section 4)",
               1008);
         return;
       }

@@ -102,5 +102,33 @@ TEST(RoomResolverTest, AllocatorUnreachableIsRetryable) {
   EXPECT_THROW(r.Resolve("../etc"), RoomError);
 }
 
+TEST(RoomResolverTest, DoorTargetNamesTheRoom) {
+  EXPECT_EQ(DoorTarget(""), "/ws");
+  EXPECT_EQ(DoorTarget("arcade-7"), "/ws?room=arcade-7");
+}
+
+TEST(RoomResolverTest, HelloOfAnotherRoomIsRefused) {
+  const auto hello = [](nlohmann::json room) {
+    nlohmann::json h = {{"type", "hello"}, {"instance", 1}};
+    if (!room.is_null()) h["room"] = room;
+    return h;
+  };
+  const std::string door = "wss://10.0.1.2:8765/ws";
+  // No room asked (no resolver): any door.
+  EXPECT_EQ(HelloRoomProblem("", hello("lobby"), door), "");
+  EXPECT_EQ(HelloRoomProblem("", hello(nullptr), door), "");
+  EXPECT_EQ(HelloRoomProblem("arcade-7", hello("arcade-7"), door), "");
+  const std::string other = HelloRoomProblem("arcade-7", hello("arcade-8"), door);
+  EXPECT_NE(other.find("holds room 'arcade-8', not room 'arcade-7'"), std::string::npos) << other;
+  EXPECT_NE(other.find(door), std::string::npos) << other;
+  const std::string none = HelloRoomProblem("arcade-7", hello(nullptr), door);
+  EXPECT_NE(none.find("does not say which room"), std::string::npos) << none;
+  EXPECT_NE(HelloRoomProblem("arcade-7", hello(7), door), "");
+  // A hostile room name is escaped: one line, no raw control bytes.
+  const std::string hostile = HelloRoomProblem("arcade-7", hello("x\n\x1b[31m"), door);
+  EXPECT_EQ(hostile.find('\n'), std::string::npos);
+  EXPECT_EQ(hostile.find('\x1b'), std::string::npos);
+}
+
 }  // namespace
 }  // namespace sweptccd

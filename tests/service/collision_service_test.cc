@@ -261,6 +261,87 @@ TEST_F(CollisionServiceTest, SilenceExpiresLiveClientsOnlyAndTheIdIsFreeAgain) {
   EXPECT_EQ(service->JoinLive(join, std::nullopt).reason, +join_reply_t::REASON_ACCEPTED);
 }
 
+// A configured client joined through the WebSocket door (docs/WEBSOCKET.md
+// "Configured clients"): only a join proven with its own key; its own
+// skeleton and options; a new, greater session that makes older streams
+// stale; one holder at a time; the hold ends with LeaveLive, the client
+// stays; no live-client limit.
+TEST_F(CollisionServiceTest, ConfiguredClientJoinsThroughTheDoorWithASessionOfItsOwn) {
+  ServiceOptions options;
+  options.clock_utime = [this] { return ++fake_utime_; };
+  options.max_pose_rate_hz = 1e6;
+  options.pose_burst = 1 << 20;
+  options.rejection_burst = 1 << 20;
+  options.max_live_clients = 0;  // Configured joins count against no limit.
+  options.silence_timeout_ms = 3'600'000;
+  auto service = MakeWith({"walker"}, options);
+  // The configured stream of an LCM tracker first (its session: 7).
+  for (int64_t k = 0; k < 2; ++k) {
+    tracker_pose_t p = Sample("walker", k);
+    p.session = 7;
+    service->OnPose(p);
+  }
+  service->WaitUntilIdle();
+  ASSERT_EQ(publisher_.contacts_of("walker").size(), 1u);
+
+  LiveJoinRequest join;
+  join.config.client_id = "walker";
+  join.config.skeleton = skeleton_;
+  join.nonce = 11;
+  // An LCM join (room key only): refused as before.
+  EXPECT_EQ(service->JoinLive(join, std::nullopt).reason, +join_reply_t::REASON_ID_IN_USE);
+  join.proven_with_client_key = true;
+  // Not its skeleton, motion, tolerances or filters.
+  LiveJoinRequest other = join;
+  std::vector<Link> links = skeleton_->links();
+  links[1].radius *= 2;
+  other.config.skeleton = std::make_shared<const Skeleton>(Skeleton::FromLinks("w", links, "t"));
+  EXPECT_EQ(service->JoinLive(other, std::nullopt).reason, +join_reply_t::REASON_BAD_SKELETON);
+  other = join;
+  other.config.motion = MotionModel::kIndependent;
+  EXPECT_EQ(service->JoinLive(other, std::nullopt).reason, +join_reply_t::REASON_BAD_OPTIONS);
+  other = join;
+  other.config.eps_s = 1e-3;
+  EXPECT_EQ(service->JoinLive(other, std::nullopt).reason, +join_reply_t::REASON_BAD_OPTIONS);
+  other = join;
+  other.ignore_rules = 1;
+  EXPECT_EQ(service->JoinLive(other, std::nullopt).reason, +join_reply_t::REASON_BAD_FILTER);
+
+  const LiveJoinOutcome joined = service->JoinLive(join, std::nullopt);
+  ASSERT_EQ(joined.reason, +join_reply_t::REASON_ACCEPTED) << joined.message;
+  EXPECT_GT(joined.session, 7);
+  EXPECT_FALSE(joined.key.has_value());
+  EXPECT_EQ(service->live_clients(), 0);
+  EXPECT_TRUE(service->IsConfigured("walker"));
+  // Another instance while it is held: id in use.
+  LiveJoinRequest second = join;
+  second.nonce = 12;
+  EXPECT_EQ(service->JoinLive(second, std::nullopt).reason, +join_reply_t::REASON_ID_IN_USE);
+  // The door's stream: seq and utime may restart; the tracker's older
+  // stream is stale now.
+  for (int64_t k = 0; k < 2; ++k) {
+    tracker_pose_t p = Sample("walker", k);
+    p.session = joined.session;
+    service->OnPose(p);
+  }
+  tracker_pose_t late = Sample("walker", 5);
+  late.session = 7;
+  service->OnPose(late);
+  service->WaitUntilIdle();
+  EXPECT_EQ(publisher_.contacts_of("walker").size(), 2u);
+  ASSERT_EQ(publisher_.rejections().size(), 1u);
+  EXPECT_EQ(publisher_.rejections()[0].reason, rejection_code::kStaleSession);
+  // The hold ends; the client stays and another instance takes a greater session.
+  EXPECT_FALSE(service->LeaveLive("walker", joined.session + 1));
+  EXPECT_TRUE(service->LeaveLive("walker", joined.session));
+  EXPECT_TRUE(service->IsConfigured("walker"));
+  EXPECT_EQ(service->Status().client_id, (std::vector<std::string>{"walker"}));
+  const LiveJoinOutcome again = service->JoinLive(second, std::nullopt);
+  ASSERT_EQ(again.reason, +join_reply_t::REASON_ACCEPTED) << again.message;
+  EXPECT_GT(again.session, joined.session);
+  EXPECT_EQ(service->Status().live_joined, 0);
+}
+
 TEST_F(CollisionServiceTest, BadClientNeverDisturbsAnother) {
   auto service = Make({"good", "bad"}, 2);
   constexpr int kPoses = 12;

@@ -104,13 +104,14 @@ test("skeletons become join arrays; bad ones are refused naming the link", () =>
 async function standIn(answer, limits = { max_message_bytes: 262144 }) {
   const wss = new WebSocketServer({ host: "127.0.0.1", port: 0, handleProtocols: (p) => (p.has("sweptccd.v1") ? "sweptccd.v1" : false) });
   await new Promise((r) => wss.once("listening", r));
-  const server = { received: [], sockets: [], challenges: [], wss, url: `ws://127.0.0.1:${wss.address().port}/ws` };
+  const server = { received: [], sockets: [], challenges: [], targets: [], wss, url: `ws://127.0.0.1:${wss.address().port}/ws` };
   let n = 0;
-  wss.on("connection", (sock) => {
+  wss.on("connection", (sock, req) => {
     const challenge = (n++).toString(16).padStart(64, "a");
     server.sockets.push(sock);
     server.challenges.push(challenge);
-    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 7, security: "signed", challenge, server_utime: Date.now() * 1000, limits }));
+    server.targets.push(req.url);
+    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 7, security: "signed", challenge, server_utime: Date.now() * 1000, room: "arcade-7", limits }));
     sock.on("message", (data) => {
       const msg = JSON.parse(String(data));
       server.received.push({ conn: server.sockets.indexOf(sock), challenge, msg });
@@ -439,7 +440,7 @@ test("failover: heartbeat loss, re-resolve, re-join, fence, re-send without loss
   fresh.wss.removeAllListeners("connection");
   fresh.wss.on("connection", (sock) => {
     fresh.sockets.push(sock);
-    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 9, security: "unsigned", challenge: "b".repeat(64), server_utime: 1, limits: { message_rate_hz: 480, max_pose_rate_hz: 240 } }));
+    sock.send(JSON.stringify({ type: "hello", protocol: 1, instance: 9, security: "unsigned", challenge: "b".repeat(64), server_utime: 1, room: "arcade-7", limits: { message_rate_hz: 480, max_pose_rate_hz: 240 } }));
     sock.on("message", (data) => {
       const msg = JSON.parse(String(data));
       fresh.received.push({ msg });
@@ -457,13 +458,13 @@ test("failover: heartbeat loss, re-resolve, re-join, fence, re-send without loss
   const seen = [];
   client.on("contact", (c) => seen.push(c.seq1));
   await client.connect();
-  assert.equal(client.door, old.url);
+  assert.equal(client.door, old.url + "?room=arcade-7");
   for (let k = 0; k < 5; k++) assert.equal(client.publishPose({ ...POSE, utime: 1000 + k }), true);
   await until(() => seen.length === 2);
   oldAlive = false;
   target = fresh.url;
   await until(() => client.heartbeatLosses === 1 && client.joined && client.session === 200);
-  assert.equal(client.door, fresh.url);
+  assert.equal(client.door, fresh.url + "?room=arcade-7");
   for (let k = 5; k < 8; k++) assert.equal(client.publishPose({ ...POSE, utime: 1000 + k }), true);
   await until(() => seen.length === 7);
   await new Promise((r) => setTimeout(r, 100));
@@ -475,4 +476,36 @@ test("failover: heartbeat loss, re-resolve, re-join, fence, re-send without loss
   client.leave();
   await old.close();
   await fresh.close();
+});
+
+// The room a client is for (docs/WEBSOCKET.md sections 1 and 5): sent as
+// ?room=, and a hello of another room refused with one clear error before
+// anything is sent or delivered (the 409 of a real door: js_client_e2e).
+test("a client names its room and refuses a door of another room", async () => {
+  assert.equal(lib.withRoom("ws://h:1/ws", ""), "ws://h:1/ws");
+  assert.equal(lib.withRoom("ws://h:1/ws", "arcade-7"), "ws://h:1/ws?room=arcade-7");
+  assert.equal(lib.doorUrl(lib.parseDoorUrl("wss://[::1]:9"), "a.b"), "wss://[::1]:9/ws?room=a.b");
+  assert.throws(() => lib.withRoom("ws://h:1/ws", "a&b=c"), lib.RoomError);
+  assert.equal(lib.helloRoomProblem("", { room: "x" }, "d"), "");
+  assert.equal(lib.helloRoomProblem("arcade-7", { room: "arcade-7" }, "d"), "");
+  assert.match(lib.helloRoomProblem("arcade-7", { room: "arcade-8" }, "ws://d"), /^door 'ws:\/\/d' holds room 'arcade-8', not room 'arcade-7': refused/);
+  assert.match(lib.helloRoomProblem("arcade-7", {}, "d"), /does not say which room/);
+  assert.doesNotMatch(lib.helloRoomProblem("arcade-7", { room: "x\n\u001b[31m" }, "d"), /[\n\u001b]/);
+  assert.throws(() => new lib.NodeLiveClient({ url: "ws://h:1/ws", room: "bad room", clientId: "a", skeleton: SKELETON }), lib.RoomError);
+  const server = await standIn(accept);  // Its hello says room arcade-7.
+  const errors = [];
+  const client = new lib.NodeLiveClient({ url: server.url, room: "arcade-8", clientId: "alice", skeleton: SKELETON, key: KEY, reconnect: false });
+  client.on("protocolError", (m) => errors.push(m));
+  client.on("contact", () => assert.fail("an event of another room"));
+  await assert.rejects(client.connect());
+  assert.deepEqual(server.targets, ["/ws?room=arcade-8"]);
+  assert.equal(client.wrongRooms, 1);
+  assert.equal(server.received.length, 0);  // No join sent to another room's door.
+  assert.match(errors[0], /holds room 'arcade-7', not room 'arcade-8'/);
+  const right = new lib.NodeLiveClient({ url: server.url, room: "arcade-7", clientId: "bob", skeleton: SKELETON, key: KEY, reconnect: false });
+  await right.connect();
+  assert.equal(right.wrongRooms, 0);
+  assert.equal(server.targets[1], "/ws?room=arcade-7");
+  right.leave();
+  await server.close();
 });

@@ -3,6 +3,9 @@
 //   - a viewer subscribes and sees the room, the joined client's skeleton,
 //     its forwarded poses, its contact events and status;
 //   - a wrong key is refused (bad_proof) and not retried;
+//   - a client of another room is refused by the door (409 to ?room=)
+//     before any frame; the room's own clients name it (js_client_e2e.sh:
+//     --room js-room) and pass the hello's room check;
 //   - the client streams the bundled walk lock-step (each pose after the
 //     previous pair's answer) and every contact_event equals `sweptccd
 //     query` on the same samples (result, s_lo, s_hi, initially_colliding,
@@ -11,14 +14,16 @@
 //   - the connection drops: the client reconnects, joins again with a
 //     greater session, and its new stream is answered exactly again;
 //   - leave: the viewer's room no longer holds the client.
-//   node js_client_e2e.mjs URL KEY_FILE SKELETON POSES EXPECTED
+//   - a client of the daemon's configuration (jswalker, its own key) joins
+//     through the door; the walk is answered equal to `sweptccd query`.
+//   node js_client_e2e.mjs URL KEY_FILE SKELETON POSES EXPECTED WALKER_KEY_FILE
 import assert from "node:assert/strict";
 import { readFileSync } from "node:fs";
 import path from "node:path";
 import { pathToFileURL } from "node:url";
 
 const lib = await import(pathToFileURL(path.join(process.env.SWEPTCCD_JS_DIR, "dist", "node.js")).href);
-const [url, keyFile, skeletonFile, posesFile, expectedFile] = process.argv.slice(2);
+const [url, keyFile, skeletonFile, posesFile, expectedFile, walkerKeyFile] = process.argv.slice(2);
 const key = readFileSync(keyFile, "utf8");
 const skeleton = JSON.parse(readFileSync(skeletonFile, "utf8"));
 const poses = lib.parsePoseLines(readFileSync(posesFile, "utf8"));
@@ -50,7 +55,18 @@ await assert.rejects(wrong.connect(), (e) => e.code === "bad_proof");
 assert.equal(wrong.connects, 1);
 log("a wrong key is refused: bad_proof");
 
-const alice = new lib.NodeLiveClient({ url, key, clientId: "jsalice", skeleton, backoffInitialMs: 50 });
+// Another room's client: the door refuses the upgrade with 409, one clear error.
+const lost = new lib.NodeLiveClient({ url, key, clientId: "jslost", skeleton, room: "other-room", reconnect: false });
+const lostErrors = [];
+lost.on("protocolError", (m) => lostErrors.push(m));
+lost.on("contact", () => assert.fail("an event delivered to another room's client"));
+await assert.rejects(lost.connect());
+assert.equal(lost.wrongRooms, 1);
+assert.equal(lost.serverHello, null);
+assert.match(lostErrors.join("\n"), /refused room 'other-room' \(409\)/);
+log("a client of another room is refused: 409");
+
+const alice = new lib.NodeLiveClient({ url, key, clientId: "jsalice", skeleton, room: "js-room", backoffInitialMs: 50 });
 const events = [];
 const rejections = [];
 const joins = [];
@@ -137,5 +153,24 @@ log(`re-joined: session ${alice.session}, 11 more events equal to sweptccd query
 const rooms = seen.rooms.length;
 alice.leave();
 await until(() => seen.rooms.length > rooms && !seen.rooms.at(-1).clients.some((c) => c.client_id === "jsalice"), 5000, "the room without jsalice");
+
+// A configured client (docs/WEBSOCKET.md "Configured clients"): its own key
+// proves the join; answered as over LCM; the viewer sees it as "config".
+const walkerEvents = [];
+const walker = new lib.NodeLiveClient({ url, key: readFileSync(walkerKeyFile, "utf8"), clientId: "jswalker", skeleton, room: "js-room" });
+walker.on("contact", (e) => walkerEvents.push(e));
+await walker.connect();
+let walkerContacts = 0;
+for (let k = 0; k < poses.length; k++) {
+  const p = poses[k];
+  assert.ok(walker.publishPose({ utime: p.utime, seq: k, position: p.position, orientation: p.orientation }));
+  if (k === 0) continue;
+  await until(() => walkerEvents.length >= k, 10000, `jswalker: the event of pair ${k - 1}`);
+  walkerContacts += check(walkerEvents[k - 1], expected[k - 1], k, `jswalker pair ${k - 1}`);
+}
+assert.equal(walkerContacts, wantContacts);
+assert.equal(seen.rooms.at(-1).clients.find((c) => c.client_id === "jswalker").door, "config");
+walker.leave();
+log(`configured client jswalker: ${walkerEvents.length} events equal to sweptccd query`);
 viewer.close();
 log("left; passed");

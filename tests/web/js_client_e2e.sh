@@ -14,9 +14,11 @@ fail() { echo "js_client_e2e: FAILED: $*" >&2; exit 1; }
 import_walk "$sweptccd" "$src" 30 "$work"
 query_walk "$sweptccd" "$src/data/env/morse_apartment.ply.gz" "$work"
 "$sweptccd" keygen --out "$work/room.key"
+"$sweptccd" keygen --out "$work/walker.key"
 port=7701
 "$service" --lcm-url "$SWEPTCCD_URL" --env "$src/data/env/morse_apartment.ply.gz" \
-  --room-key "$work/room.key" --max-live-clients 8 --status-period 0.2 \
+  --room-key "$work/room.key" --max-live-clients 8 --status-period 0.2 --room js-room \
+  --client "jswalker=$work/skeleton.json" --client-key "jswalker=$work/walker.key" \
   --ws-listen "127.0.0.1:$port" --log-level info 2> "$work/daemon.log" &
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
@@ -24,7 +26,7 @@ wait_for "$work/daemon.log" ready || { cat "$work/daemon.log" >&2; fail "no daem
 export SWEPTCCD_JS_DIR=$js
 url="ws://127.0.0.1:$port/ws"
 "$node" "$(dirname "$0")/js_client_e2e.mjs" "$url" "$work/room.key" "$work/skeleton.json" \
-  "$work/poses.jsonl" "$work/expected.jsonl" || { tail -n 20 "$work/daemon.log" >&2; fail "js_client_e2e.mjs"; }
+  "$work/poses.jsonl" "$work/expected.jsonl" "$work/walker.key" || { tail -n 20 "$work/daemon.log" >&2; fail "js_client_e2e.mjs"; }
 # The Node example: joins, streams 40 poses at 60 Hz, prints contacts, leaves.
 "$node" "$js/examples/node_example.mjs" --url "$url" --key "$work/room.key" --id example \
   --skeleton "$work/skeleton.json" --poses "$work/poses.jsonl" --rate 60 --count 40 > "$work/example.out" \

@@ -21,13 +21,12 @@
 # is ready or the deadline passed.
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
-enter_private_netns "$@"
+enter_private_hosts_ns "$@"  # Each room's namespace is a named one (ip netns add).
 cd "$(dirname "$0")/../.."
 src=$(pwd)
 build=$(cd "${1:-build}" && pwd)
 work=$build/capacity_bench
 rm -rf "$work" && mkdir -p "$work"
-ip link set lo up
 clients=${CLIENTS:-2} hz=${HZ:-90} secs=${SECONDS_PER_RUN:-8} ready_s=${READY_S:-150}
 bound=${P99_BOUND_US:-20000}
 d=$src/data/env

@@ -13,33 +13,19 @@
 # DELAY_MS: netem delay added on the router's link to B, each way (default 0).
 set -euo pipefail
 source "$(dirname "$0")/../netns.sh"
-enter_private_netns "$@"
+enter_private_hosts_ns "$@"
 cd "$(dirname "$0")/../.."
 build=$(cd "${1:-build}" && pwd)
 work=$build/fleet_latency_bench
 rm -rf "$work" && mkdir -p "$work"
-ip link set lo up
-sysctl -qw net.ipv4.ip_forward=1
 tag=sccdbench$$
 pids=()
 cleanup() {
   for p in "${pids[@]}"; do kill -KILL "$p" 2> /dev/null || true; done
-  for h in a b; do ip netns del "$tag$h" 2> /dev/null || true; done
+  del_hosts "$tag" a b
 }
 trap cleanup EXIT
-n=0
-for h in a b; do
-  n=$((n + 1))
-  ip netns add "$tag$h"
-  ip link add "r$h" type veth peer name eth0 netns "$tag$h"
-  ip addr add "10.0.$n.1/24" dev "r$h"
-  ip link set "r$h" up
-  ip -n "$tag$h" link set lo up
-  ip -n "$tag$h" addr add "10.0.$n.2/24" dev eth0
-  ip -n "$tag$h" link set eth0 up
-  ip -n "$tag$h" route add default via "10.0.$n.1"
-  ip -n "$tag$h" route add 224.0.0.0/4 dev lo
-done
+add_routed_hosts "$tag" a b
 if [ "${DELAY_MS:-0}" != 0 ]; then tc qdisc add dev rb root netem delay "${DELAY_MS}ms"; fi
 url=$SWEPTCCD_URL
 "$build/bin/sweptccd" keygen --out "$work/room.key"

@@ -47,6 +47,21 @@ class RoomResolver {
   virtual DoorAddress Resolve(const std::string& room) = 0;
 };
 
+/// The door's WebSocket target for a client of `room`: "/ws?room=ROOM" (the
+/// door refuses another room's client with 409 before any frame,
+/// docs/WEBSOCKET.md section 1), or "/ws" when `room` is empty (no
+/// resolver: any door). `room` follows the id rule (URL-safe as it is).
+std::string DoorTarget(const std::string& room);
+
+/// The one check of a hello against the room the client resolved
+/// (docs/WEBSOCKET.md section 5, hello.room): "" when `room` is empty (no
+/// resolver) or the hello names `room`; else one line, safe to print, saying
+/// which room the door holds (a room mix-up: another room's events must
+/// never be delivered). A hello without a string `room` is refused too: a
+/// door reached through a resolver tells its room.
+std::string HelloRoomProblem(const std::string& room, const nlohmann::json& hello,
+                             const std::string& door);
+
 /// "ws://HOST:PORT[/ws]" or "wss://..."; HOST an IPv4 literal, [IPv6] or a
 /// DNS name of at most 253 characters. Throws RoomError (not retryable).
 DoorAddress ParseDoorUrl(const std::string& url);

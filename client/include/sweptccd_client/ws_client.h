@@ -12,10 +12,11 @@
 // no status of its instance for heartbeat_timeout_s takes the room for dead:
 // it closes, re-resolves and re-joins. Events of another daemon instance than
 // the joined one are dropped (fenced), and so is a hello of an instance older
-// than one already joined. Poses whose pair is not answered yet are kept and
-// sent again (same seq and utime) after a re-join, paced within the door's
-// limits; an answer for a pair already delivered is dropped. A rejection
-// `unknown_client` (the daemon dropped the session) re-joins at once.
+// than one already joined. The room is sent (/ws?room=) and hello.room
+// checked: a door of another room is refused, never joined. Poses whose pair is not answered yet
+// are kept and sent again (same seq and utime) after a re-join, paced within the door's limits; an
+// answer for a pair already delivered is dropped. A rejection `unknown_client` (the daemon dropped
+// the session) re-joins at once.
 //
 // Threading: one I/O thread of its own runs the connection and every
 // callback; PublishPose, Leave and Send may be called from any thread.
@@ -53,7 +54,9 @@ class WsLiveClient {
     bool verify_peer = true;
     std::string origin;  // Sent as Origin when not empty (as a browser).
     std::string client_id;
-    /// Signed rooms: the room key proves joins (and subscriptions).
+    /// Signed rooms: the room key proves joins (and subscriptions); a client
+    /// of the daemon's configuration with a key of its own
+    /// (security.client_keys) proves its join with that key instead.
     std::optional<MacKey> room_key;
     /// Join with this skeleton (none: connect without joining, e.g. a viewer).
     std::optional<Skeleton> skeleton;
@@ -67,6 +70,10 @@ class WsLiveClient {
     /// Room discovery: when set, every connection resolves `room` (host,
     /// port and tls above are then ignored).
     std::shared_ptr<RoomResolver> resolver;
+    /// The room this client is for (with or without a resolver): sent as
+    /// `/ws?room=ROOM` and checked against hello.room; a door of another
+    /// room (409, or another hello.room) is refused and resolved again
+    /// (FailoverStats::wrong_rooms). Empty: any door.
     std::string room;
     /// A joined client without a status of its instance for this long takes
     /// the room for dead (0: never); raised to 3 status periods when the
@@ -87,8 +94,9 @@ class WsLiveClient {
     int64_t forgotten_poses = 0;   // Pending poses over max_pending_poses.
     int64_t unknown_client_rejoins = 0;
     int64_t resolve_failures = 0;
-    std::string last_error;  // Escaped, one line.
-    std::string door;        // The current door's URL ("" before one).
+    int64_t wrong_rooms = 0;  // Doors of another room (409 or hello.room), refused.
+    std::string last_error;   // Escaped, one line.
+    std::string door;         // The current door's URL ("" before one).
   };
 
   /// Throws InputError for a bad client id (when joining). Connects on Join()

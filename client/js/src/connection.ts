@@ -7,7 +7,7 @@ import { DecodeError, decodeServerMessage, encodeClientMessage, escapeForDisplay
 import { Emitter } from "./emitter.js";
 import { ProofKind, SubtleLike, makeProof, parseKey } from "./proof.js";
 import { DEFAULT_MAX_MESSAGE_BYTES, ErrorMessage, Hello, PROTOCOL_VERSION, Pong, SUBPROTOCOL, ServerMessage } from "./protocol.js";
-import { RoomError, RoomResolver, doorUrl } from "./rooms.js";
+import { RoomError, RoomResolver, doorUrl, helloRoomProblem, withRoom } from "./rooms.js";
 
 /** What this library needs of a WebSocket (the browser's, or the `ws` package's). */
 export interface SocketLike {
@@ -31,6 +31,12 @@ export interface ConnectionOptions {
    * `room`'s door, so a re-connection after a failover finds the new server.
    */
   resolver?: RoomResolver;
+  /**
+   * The room this client is for (with or without a resolver): sent as
+   * `/ws?room=ROOM` and checked against hello.room; a door of another room
+   * (409, or another hello.room) is refused and resolved again
+   * (`wrongRooms`). "" or absent: any door.
+   */
   room?: string;
   /** The key that proves this connection: 64 hex digits or 32 bytes; none: unsigned (lab bench) mode. */
   key?: string | Uint8Array;
@@ -104,6 +110,8 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
   fencedEvents = 0;
   fencedHellos = 0;
   resolveFailures = 0;
+  /** Doors of another room refused (a 409 to `?room=`, or another hello.room). */
+  wrongRooms = 0;
   /** The newest daemon instance joined: a hello of an older one is fenced. */
   protected maxInstance = 0;
   /** The door of the current connection. */
@@ -119,6 +127,7 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
         return new WS(url, protocol);
       });
     if (!options.url && !options.resolver) throw new Error("give url, or resolver and room");
+    withRoom("", options.room ?? "");  // A room name breaking the id rule: RoomError now.
     this.options = {
       url: options.url ?? "",
       resolver: options.resolver,
@@ -247,12 +256,12 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
     this.setState("connecting");
     this.hello = null;
     if (!this.options.resolver) {
-      this.openUrl(this.options.url);
+      this.openUrl(withRoom(this.options.url, this.options.room));
       return;
     }
     this.options.resolver.resolve(this.options.room).then(
       (d) => {
-        if (!this.stopped && this.stateValue === "connecting") this.openUrl(doorUrl(d));
+        if (!this.stopped && this.stateValue === "connecting") this.openUrl(doorUrl(d, this.options.room));
       },
       (e) => {
         this.resolveFailures++;
@@ -285,11 +294,21 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
       this.setState("handshake");
     };
     s.onmessage = (ev) => this.receive(s, ev.data);
-    s.onerror = () => {
-      /* onclose follows */
+    let refused = "";
+    s.onerror = (ev) => {
+      // onclose follows. Node's `ws` names a refused upgrade ("Unexpected
+      // server response: 409": the door holds another room); a browser
+      // tells nothing.
+      const m = (ev as { message?: unknown } | null)?.message;
+      if (typeof m === "string" && / 409$/.test(m)) refused = m;
     };
     s.onclose = (ev) => {
-      if (this.socket === s) this.dropped(ev.code, ev.reason);
+      if (this.socket !== s) return;
+      if (refused && !this.hello) {
+        this.wrongRooms++;
+        this.emit("protocolError", `door ${escapeForDisplay(url, 120)} refused room '${this.options.room}' (409): it holds another room`);
+      }
+      this.dropped(ev.code, ev.reason);
     };
   }
 
@@ -311,6 +330,13 @@ export abstract class Connection<E extends ConnectionEvents> extends Emitter<E> 
         // A server of an older run of this room (a stale allocation): fenced.
         this.fencedHellos++;
         this.restart(`instance ${msg.instance} is older than instance ${this.maxInstance} joined already: fenced`);
+        return;
+      }
+      const wrongRoom = helloRoomProblem(this.options.room, msg, this.door);
+      if (wrongRoom) {
+        this.wrongRooms++;  // Never joined: no event of another room is delivered.
+        this.emit("protocolError", wrongRoom);
+        this.restart(wrongRoom);
         return;
       }
       if (msg.protocol !== PROTOCOL_VERSION) {

@@ -45,6 +45,8 @@ export interface Hello {
   challenge: string;
   server_utime: number;
   shared_world?: boolean;
+  /** The room the door holds (the client checks it: rooms.ts helloRoomProblem). */
+  room?: string;
   limits?: Limits;
 }
 

@@ -39,9 +39,34 @@ export interface RoomResolver {
 
 const show = (s: string) => `'${escapeForDisplay(String(s), 80)}'`;
 
-export function doorUrl(d: DoorAddress): string {
+/** The door's URL; with `room`, `/ws?room=ROOM` (withRoom). */
+export function doorUrl(d: DoorAddress, room = ""): string {
   const host = d.host.includes(":") ? `[${d.host}]` : d.host;
-  return `${d.tls ? "wss" : "ws"}://${host}:${d.port}/ws`;
+  return withRoom(`${d.tls ? "wss" : "ws"}://${host}:${d.port}/ws`, room);
+}
+
+/**
+ * `url` naming the room its client is for (docs/WEBSOCKET.md section 1):
+ * `?room=ROOM` added, so a door of another room refuses the upgrade with 409
+ * before any frame. `room` "" (no room): `url` as it is.
+ */
+export function withRoom(url: string, room: string): string {
+  if (room === "") return url;
+  checkRoom(room);
+  return `${url}${url.includes("?") ? "&" : "?"}room=${room}`;
+}
+
+/**
+ * The one check of a hello against the room the client is for
+ * (docs/WEBSOCKET.md section 5, hello.room): "" when `room` is "" or the
+ * hello names it; else one line, safe to print: a door of another room (a
+ * room mix-up after a failover) whose events must never be delivered. A
+ * hello without a string `room` is refused too.
+ */
+export function helloRoomProblem(room: string, hello: { room?: unknown }, door: string): string {
+  if (room === "" || hello.room === room) return "";
+  const held = typeof hello.room === "string" ? `holds room ${show(hello.room)}` : "does not say which room it holds";
+  return `door ${show(door)} ${held}, not room ${show(room)}: refused (a room mix-up; resolving again)`;
 }
 
 function checkRoom(room: string): void {

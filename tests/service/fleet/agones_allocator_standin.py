@@ -68,7 +68,7 @@ def gameservers():
             state = "Allocated"
         labels = dict(gs.get("labels", {}))
         labels.update(ALLOCATED.get(gs["name"], {}))
-        out.append({**gs, "state": state, "labels": labels})
+        out.append({**gs, "state": state, "labels": labels, "file": path})
     return out
 
 
@@ -122,6 +122,12 @@ def allocate(body):
             if want == "Ready":
                 ALLOCATED[gs["name"]] = dict(body.get("metadata", {}).get("labels", {}))
                 gs["labels"].update(ALLOCATED[gs["name"]])
+                # The labels reach the GameServer object, so its sidecar's
+                # watch reports them (agones_sdk_standin.py reads FILE.allocated).
+                tmp = gs["file"] + ".allocated.tmp"
+                with open(tmp, "w") as f:
+                    json.dump(ALLOCATED[gs["name"]], f)
+                os.replace(tmp, gs["file"] + ".allocated")
             return 200, answer_for(gs)
     return 429, {"error": "there is no available GameServer to allocate", "code": 8}
 

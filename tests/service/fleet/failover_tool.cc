@@ -202,15 +202,17 @@ int main(int argc, char** argv) {
         "%s client c%d: the walk's %zu pairs tiled by %zu answers (%lld of consecutive poses, "
         "%lld over more poses: latest-wins under load), %lld answered twice, %lld mismatches "
         "against sweptccd query, %lld contacts, %zu joins, %lld events from another instance "
-        "delivered; fenced %lld events and %lld hellos, %lld heartbeat losses, %lld poses "
+        "delivered; fenced %lld events and %lld hellos, %lld doors of another room refused, "
+        "%lld heartbeat losses, %lld poses "
         "re-sent, %lld repeated answers dropped, %lld resolve failures%s%s\n",
         ok ? "ok" : "FAIL", c, pairs, sorted.size(), static_cast<long long>(consecutive),
         static_cast<long long>(merged), static_cast<long long>(twice),
         static_cast<long long>(t.mismatches), static_cast<long long>(t.contacts),
         t.instances.size(), static_cast<long long>(t.wrong_instance),
         static_cast<long long>(f.fenced_events), static_cast<long long>(f.fenced_hellos),
-        static_cast<long long>(f.heartbeat_losses), static_cast<long long>(f.resent_poses),
-        static_cast<long long>(f.repeated_answers), static_cast<long long>(f.resolve_failures),
+        static_cast<long long>(f.wrong_rooms), static_cast<long long>(f.heartbeat_losses),
+        static_cast<long long>(f.resent_poses), static_cast<long long>(f.repeated_answers),
+        static_cast<long long>(f.resolve_failures),
         gaps.empty() ? "" : "; not tiled:", gaps.c_str());
   }
   std::fflush(stdout);

@@ -11,7 +11,9 @@ With the optional arguments it also keeps the GameServer that the SDK
 calls change in GAMESERVER_JSON ({"name", "address", "ports": [{"name":
 "websocket", "port"}], "state", "labels", "last_health_wall"}; LABELS is
 k=v,k=v), rewritten atomically on every call, as Agones' API server would
-hold it: the allocator stand-in (tests/service/fleet/) reads it.
+hold it: the allocator stand-in (tests/service/fleet/) reads it, and
+writes the labels of an allocation to GAMESERVER_JSON.allocated, which this
+stand-in follows (its watchers hear them, as through Kubernetes' API).
 
 POST /ready /health /shutdown /allocate take a JSON object (Content-Type
 application/json) and answer {}; /reserve takes {"seconds": N}; GET
@@ -83,6 +85,25 @@ def gameserver():
                             "labels": STATE["labels"], "annotations": STATE["annotations"]},
             "status": {"state": STATE["state"], "address": "127.0.0.1",
                        "ports": [{"name": "websocket", "port": 7000}]}}
+
+
+def follow_allocation():
+    """The allocator (stand-in) labels the GameServer at allocation: its
+    labels appear in GS_FILE.allocated and reach the watchers, as
+    Kubernetes' watch would deliver them."""
+    seen = None
+    while True:
+        try:
+            with open(GS_FILE + ".allocated") as f:
+                labels = json.load(f)
+        except (OSError, ValueError):
+            labels = None
+        if isinstance(labels, dict) and labels != seen:
+            seen = labels
+            with LOCK:
+                STATE["labels"].update({str(k): str(v) for k, v in labels.items()})
+                notify()
+        time.sleep(0.02)
 
 
 class Handler(BaseHTTPRequestHandler):
@@ -180,4 +201,6 @@ class Handler(BaseHTTPRequestHandler):
             self.close_connection = True
 
 
+if GS_FILE:
+    threading.Thread(target=follow_allocation, daemon=True).start()
 ThreadingHTTPServer((HOST, PORT), Handler).serve_forever()
