@@ -103,26 +103,28 @@ run_rooms() {
   nets=()
 }
 
-# A client row "| door | clients | Hz | poses sent | events | p50 | p99 | max |"
-# split on '|': events is field 6, p99 field 8.
+# A client row "| door | clients | Hz | poses sent | events | p50 | p99 | max |
+# intervals |" split on '|': poses field 5, p99 field 8, intervals field 10
+# (the pose intervals its events cover: poses - clients when every pose was
+# answered once, whether or not latest-wins merged pairs under load).
 field() { awk -F'|' -v c="$1" '{gsub(/ /, "", $c); print $c}'; }
 
 echo "Per-room memory by scene: 1 room, $clients clients x $hz Hz for $secs s, CPU, 1 worker, door on"
 echo
 echo
-[ -n "$scenes" ] && echo "| scene | triangles | start to ready s | RSS MiB | peak RSS MiB | events / poses | p99 us |"
+[ -n "$scenes" ] && echo "| scene | triangles | start to ready s | RSS MiB | peak RSS MiB | pose intervals answered / poses | p99 us |"
 [ -n "$scenes" ] && echo "|---|---:|---:|---:|---:|---:|---:|"
 for s in $scenes; do
   run_rooms "$s" 1
   read -r _ rdy rss hwm row < "$work/rooms.txt"
   tris=$(sed -n 's/.*environment: [0-9]* objects, \([0-9]*\) triangles.*/\1/p' "$work/daemon_1.log")
-  echo "| $s | ${tris:-?} | $rdy | $rss | $hwm | $(echo "$row" | field 6) / $(echo "$row" | field 5) | $(echo "$row" | field 8) |"
+  echo "| $s | ${tris:-?} | $rdy | $rss | $hwm | $(echo "$row" | field 10) / $(echo "$row" | field 5) | $(echo "$row" | field 8) |"
 done
 echo
 echo "Rooms at once: each $clients clients x $hz Hz for $secs s, CPU, 1 worker each, door on; p99 bound $bound us"
 echo
 scales=${SCALE_SCENES-apartment breakfast+dragon_1.1M}
-[ -n "$scales" ] && echo "| scene | rooms | RSS MiB per room (median / max) | start to ready s (max) | events / poses per room (min) | p99 us per room (median / max) | p99 <= bound in every room |"
+[ -n "$scales" ] && echo "| scene | rooms | RSS MiB per room (median / max) | start to ready s (max) | pose intervals answered / poses per room (min) | p99 us per room (median / max) | p99 <= bound in every room |"
 [ -n "$scales" ] && echo "|---|---:|---:|---:|---:|---:|---|"
 for scale in $scales; do
  for n in ${ROOMS:-1 2 4 8}; do
@@ -131,7 +133,7 @@ for scale in $scales; do
   rdy=$(awk '$2 != "none" {print $2}' "$work/rooms.txt" | sort -g | tail -1)
   late=$(awk '$2 == "none"' "$work/rooms.txt" | wc -l)
   [ "$late" = 0 ] || rdy="${rdy:--}; $late not ready in $ready_s s"
-  ev=$(while read -r _ _ _ _ row; do echo "$(echo "$row" | field 6) / $(echo "$row" | field 5)"; done < "$work/rooms.txt" | sort -n)
+  ev=$(while read -r _ _ _ _ row; do echo "$(echo "$row" | field 10) / $(echo "$row" | field 5)"; done < "$work/rooms.txt" | sort -n)
   p99=$(while read -r _ _ _ _ row; do echo "$row" | field 8; done < "$work/rooms.txt" | sort -n)
   med() { sed -n "$((($(wc -l <<< "$1") + 1) / 2))p" <<< "$1"; }
   ok=yes

@@ -39,8 +39,8 @@ ip netns exec "${tag}a" "$build/bin/sweptccd-service" --lcm-url "$url" \
   2> "$work/daemon.log" &
 pids+=($!)
 sleep 2
-echo "| door | clients | Hz | poses sent | events | p50 us | p99 us | max us |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+echo "| door | clients | Hz | poses sent | events | p50 us | p99 us | max us | intervals |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for c in ${RUNS:-1 16}; do
   ip netns exec "${tag}a" "$build/bin/sweptccd_ws_latency" lcm "$url" "$work/skeleton.json" \
     "$work/poses.jsonl" "$c" 90 "${SECONDS_PER_RUN:-10}" "$work/room.key" | sed 's/^| LCM/| LCM multicast, same host/'

@@ -10,7 +10,11 @@
 // tools/service_bench/fleet_latency.sh; default 127.0.0.1; "tls:HOST:PORT":
 // wss:// without checking the certificate, a bench's self-signed one)
 //
-// Prints one table row: | door | clients | Hz | poses | events | p50 | p99 | max |.
+// Prints one table row: | door | clients | Hz | poses | events | p50 | p99 |
+// max | intervals |. "intervals" is the pose intervals the events cover
+// (seq1 - seq0 summed): a pair that latest-wins merged spans several, so with
+// nothing lost or answered twice it is poses - clients whatever the load,
+// while "events" falls short by the merges.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -36,10 +40,12 @@ struct Samples {
   std::vector<std::vector<Clock::time_point>> sent;  // Per client, by seq.
   std::vector<double> latencies_us;
   int64_t events = 0;
-  void Event(int client, int64_t seq1) {
+  int64_t intervals = 0;
+  void Event(int client, int64_t seq0, int64_t seq1) {
     const auto now = Clock::now();
     std::lock_guard<std::mutex> lock(mutex);
     ++events;
+    intervals += seq1 - seq0;
     const auto& s = sent[static_cast<size_t>(client)];
     if (seq1 < 0 || seq1 >= static_cast<int64_t>(s.size())) return;
     latencies_us.push_back(std::chrono::duration<double, std::micro>(now - s[seq1]).count());
@@ -103,7 +109,7 @@ int main(int argc, char** argv) {
       o.skeleton = skeleton;
       o.reconnect = false;
       ws.push_back(std::make_unique<WsLiveClient>(o));
-      ws.back()->OnContact([&samples, c](const contact_event_t& e) { samples.Event(c, e.seq1); });
+      ws.back()->OnContact([&samples, c](const contact_event_t& e) { samples.Event(c, e.seq0, e.seq1); });
       joined = ws.back()->Join();
     } else {
       LiveClient::Options o;
@@ -113,7 +119,7 @@ int main(int argc, char** argv) {
       o.skeleton = skeleton;
       o.rejoin = false;
       lcm.push_back(std::make_unique<LiveClient>(o));
-      lcm.back()->OnContact([&samples, c](const contact_event_t& e) { samples.Event(c, e.seq1); });
+      lcm.back()->OnContact([&samples, c](const contact_event_t& e) { samples.Event(c, e.seq0, e.seq1); });
       joined = lcm.back()->Join();
     }
     if (!joined.ok()) {
@@ -140,16 +146,18 @@ int main(int argc, char** argv) {
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   std::vector<double> lat;
-  int64_t events = 0;
+  int64_t events = 0, intervals = 0;
   {
     std::lock_guard<std::mutex> lock(samples.mutex);
     lat = samples.latencies_us;
     events = samples.events;
+    intervals = samples.intervals;
   }
-  std::printf("| %s | %d | %.0f | %lld | %lld | %.0f | %.0f | %.0f |\n",
+  std::printf("| %s | %d | %.0f | %lld | %lld | %.0f | %.0f | %.0f | %lld |\n",
               door == "ws" ? "WebSocket" : "LCM", n, hz, static_cast<long long>(sent),
               static_cast<long long>(events), Percentile(lat, 0.5), Percentile(lat, 0.99),
-              lat.empty() ? 0.0 : *std::max_element(lat.begin(), lat.end()));
+              lat.empty() ? 0.0 : *std::max_element(lat.begin(), lat.end()),
+              static_cast<long long>(intervals));
   for (auto& c : ws) c->Leave();
   for (auto& c : lcm) c->Leave();
   return 0;

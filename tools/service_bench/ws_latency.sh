@@ -25,8 +25,8 @@ import_walk "$build/bin/sweptccd" . 90 "$work" >/dev/null
 daemon=$!
 trap 'kill -KILL $daemon 2>/dev/null || true' EXIT
 sleep 2
-echo "| door | clients | Hz | poses sent | events | p50 us | p99 us | max us |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
+echo "| door | clients | Hz | poses sent | events | p50 us | p99 us | max us | intervals |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 for n in ${RUNS:-1 16}; do
   for door in lcm ws; do
     if [ $door = ws ]; then where=$port; else where=$url; fi
