@@ -297,6 +297,34 @@ void PairMotion::Release(Storage* storage) {
   segments_at_ends_.clear();
 }
 
+// Inlined into Build's loop (kAll: every link, pair after pair) and
+// CompleteMotion: a call per link cost more than the checks it replaced.
+[[gnu::always_inline]] inline void PairMotion::FinishMotion(LinkMotion* motion) {
+  LinkMotion& m = *motion;
+  if (m.parent.is_valid()) {
+    m.q0 = m.q0.normalized();
+    m.q1 = m.q1.normalized();
+    // The numbers SPEC 3's sign is decided on, and the slerp then uses.
+    FlushTinyComponents(&m.q0);
+    FlushTinyComponents(&m.q1);
+  }
+  m.q1 = ShortestArcTarget(m.q0, m.q1);
+  m.half_angle = QuatAngle4D(m.q0, m.q1);
+  m.sin_half = m.inv_sin_half = m.sin_quarter = 0;
+  if (m.half_angle >= kNlerpAngle) {
+    m.sin_half = std::sin(m.half_angle);
+    m.inv_sin_half = 1.0 / m.sin_half;
+    m.sin_quarter = std::sin(0.5 * m.half_angle);
+  }
+  const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
+  m.own_speed = NormHi(m.p1 - m.p0);
+  m.lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
+  if (!internal::LinkBoundsByUpperEnds(m.half_angle, m.own_speed, m.lever, parent, &m.bounds)) {
+    m.bounds = internal::LinkBoundsByIntervals(m.half_angle, m.own_speed, m.lever, parent);
+  }
+  m.motion_ready = true;
+}
+
 void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends) {
   const int n = skeleton.num_links();
   SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
@@ -380,32 +408,6 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
                     &segments_at_ends_[6 * i + 2 * k + 1]);
     }
   }
-}
-
-void PairMotion::FinishMotion(LinkMotion* motion) {
-  LinkMotion& m = *motion;
-  if (m.parent.is_valid()) {
-    m.q0 = m.q0.normalized();
-    m.q1 = m.q1.normalized();
-    // The numbers SPEC 3's sign is decided on, and the slerp then uses.
-    FlushTinyComponents(&m.q0);
-    FlushTinyComponents(&m.q1);
-  }
-  m.q1 = ShortestArcTarget(m.q0, m.q1);
-  m.half_angle = QuatAngle4D(m.q0, m.q1);
-  m.sin_half = m.inv_sin_half = m.sin_quarter = 0;
-  if (m.half_angle >= kNlerpAngle) {
-    m.sin_half = std::sin(m.half_angle);
-    m.inv_sin_half = 1.0 / m.sin_half;
-    m.sin_quarter = std::sin(0.5 * m.half_angle);
-  }
-  const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
-  m.own_speed = NormHi(m.p1 - m.p0);
-  m.lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
-  if (!internal::LinkBoundsByUpperEnds(m.half_angle, m.own_speed, m.lever, parent, &m.bounds)) {
-    m.bounds = internal::LinkBoundsByIntervals(m.half_angle, m.own_speed, m.lever, parent);
-  }
-  m.motion_ready = true;
 }
 
 void PairMotion::CompleteMotion(LinkIndex link) {
