@@ -227,6 +227,32 @@ bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
   return true;
 }
 
+void FirstOrderBoundsUpper(double half_angle, double own_speed, double lever,
+                           const LinkBounds* parent, double* speed, double* angular) {
+  const double own_angular = Up(Up(2.0 * Interval::StepUp(half_angle, 8)) * (1.0 + 1e-12));
+  double w = own_angular, v = own_speed;
+  if (parent != nullptr) {
+    const double wk = parent->angular;
+    w = Up(wk + own_angular);
+    v = Up(Up(parent->speed + Up(wk * lever)) + own_speed);
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  const bool finite = Finite(w) && Finite(v);
+  *speed = finite ? v : inf;
+  *angular = finite ? w : inf;
+}
+
+double HalfAngleUpper(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  const Eigen::Vector4d& u = a.coeffs();
+  const Eigen::Vector4d& v = b.coeffs();
+  const double uu = u.squaredNorm(), vv = v.squaredNorm();
+  if (!(std::fabs(uu - 1) <= 1e-9 && std::fabs(vv - 1) <= 1e-9)) return kMaxHalfAngle;
+  const double t = std::fabs(u.dot(v)) / std::sqrt(uu * vv) - 1e-14;
+  if (!(t > 0)) return kMaxHalfAngle;
+  const double bound = Up(Up(2.0 * std::sqrt(std::max(0.0, (1 - t) / (1 + t)))) * (1.0 + 1e-12));
+  return std::min(kMaxHalfAngle, Up(bound + 1e-12));
+}
+
 }  // namespace internal
 
 Eigen::Quaterniond Slerp(const Eigen::Quaterniond& q0, const Eigen::Quaterniond& q1, double s) {
@@ -271,6 +297,34 @@ void PairMotion::Release(Storage* storage) {
   segments_at_ends_.clear();
 }
 
+// Inlined into Build's loop (kAll: every link, pair after pair) and
+// CompleteMotion: a call per link cost more than the checks it replaced.
+[[gnu::always_inline]] inline void PairMotion::FinishMotion(LinkMotion* motion) {
+  LinkMotion& m = *motion;
+  if (m.parent.is_valid()) {
+    m.q0 = m.q0.normalized();
+    m.q1 = m.q1.normalized();
+    // The numbers SPEC 3's sign is decided on, and the slerp then uses.
+    FlushTinyComponents(&m.q0);
+    FlushTinyComponents(&m.q1);
+  }
+  m.q1 = ShortestArcTarget(m.q0, m.q1);
+  m.half_angle = QuatAngle4D(m.q0, m.q1);
+  m.sin_half = m.inv_sin_half = m.sin_quarter = 0;
+  if (m.half_angle >= kNlerpAngle) {
+    m.sin_half = std::sin(m.half_angle);
+    m.inv_sin_half = 1.0 / m.sin_half;
+    m.sin_quarter = std::sin(0.5 * m.half_angle);
+  }
+  const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
+  m.own_speed = NormHi(m.p1 - m.p0);
+  m.lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
+  if (!internal::LinkBoundsByUpperEnds(m.half_angle, m.own_speed, m.lever, parent, &m.bounds)) {
+    m.bounds = internal::LinkBoundsByIntervals(m.half_angle, m.own_speed, m.lever, parent);
+  }
+  m.motion_ready = true;
+}
+
 void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends) {
   const int n = skeleton.num_links();
   SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
@@ -294,47 +348,49 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       m.parent = LinkIndex(link.parent);
       m.p0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
       m.p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
-      m.q0 = (k0.q.conjugate() * x0.q).normalized();
-      m.q1 = (k1.q.conjugate() * x1.q).normalized();
-      // The numbers SPEC 3's sign is decided on, and the slerp then uses.
-      FlushTinyComponents(&m.q0);
-      FlushTinyComponents(&m.q1);
+      m.q0 = k0.q.conjugate() * x0.q;  // FinishMotion normalises them.
+      m.q1 = k1.q.conjugate() * x1.q;
     } else {
       m.p0 = x0.p;
       m.p1 = x1.p;
       m.q0 = x0.q;
       m.q1 = x1.q;
     }
-    m.q1 = ShortestArcTarget(m.q0, m.q1);
-    m.half_angle = QuatAngle4D(m.q0, m.q1);
-    m.sin_half = m.inv_sin_half = m.sin_quarter = 0;
-    if (m.half_angle >= kNlerpAngle) {
-      m.sin_half = std::sin(m.half_angle);
-      m.inv_sin_half = 1.0 / m.sin_half;
-      m.sin_quarter = std::sin(0.5 * m.half_angle);
-    }
     scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
                       m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
-  // Speed bounds, parents first (internal::LinkBoundsByIntervals).
+  // Speed bounds, parents first (internal::LinkBoundsByIntervals). kOnDemand
+  // finishes only the links that move on their own; the others get upper
+  // bounds of their lever, own speed, speed and angular speed
+  // (PairGrowthUpper), parents first, from their parent's bounds (exact or
+  // upper) and HalfAngleUpper. Chain depth, parents first (linear time).
+  all_ready_ = ends == Ends::kAll;
+  int depth = 1;
   for (LinkIndex i : order_) {
     LinkMotion& m = links_[i];
-    const internal::LinkBounds* parent = !m.parent.is_valid() ? nullptr : &links_[m.parent].bounds;
-    const double own_speed = NormHi(m.p1 - m.p0);
-    const double lever = parent == nullptr ? 0.0 : MaxNormHi(m.p0, m.p1);
-    m.lever = lever;
-    if (!internal::LinkBoundsByUpperEnds(m.half_angle, own_speed, lever, parent, &m.bounds)) {
-      m.bounds = internal::LinkBoundsByIntervals(m.half_angle, own_speed, lever, parent);
+    if (m.parent.is_valid()) m.depth = links_[m.parent].depth + 1;
+    depth = std::max(depth, m.depth);
+    m.ends_ready = all_ready_;
+    if (all_ready_ || !m.parent.is_valid()) {
+      FinishMotion(&m);
+      continue;
     }
+    m.motion_ready = false;
+    // Upper bounds of NormHi and MaxNormHi (FinishMotion's): a norm rounded
+    // to nearest is within 4 ulps of the exact one, theirs within 20 ulps
+    // above it (1e-12 relative is far more); where squares underflow, their
+    // steps up from 0 add at most 8 x 2^-1074 under the root, 7e-162 above
+    // it (the 1e-150).
+    constexpr double kWide = 1.0 + 1e-12;
+    m.own_speed = std::sqrt((m.p1 - m.p0).squaredNorm()) * kWide + 1e-150;
+    m.lever = std::sqrt(std::max(m.p0.squaredNorm(), m.p1.squaredNorm())) * kWide + 1e-150;
+    const internal::LinkBounds& parent = links_[m.parent].bounds;
+    internal::FirstOrderBoundsUpper(internal::HalfAngleUpper(m.q0, m.q1), m.own_speed, m.lever,
+                                    &parent, &m.bounds.speed, &m.bounds.angular);
+    m.bounds.accel = m.bounds.angular_accel = std::numeric_limits<double>::quiet_NaN();
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
-  // Chain depth, parents first (linear time).
-  int depth = 1;
-  for (LinkIndex i : order_) {
-    if (links_[i].parent.is_valid()) links_[i].depth = links_[links_[i].parent].depth + 1;
-    depth = std::max(depth, links_[i].depth);
-  }
   rounding_slack_ = 1e-10 * (1.0 + scale * depth);
   coordinate_scale_ = scale;
   // Linear in the link count; PoseAt composes O(depth) per call otherwise,
@@ -342,7 +398,6 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   // `independent` a pose is its own slerp; the look-up still saves it.
   poses_at_ends_.resize(3 * static_cast<size_t>(n));
   segments_at_ends_.resize(6 * static_cast<size_t>(n));
-  for (LinkMotion& m : links_) m.ends_ready = ends == Ends::kAll;
   if (ends == Ends::kOnDemand) return;  // CompleteEnds, link by link.
   PosesAtInto(0.0, &poses_at_ends_[0]);
   PosesAtInto(0.5, &poses_at_ends_[n]);
@@ -355,12 +410,31 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   }
 }
 
+void PairMotion::CompleteMotion(LinkIndex link) {
+  LinkMotion& m = links_[link];
+  if (m.motion_ready) return;
+  SWEPTCCD_CHECK(!m.parent.is_valid() || links_[m.parent].motion_ready);
+  FinishMotion(&m);
+}
+
+double PairMotion::PairGrowthUpper(LinkIndex link) const {
+  const LinkMotion& m = links_[link];
+  const double g =
+      internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_, 0, 1);
+  if (all_ready_ || m.motion_ready) return g;  // SweepRadius(link, 0, 1).
+  // An upper bound's growth: the same monotone steps as the exact one's;
+  // past 1e300 (an overflow on the way) infinite rather than the interval
+  // fallback's, which need not exceed the exact bound's rounded steps.
+  return g <= 1e300 ? g : std::numeric_limits<double>::infinity();
+}
+
 // One link's share of Build's PosesAtInto at 0, 0.5 and 1 and of its
 // segment loop: the same operations, so the same bits.
 void PairMotion::CompleteEnds(LinkIndex link) {
   LinkMotion& m = links_[link];
   if (m.ends_ready) return;
   SWEPTCCD_CHECK(!m.parent.is_valid() || links_[m.parent].ends_ready);
+  CompleteMotion(link);
   const size_t n = links_.size();
   for (int k = 0; k < 3; ++k) {
     const double s = k == 0 ? 0.0 : k == 1 ? 0.5 : 1.0;
@@ -372,7 +446,13 @@ void PairMotion::CompleteEnds(LinkIndex link) {
   m.ends_ready = true;
 }
 
-void PairMotion::CheckEndsReady(LinkIndex link) const { SWEPTCCD_CHECK(links_[link].ends_ready); }
+void PairMotion::CheckLinkEndsReady(LinkIndex link) const {
+  SWEPTCCD_CHECK(links_[link].ends_ready);
+}
+
+void PairMotion::CheckLinkMotionReady(LinkIndex link) const {
+  SWEPTCCD_CHECK(links_[link].motion_ready);
+}
 
 // SlerpPrepared(m.q0, m.q1, m.half_angle, s), bit for bit, with the sines
 // computed at construction where s allows: sin(half_angle) always (and its
@@ -423,6 +503,7 @@ void PairMotion::PosesAt(double s, std::vector<LinkPose>* X_WL) const {
 
 void PairMotion::PosesAtInto(double s, LinkPose* X_WL) const {
   for (LinkIndex i : order_) {
+    CheckMotionReady(i);
     const LinkMotion& m = links_[i];
     X_WL[i] = Compose(m, s, !m.parent.is_valid() ? LinkPose() : X_WL[m.parent]);
   }
@@ -436,6 +517,7 @@ LinkPose PairMotion::PoseFromParent(LinkIndex link, double s, const LinkPose& X_
     if (s == 0.5) return poses_at_ends_[n + link];
     if (s == 1.0) return poses_at_ends_[2 * n + link];
   }
+  CheckMotionReady(link);
   return Compose(links_[link], s, X_WP);
 }
 
@@ -457,6 +539,7 @@ LinkPose PairMotion::PoseAt(LinkIndex link, double s) const {
   if (links_[chain[start]].parent.is_valid()) {
     out = PoseAt(links_[chain[start]].parent, s);  // Deeper than 64: the rest first.
   }
+  CheckMotionReady(link);  // Its ancestors' are then complete too.
   for (int j = start; j >= 0; --j) out = Compose(links_[chain[j]], s, out);  // From the parent's.
   return out;
 }
@@ -481,6 +564,7 @@ void PairMotion::SegmentOfPose(LinkIndex link, const LinkPose& X_WL, Eigen::Vect
 }
 
 double PairMotion::SweepRadius(LinkIndex link, double s0, double s1) const {
+  CheckMotionReady(link);
   const LinkMotion& m = links_[link];
   // (speed + angular * extent) * (s1 - s0) / 2 + slack, outward rounded.
   return internal::FirstOrderGrowth(m.bounds.speed, m.bounds.angular, m.extent, rounding_slack_, s0,
@@ -525,6 +609,7 @@ void PairMotion::SweptCapsuleFromSegments(LinkIndex link, double s0, double s1,
 }
 
 double PairMotion::SecondOrderRadius(LinkIndex link, double chord, double s0, double s1) const {
+  CheckMotionReady(link);
   const LinkMotion& m = links_[link];
   return internal::SecondOrderGrowth(chord, m.bounds.accel, m.bounds.angular_accel,
                                      m.bounds.angular, m.extent, rounding_slack_, s0, s1);

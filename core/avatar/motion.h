@@ -68,6 +68,28 @@ LinkBounds LinkBoundsByIntervals(double half_angle, double own_speed, double lev
 /// (leaving *out) where a step does not stay finite.
 bool LinkBoundsByUpperEnds(double half_angle, double own_speed, double lever,
                            const LinkBounds* parent, LinkBounds* out);
+/// LinkBoundsByUpperEnds's speed and angular alone, the same steps (so the
+/// same bits for the same inputs, and never below them for larger ones:
+/// every step is a rounded-up sum or product of non-negative numbers, which
+/// is nondecreasing in each operand). Infinite where a step does not stay
+/// finite (an infinite bound is still an upper bound).
+void FirstOrderBoundsUpper(double half_angle, double own_speed, double lever,
+                           const LinkBounds* parent, double* speed, double* angular);
+
+/// The largest slerp half angle PairMotion can compute for a link (the
+/// shortest arc: pi / 2, plus far more than its rounding).
+constexpr double kMaxHalfAngle = 1.5707963267948966 + 1e-9;
+/// An upper bound, without atan2, on the slerp half angle PairMotion computes
+/// for a link whose relative rotations at the two ends are the products `a`
+/// and `b` (conj(q_parent) q_link, before their normalisation): with t =
+/// |a.b| / (|a| |b|) the cosine of the shortest-arc angle psi between the
+/// normalised a and b, psi = acos(t) <= 2 tan(psi / 2) = 2 sqrt((1 - t) /
+/// (1 + t)), evaluated at t - 1e-14 (t's rounding is below 2e-15 while |a|
+/// and |b| are within 1e-9 of 1) and widened by 1e-12 rad (the rounding of
+/// the normalisation, the flush of tiny components and atan2, all below
+/// 1e-14 rad), never above kMaxHalfAngle; kMaxHalfAngle when a or b is
+/// farther from unit length. docs/DESIGN.md, "Hierarchical link bounds".
+double HalfAngleUpper(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b);
 
 }  // namespace internal
 
@@ -90,11 +112,13 @@ class PairMotion {
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
              Storage* storage);
   /// Whether construction composes every link's pose and segment at s = 0,
-  /// 0.5 and 1 (kAll), or leaves them to CompleteEnds, link by link
-  /// (kOnDemand: a query whose link groups clear a subtree never composes
-  /// it; core/query/link_groups.h). Everything else (the per-link motion,
-  /// bounds, lever, rounding slack and coordinate scale) is computed for
-  /// every link either way, with the same bits.
+  /// 0.5 and 1 and finishes every link's motion (kAll), or leaves the ends
+  /// to CompleteEnds and, with `articulated`, each child's motion to
+  /// CompleteMotion, link by link (kOnDemand: a query whose link groups
+  /// clear a subtree never composes or finishes it; core/query/
+  /// link_groups.h). The rounding slack, coordinate scale and every link's
+  /// offsets (offset) are computed for every link either way, with the same
+  /// bits; so is everything else once finished.
   enum class Ends { kAll, kOnDemand };
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
              Storage* storage, Ends ends);
@@ -105,7 +129,22 @@ class PairMotion {
   /// Whether the link's poses at s = 0, 0.5 and 1 are composed (always with
   /// kAll). PoseAt, PoseFromParent and SegmentAt at those times, and the
   /// swept capsules over intervals ending there, need them (checked).
-  bool EndsReady(LinkIndex link) const { return links_[link].ends_ready; }
+  bool EndsReady(LinkIndex link) const { return all_ready_ || links_[link].ends_ready; }
+  /// kOnDemand with `articulated` also leaves each link that has a motion
+  /// parent unfinished: its offsets c_0, c_1 (offset), lever, own speed and
+  /// the products of its relative rotations are computed, but not its slerp
+  /// angle, sines and exact bounds; until CompleteMotion (which CompleteEnds
+  /// calls) its speed and angular speed bounds are upper bounds of the exact
+  /// ones built from HalfAngleUpper (PairGrowthUpper reads them). Its motion
+  /// parent's motion must be complete. The same bits as kAll.
+  void CompleteMotion(LinkIndex link);
+  /// Whether the link's motion is complete (always with kAll). Everything
+  /// that reads its bounds or composes it needs that (checked).
+  bool MotionReady(LinkIndex link) const { return all_ready_ || links_[link].motion_ready; }
+  /// An upper bound on SweepRadius(link, 0, 1): that, bit for bit, once the
+  /// link's motion is complete; before, the same first-order growth of the
+  /// link's upper bounds (infinite past 1e300). Never needs the motion.
+  double PairGrowthUpper(LinkIndex link) const;
   /// Gives the arrays back for another motion; this motion is left empty.
   /// Not const: no other thread may be reading this motion.
   void Release(Storage* storage);
@@ -139,9 +178,15 @@ class PairMotion {
                      Eigen::Vector3d* p_WB) const;
 
   /// Upper bound on |d p_WL / ds| for the link frame origin (metres per unit s).
-  double origin_speed_bound(LinkIndex link) const { return links_[link].bounds.speed; }
+  double origin_speed_bound(LinkIndex link) const {
+    CheckMotionReady(link);
+    return links_[link].bounds.speed;
+  }
   /// Upper bound on the angular speed of the link frame (radians per unit s).
-  double angular_speed_bound(LinkIndex link) const { return links_[link].bounds.angular; }
+  double angular_speed_bound(LinkIndex link) const {
+    CheckMotionReady(link);
+    return links_[link].bounds.angular;
+  }
 
   /// Upper bound on how far any point of link i's segment can be, at any s in
   /// [s0, s1], from where the same point of the link is at the midpoint
@@ -180,7 +225,8 @@ class PairMotion {
   double SecondOrderRadius(LinkIndex link, double chord, double s0, double s1) const;
   /// Upper end of max(|c_0|, |c_1|): the link origin's offset from its motion
   /// parent's origin at both ends (SPEC 3's c, whose interpolation never
-  /// leaves that ball); 0 for a link moving on its own.
+  /// leaves that ball); 0 for a link moving on its own. Before CompleteMotion
+  /// a slightly larger upper bound (1e-12 relative).
   double lever(LinkIndex link) const { return links_[link].lever; }
   /// SPEC 3's c at s = 0 (end 0) and s = 1 (end 1) for a link with a motion
   /// parent (its origin in the parent's frame, interpolated linearly
@@ -201,8 +247,11 @@ class PairMotion {
     // `articulated`: c (position in the parent frame) and r (rotation relative
     // to the parent).
     Eigen::Vector3d p0, p1;
-    Eigen::Quaterniond q0, q1;  // q1 already sign-flipped to the shortest arc.
-    double half_angle = 0;      // Angle between q0 and q1 in R^4.
+    // q1 already sign-flipped to the shortest arc. Until motion_ready, for a
+    // child: the products conj(q_parent) q_link at the two ends, before
+    // FinishMotion normalises them.
+    Eigen::Quaterniond q0, q1;
+    double half_angle = 0;  // Angle between q0 and q1 in R^4.
     // sin(half_angle), its inverse and sin(half_angle / 2): slerp at s = 0,
     // 0.5 and 1 needs no other sine (SlerpPrepared's values, bit for bit).
     double sin_half = 0, inv_sin_half = 0, sin_quarter = 0;
@@ -210,9 +259,16 @@ class PairMotion {
     internal::LinkBounds bounds;  // Over the whole pair.
     double extent = 0;            // max(|a|, |b|): farthest segment point from the origin.
     double lever = 0;             // Upper end of max(|p0|, |p1|) for a child, else 0.
+    double own_speed = 0;         // Upper end of |p1 - p0|.
     int depth = 1;                // Links from the root to this one, both counted.
     bool ends_ready = true;       // Poses and segments at s = 0, 0.5, 1 composed.
+    // Rotations normalised, angle, sines and bounds exact; until then
+    // bounds.speed and bounds.angular are upper bounds of the exact ones.
+    bool motion_ready = true;
   };
+  // The rest of a link's motion from its offsets, own speed, lever and
+  // rotations (Build's loops, per link): its motion parent's must be done.
+  void FinishMotion(LinkMotion* m);
   Eigen::Quaterniond LocalRotation(const LinkMotion& m, double s) const;
   // One composition step of PosesAt and PoseAt: the pose of the link moving
   // by m at s, given its parent's pose (unused for a link on its own).
@@ -222,14 +278,24 @@ class PairMotion {
 
   // Fills every field of links_ (storage may hold an earlier motion's).
   void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends);
-  // The look-ups at s = 0, 0.5 and 1 read composed ends only.
-  void CheckEndsReady(LinkIndex link) const;
+  // The look-ups at s = 0, 0.5 and 1 read composed ends only; bounds and
+  // compositions read complete motions only. One test of all_ready_ where
+  // everything is (kAll), the link's flag otherwise.
+  void CheckEndsReady(LinkIndex link) const {
+    if (!all_ready_) CheckLinkEndsReady(link);
+  }
+  void CheckMotionReady(LinkIndex link) const {
+    if (!all_ready_) CheckLinkMotionReady(link);
+  }
+  void CheckLinkEndsReady(LinkIndex link) const;
+  void CheckLinkMotionReady(LinkIndex link) const;
 
   MotionModel model_;
   std::vector<LinkMotion> links_;
   std::vector<LinkIndex> order_;
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
+  bool all_ready_ = true;  // Built with kAll: every link's motion and ends done.
   // Every link's pose at s = 0 (first n), 0.5 and 1 (PosesAt), so PoseAt at
   // those times is a look-up.
   std::vector<LinkPose> poses_at_ends_;

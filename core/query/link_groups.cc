@@ -81,7 +81,7 @@ void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const Pair
   growth->resize(order.size());
   for (auto it = order.rbegin(); it != order.rend(); ++it) {  // Children first.
     const LinkIndex j = *it;
-    const double g = motion.SweepRadius(j, 0, 1);
+    const double g = motion.PairGrowthUpper(j);  // Needs no complete motion.
     (*growth)[j] = g;
     const double own = skeleton.extent(j) + skeleton.link(j).radius + g;
     double& r = (*reach)[j];

@@ -54,8 +54,11 @@ class LinkGroups {
 /// PairMotion composes it) to any point of the whole-pair swept capsule
 /// (SweptBounds::Over(l, 0, 1), tolerance excluded) of any link l of j's
 /// subtree: reach(j) = max(extent_j + radius_j + g_j, max over children c of
-/// lever_c + reach(c)), g_j the first-order growth over [0, 1]
-/// (PairMotion::SweepRadius, never below the capsule's growth) and lever_c
+/// lever_c + reach(c)), g_j an upper bound on the first-order growth over
+/// [0, 1] (PairMotion::PairGrowthUpper: SweepRadius, never below the
+/// capsule's growth, where the link's motion is complete, and a bound on it
+/// from HalfAngleUpper where it is not, so a group's links need not be
+/// finished to be cleared) and lever_c
 /// the child's offset bound (PairMotion::lever: SPEC 3's c, interpolated
 /// linearly, stays within it). Needs no pose composed. O(links). *growth
 /// gets every link's g_j.

@@ -7,6 +7,13 @@
 //   members' motion, sampled densely by an independent composition of SPEC 3
 //   written here; a ball 30 % or 5 % narrower fails somewhere (the check can
 //   fail);
+// - the same balls with the reach taken from links not yet finished
+//   (PairMotion::Ends::kOnDemand: PairGrowthUpper from HalfAngleUpper) hold
+//   every member too, and 30 % narrower ones do not;
+// - HalfAngleUpper never below the slerp half angle (random turns from 0 to
+//   180 degrees, off-unit products), and the unfinished links' growth bounds
+//   never below the exact ones nor below a dense sampling of the motion, 70 %
+//   of them below it somewhere;
 // - PairMotion's ends composed on demand are the same bits as all at once;
 // - CcdEngine::Query with link groups and without gives the same answers
 //   (every field but the stats) on the 81-link meta-full-body skeleton and on
@@ -230,20 +237,26 @@ struct Holding {
   int sample_outside = 0;
 };
 
-Holding CheckBalls(uint64_t seed, int cases, double shrink) {
+// on_demand: the motion is built with Ends::kOnDemand and the reach taken
+// before any link is finished (as QueryRun::ClearGroups does: every member's
+// growth is then PairMotion's upper bound from HalfAngleUpper), every link
+// finished afterwards for the ball's centre and the capsules.
+Holding CheckBalls(uint64_t seed, int cases, double shrink, bool on_demand = false) {
   Rng rng(seed);
   Holding h;
   for (int c = 0; c < cases; ++c) {
     const Rig rig = RandomRig(rng, 4 + rng.I(60), 2 + rng.I(12));
     const auto [p0, p1] = RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14),
                                      rng.P(0.1) ? 3.14159 : rng.U(0, 1.5), rng.U(0, 0.5));
-    const PairMotion motion(rig.skeleton, p0, p1, MotionModel::kArticulated);
+    PairMotion motion(rig.skeleton, p0, p1, MotionModel::kArticulated, nullptr,
+                      on_demand ? PairMotion::Ends::kOnDemand : PairMotion::Ends::kAll);
     const double tol = rng.P(0.5) ? 1e-9 : rng.U(1e-7, 1e-4);
     const internal::SweptBounds bounds(rig.skeleton, motion, tol);
     const LinkGroups groups(rig.skeleton);
     std::vector<double> reach;
     std::vector<double> growth;
     SubtreeReach(groups, rig.skeleton, motion, &reach, &growth);
+    for (LinkIndex l : groups.preorder()) motion.CompleteEnds(l);
     const RefMotion ref{rig.skeleton, p0, p1};
     std::vector<std::vector<LinkPose>> samples;
     for (int k = 0; k <= 64; ++k) samples.push_back(ref.At(k / 64.0));
@@ -294,6 +307,110 @@ TEST(LinkGroups, BallHoldsEveryMembersCapsuleAndMotion) {
   EXPECT_GT(slightly.capsule_outside, 0);
 }
 
+// The same with the reach taken from the unfinished links' upper bounds
+// (PairMotion::PairGrowthUpper, HalfAngleUpper): the balls still hold every
+// member's capsule and sampled motion, and narrower ones do not.
+TEST(LinkGroups, BallFromUnfinishedMotionHoldsEveryMember) {
+  const int cases = std::max(1, static_cast<int>(300 * testing::TestScale()));
+  const Holding h = CheckBalls(31005, cases, 1.0, true);
+  EXPECT_GT(h.groups, cases);
+  EXPECT_EQ(h.capsule_outside, 0);
+  EXPECT_EQ(h.sample_outside, 0);
+  EXPECT_GT(h.centred, h.groups / 4);
+  const Holding narrow = CheckBalls(31005, cases, 0.7, true);
+  EXPECT_GT(narrow.capsule_outside, 0);
+  EXPECT_GT(narrow.sample_outside, 0);
+}
+
+// HalfAngleUpper against the half angle PairMotion computes (SlerpAngle / 2
+// of the normalised products), on random rotations with turns from 0 and
+// 1e-12 rad to 180 degrees, products off unit length by up to 1e-10, near
+// opposite pairs (dot near 0) and equal ones; never below it, and within
+// 11 % + 2e-7 rad of it for turns below 90 degrees (2 tan(x / 2) / x).
+TEST(LinkGroups, HalfAngleUpperIsNeverBelowTheSlerpHalfAngle) {
+  Rng rng(31006);
+  const int cases = std::max(1000, static_cast<int>(200000 * testing::TestScale()));
+  int below = 0, loose = 0, large = 0;
+  for (int c = 0; c < cases; ++c) {
+    const Eigen::Quaterniond a = rng.Quat();
+    const int kind = rng.I(6);
+    const double turn = kind == 0   ? 0.0
+                        : kind == 1 ? std::pow(10.0, rng.U(-12, -3))
+                        : kind == 2 ? rng.U(3.14, 3.14159265358979)
+                                    : rng.U(0, 3.14159265358979);
+    Eigen::Quaterniond b = a * rng.Turn(turn);
+    if (rng.P(0.5)) b.coeffs() = -b.coeffs();
+    Eigen::Quaterniond a_raw = a, b_raw = b;
+    if (rng.P(0.5)) {
+      a_raw.coeffs() *= 1 + rng.U(-1e-10, 1e-10);
+      b_raw.coeffs() *= 1 + rng.U(-1e-10, 1e-10);
+    }
+    const double exact = SlerpAngle(a_raw.normalized(), b_raw.normalized()) / 2;
+    const double upper = internal::HalfAngleUpper(a_raw, b_raw);
+    below += upper < exact;
+    EXPECT_LE(upper, internal::kMaxHalfAngle);
+    if (exact < 0.78) loose += upper > 1.11 * exact + 2e-7;
+    large += exact > 1.5;
+  }
+  EXPECT_EQ(below, 0);
+  EXPECT_EQ(loose, 0);
+  EXPECT_GT(large, cases / 100);
+  // Far from unit length: the largest half angle.
+  Eigen::Quaterniond far = rng.Quat();
+  far.coeffs() *= 1.01;
+  EXPECT_EQ(internal::HalfAngleUpper(far, rng.Quat()), internal::kMaxHalfAngle);
+}
+
+// The bounds of a link not yet finished (Ends::kOnDemand, before
+// CompleteMotion) against its exact ones (Ends::kAll) and against a dense
+// sampling of its motion by the independent SPEC 3 composition above: every
+// sampled point of its segment stays within PairGrowthUpper of where it is
+// at s = 1/2, and 70 % of that bound fails somewhere (the check can fail).
+TEST(LinkGroups, UnfinishedLinkBoundsHoldTheirSampledMotion) {
+  Rng rng(31007);
+  const int cases = std::max(1, static_cast<int>(200 * testing::TestScale()));
+  int unfinished = 0, below_exact = 0, outside = 0, outside_narrow = 0;
+  for (int c = 0; c < cases; ++c) {
+    const Rig rig = RandomRig(rng, 2 + rng.I(50), 2 + rng.I(12));
+    const double turn = rng.P(0.1) ? 3.14159 : rng.P(0.2) ? 0.0 : rng.U(0, 1.5);
+    const auto [p0, p1] =
+        RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14), turn, rng.P(0.2) ? 0.0 : 0.5);
+    const PairMotion all(rig.skeleton, p0, p1, MotionModel::kArticulated);
+    const PairMotion lazy(rig.skeleton, p0, p1, MotionModel::kArticulated, nullptr,
+                          PairMotion::Ends::kOnDemand);
+    const RefMotion ref{rig.skeleton, p0, p1};
+    std::vector<std::vector<LinkPose>> samples;
+    for (int k = 0; k <= 128; ++k) samples.push_back(ref.At(k / 128.0));
+    const std::vector<LinkPose>& mid = samples[64];
+    for (LinkIndex l(0); l < rig.skeleton.num_links(); ++l) {
+      EXPECT_EQ(lazy.MotionReady(l), rig.skeleton.link(l).parent < 0);
+      const double upper = lazy.PairGrowthUpper(l);
+      EXPECT_EQ(all.PairGrowthUpper(l), all.SweepRadius(l, 0, 1));
+      if (lazy.MotionReady(l)) {
+        EXPECT_EQ(upper, all.SweepRadius(l, 0, 1));
+        continue;
+      }
+      ++unfinished;
+      below_exact += upper < all.SweepRadius(l, 0, 1);
+      below_exact += lazy.lever(l) < all.lever(l);
+      const Link& link = rig.skeleton.link(l);
+      double far = 0;
+      for (const auto& x : samples) {
+        for (const double u : {0.0, 0.5, 1.0}) {
+          const Vec3 point = (1 - u) * link.a_L + u * link.b_L;
+          far = std::max(far, (x[l].p + x[l].q * point - (mid[l].p + mid[l].q * point)).norm());
+        }
+      }
+      outside += far > upper;
+      outside_narrow += far > 0.7 * upper;
+    }
+  }
+  EXPECT_GT(unfinished, cases * 5);
+  EXPECT_EQ(below_exact, 0);
+  EXPECT_EQ(outside, 0);
+  EXPECT_GT(outside_narrow, 0);
+}
+
 TEST(LinkGroups, EndsOnDemandAreTheSameBits) {
   Rng rng(31003);
   const int cases = std::max(1, static_cast<int>(100 * testing::TestScale()));
@@ -324,6 +441,10 @@ TEST(LinkGroups, EndsOnDemandAreTheSameBits) {
       }
       EXPECT_EQ(all.lever(l), lazy.lever(l));
       EXPECT_EQ(all.SweepRadius(l, 0, 1), lazy.SweepRadius(l, 0, 1));
+      EXPECT_EQ(all.PairGrowthUpper(l), lazy.PairGrowthUpper(l));
+      EXPECT_EQ(all.origin_speed_bound(l), lazy.origin_speed_bound(l));
+      EXPECT_EQ(all.angular_speed_bound(l), lazy.angular_speed_bound(l));
+      EXPECT_EQ(all.SecondOrderRadius(l, 0.01, 0, 1), lazy.SecondOrderRadius(l, 0.01, 0, 1));
     }
   }
 }
