@@ -12,7 +12,8 @@
 # against `--backend cpu --threads 1`, the same sweep on the
 # 10.7 M-triangle scene (breakfast+dragons_10M), and the daemon on the CPU
 # then the GPU backend (tools/service_bench/backends.sh): 64 clients at 120
-# Hz, and 32 avatars in one room with the shared world on. The GL vendor
+# Hz, and 32 avatars in one room with the shared world on; rooms per GPU
+# host (tools/service_bench/capacity.sh with BACKEND=gpu). The GL vendor
 # library comes from the host's driver (glvnd's EGL vendor file of NVIDIA,
 # found under /usr/local/nvidia or /usr/share/glvnd).
 #
@@ -32,7 +33,8 @@ out=${2:-.gpu}
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/lib"
 tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test device_descent_test"
-for b in sweptccd sweptccd-service sweptccd_latency_bench sweptccd_gpu_roundtrip_bench $tests; do
+for b in sweptccd sweptccd-service sweptccd_latency_bench sweptccd_ws_latency \
+  sweptccd_gpu_roundtrip_bench $tests; do
   strip -o "$out/bin/$b" "$build/bin/$b"
 done
 # The daemon's benches run in a private network namespace and route
@@ -155,6 +157,14 @@ for e in morse_apartment.ply.gz bitterli_breakfast_room.ply.gz \
   echo "records: gpu --device-descent --threads $(nproc) $(wc -l < /tmp/gpu_bundle_gpu_descent)," \
     "differing lines $(diff /tmp/gpu_bundle_cpu /tmp/gpu_bundle_gpu_descent | grep -c '^>')"
 done > "$results/auto.txt" 2>&1
+# Rooms per GPU host (issue 32, docs/DEPLOY.md "Capacity"): 1, 4 and 8
+# rooms of the 1.1 M-triangle room at once, each on the GPU backend, 2
+# clients x 90 Hz each; memory per room and each room's p99.
+part capacity_gpu
+BACKEND=gpu SCENES= SCALE_SCENES=breakfast+dragon_1.1M ROOMS="1 4 8" SECONDS_PER_RUN=3 \
+  READY_S=40 timeout "$(cap 60)" bash tools/service_bench/capacity.sh "$bundle" \
+  > "$results/capacity_gpu.txt" 2>&1
+echo "exit $?" >> "$results/capacity_gpu.txt"
 # The bench alone: the CPU and GPU backends on the same pairs, wall clock.
 part bench
 timeout "$(cap 60)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --clock wall \

@@ -16,7 +16,7 @@
 # ROOMS, CLIENTS (2), HZ (90), SECONDS_PER_RUN (8; the walk holds 343 poses,
 # 3.8 s at 90 Hz, so runs are at most that long), READY_S (150), SCENES
 # (names below; "" skips table 1), SCALE_SCENES ("" skips table 2),
-# P99_BOUND_US (20000). A room is ready at its "ready:" log line (scene
+# P99_BOUND_US (20000), BACKEND (cpu; gpu on a GPU host: tools/gpu_bundle.sh). A room is ready at its "ready:" log line (scene
 # loaded, backend calibrated, door built); the load starts when every room
 # is ready or the deadline passed.
 set -euo pipefail
@@ -29,6 +29,7 @@ work=$build/capacity_bench
 rm -rf "$work" && mkdir -p "$work"
 clients=${CLIENTS:-2} hz=${HZ:-90} secs=${SECONDS_PER_RUN:-8} ready_s=${READY_S:-150}
 bound=${P99_BOUND_US:-20000}
+backend=${BACKEND:-cpu}
 d=$src/data/env
 declare -A scene_files=(
   [apartment]="$d/morse_apartment.ply.gz"
@@ -66,7 +67,7 @@ run_rooms() {
     ip -n "$ns" link set lo up
     ip -n "$ns" route add 224.0.0.0/4 dev lo
     # shellcheck disable=SC2086
-    ip netns exec "$ns" "$build/bin/sweptccd-service" --lcm-url "$url" $env --backend cpu \
+    ip netns exec "$ns" "$build/bin/sweptccd-service" --lcm-url "$url" $env --backend "$backend" \
       --workers 1 --room-key "$work/room.key" --log-level info --max-live-clients 16 \
       --ws-listen 127.0.0.1:8765 2> "$work/daemon_$i.log" &
     dpids+=($!) && pids+=($!)
@@ -109,7 +110,7 @@ run_rooms() {
 # answered once, whether or not latest-wins merged pairs under load).
 field() { awk -F'|' -v c="$1" '{gsub(/ /, "", $c); print $c}'; }
 
-echo "Per-room memory by scene: 1 room, $clients clients x $hz Hz for $secs s, CPU, 1 worker, door on"
+echo "Per-room memory by scene: 1 room, $clients clients x $hz Hz for $secs s, $backend backend, 1 worker, door on"
 echo
 echo
 [ -n "$scenes" ] && echo "| scene | triangles | start to ready s | RSS MiB | peak RSS MiB | pose intervals answered / poses | p99 us |"
@@ -121,7 +122,7 @@ for s in $scenes; do
   echo "| $s | ${tris:-?} | $rdy | $rss | $hwm | $(echo "$row" | field 10) / $(echo "$row" | field 5) | $(echo "$row" | field 8) |"
 done
 echo
-echo "Rooms at once: each $clients clients x $hz Hz for $secs s, CPU, 1 worker each, door on; p99 bound $bound us"
+echo "Rooms at once: each $clients clients x $hz Hz for $secs s, $backend backend, 1 worker each, door on; p99 bound $bound us"
 echo
 scales=${SCALE_SCENES-apartment breakfast+dragon_1.1M}
 [ -n "$scales" ] && echo "| scene | rooms | RSS MiB per room (median / max) | start to ready s (max) | pose intervals answered / poses per room (min) | p99 us per room (median / max) | p99 <= bound in every room |"
