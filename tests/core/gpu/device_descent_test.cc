@@ -28,6 +28,7 @@
 #include "mocap/mocap_import.h"
 #include "tests/common/brute_force.h"
 #include "tests/common/random.h"
+#include "tests/common/same_record.h"
 
 namespace sweptccd::gpu {
 namespace {
@@ -99,36 +100,6 @@ Pose Moved(Rng& rng, const Pose& pose0, double move, double turn, int64_t utime)
     lp.q = (rng.Turn(rng.U(0, turn)) * lp.q).normalized();
   }
   return pose;
-}
-
-// Everything of a record but its statistics.
-void ExpectSameRecord(const QueryResult& cpu, const QueryResult& dev, const std::string& what) {
-  EXPECT_EQ(cpu.contact, dev.contact) << what;
-  EXPECT_EQ(cpu.initially_colliding, dev.initially_colliding) << what;
-  EXPECT_EQ(cpu.undecided, dev.undecided) << what;
-  EXPECT_EQ(cpu.s_lo, dev.s_lo) << what;
-  EXPECT_EQ(cpu.s_hi, dev.s_hi) << what;
-  ASSERT_EQ(cpu.contacts.size(), dev.contacts.size()) << what;
-  for (size_t i = 0; i < cpu.contacts.size(); ++i) {
-    const ContactRecord &x = cpu.contacts[i], &y = dev.contacts[i];
-    EXPECT_EQ(x.link, y.link) << what;
-    EXPECT_EQ(x.object, y.object) << what;
-    EXPECT_EQ(x.triangle, y.triangle) << what;
-    EXPECT_EQ(x.s, y.s) << what;
-    EXPECT_EQ(x.separation, y.separation) << what;
-    EXPECT_EQ(x.point_link, y.point_link) << what;
-    EXPECT_EQ(x.point_env, y.point_env) << what;
-  }
-  ASSERT_EQ(cpu.links.size(), dev.links.size()) << what;
-  for (size_t i = 0; i < cpu.links.size(); ++i) {
-    EXPECT_EQ(cpu.links[i].link, dev.links[i].link) << what;
-    EXPECT_EQ(cpu.links[i].s_lo, dev.links[i].s_lo) << what;
-    EXPECT_EQ(cpu.links[i].s_hi, dev.links[i].s_hi) << what;
-    EXPECT_EQ(cpu.links[i].undecided, dev.links[i].undecided) << what;
-    EXPECT_EQ(cpu.links[i].initially_colliding, dev.links[i].initially_colliding) << what;
-    EXPECT_EQ(cpu.links[i].witness.triangle, dev.links[i].witness.triangle) << what;
-    EXPECT_EQ(cpu.links[i].witness.separation, dev.links[i].witness.separation) << what;
-  }
 }
 
 // The CPU descent's capsule of interval k of 2^depth of `link` (the same
@@ -221,7 +192,7 @@ DescentStats CompareRecords(const Environment& env, const CcdEngine& engine,
   for (size_t i = 0; i < pairs.size(); ++i) {
     const QueryResult cpu = engine.Query(pairs[i].first, pairs[i].second, options);
     const QueryResult dev = engine.Query(pairs[i].first, pairs[i].second, options, &clears[i]);
-    ExpectSameRecord(cpu, dev, what + ", pair " + std::to_string(i));
+    EXPECT_EQ(testing::RecordDifference(cpu, dev), "") << what << ", pair " << i;
     if (skipped != nullptr) *skipped += dev.stats.cull_cleared;
     if (twin != nullptr && (twin_all || i % 4 == 0)) {
       CheckTwin(engine, pairs[i].first, pairs[i].second, options, clears[i], twin_all, twin);

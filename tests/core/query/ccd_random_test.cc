@@ -69,6 +69,7 @@
 #include "mocap/full_body_frames.h"
 #include "mocap/mocap_import.h"
 #include "tests/common/random.h"
+#include "tests/common/same_record.h"
 #include "tests/common/test_scale.h"
 #include "tests/core/query/backend_under_test.h"
 
@@ -1743,37 +1744,13 @@ Eigen::Quaterniond AxisQuat(Rng& rng) {
   return Eigen::Quaterniond(c[0], c[1], c[2], c[3]);
 }
 
+// The same record (tests/common/same_record.h); *why names the first
+// difference and describes both.
 bool SameResult(const QueryResult& a, const QueryResult& b, std::string* why) {
-  std::ostringstream os;
-  os.precision(17);
-  if (a.contact != b.contact || a.undecided != b.undecided ||
-      a.initially_colliding != b.initially_colliding || a.s_lo != b.s_lo || a.s_hi != b.s_hi ||
-      a.contacts.size() != b.contacts.size() || a.links.size() != b.links.size()) {
-    os << "first: " << DescribeResult(a) << "\n  second: " << DescribeResult(b);
-    *why = os.str();
-    return false;
-  }
-  for (size_t i = 0; i < a.contacts.size(); ++i) {
-    const ContactRecord &x = a.contacts[i], &y = b.contacts[i];
-    if (x.link != y.link || x.object != y.object || x.triangle != y.triangle || x.s != y.s ||
-        x.point_link != y.point_link || x.point_env != y.point_env || x.normal != y.normal ||
-        x.separation != y.separation) {
-      os << "witness " << i << " differs:\n  " << DescribeResult(a) << "\n  " << DescribeResult(b);
-      *why = os.str();
-      return false;
-    }
-  }
-  for (size_t i = 0; i < a.links.size(); ++i) {
-    const LinkBracket &x = a.links[i], &y = b.links[i];
-    if (x.link != y.link || x.s_lo != y.s_lo || x.s_hi != y.s_hi || x.undecided != y.undecided ||
-        x.initially_colliding != y.initially_colliding) {
-      os << "link bracket " << i << " differs:\n  " << DescribeResult(a) << "\n  "
-         << DescribeResult(b);
-      *why = os.str();
-      return false;
-    }
-  }
-  return true;
+  const std::string d = testing::RecordDifference(a, b);
+  if (d.empty()) return true;
+  *why = d + " differs:\n  first: " + DescribeResult(a) + "\n  second: " + DescribeResult(b);
+  return false;
 }
 
 TEST(CcdRandomTest, RotationsNear180Degrees) {
