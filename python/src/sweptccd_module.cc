@@ -13,6 +13,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -22,6 +23,8 @@
 #include <string>
 #include <vector>
 
+#include "core/avatar/joint_frame.h"
+#include "core/avatar/joint_set.h"
 #include "core/avatar/motion.h"
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
@@ -233,6 +236,86 @@ class PyWorld {
   mutable std::mutex mutex_;
 };
 
+// A joint set's skeleton and its frame conversion (docs/SKELETONS.md):
+// JointSkeleton::Build and ::Convert, the rule `sweptccd skeleton` and the
+// C++ client's PublishJointFrame use, so Python converts a frame exactly as
+// they do.
+class PyJointSkeleton {
+ public:
+  PyJointSkeleton(const std::string& joint_set, double height_m, const std::string& hands,
+                  const std::optional<std::string>& calibration_line, double length_tolerance_m) {
+    const JointSet& set = FindJointSet(joint_set);
+    JointSkeletonOptions options;
+    options.height_m = height_m;
+    options.hands = ParseHandsOption(hands);
+    options.length_tolerance_m = length_tolerance_m;
+    std::optional<JointFrame> calibration;
+    if (calibration_line) {
+      // The line is a Python string already in memory; the reader's cap
+      // still applies, as to a line of --calibrate.
+      if (calibration_line->size() > MaxJointFrameLineBytes(set.num_joints())) {
+        throw InputError("calibration: longer than the cap of " +
+                         std::to_string(MaxJointFrameLineBytes(set.num_joints())) + " bytes");
+      }
+      std::string error;
+      calibration = ParseJointFrameLine(*calibration_line, set.num_joints(), &error);
+      if (!calibration) throw InputError("calibration: " + error);
+      options.calibration = &*calibration;
+    }
+    try {
+      joints_ = JointSkeleton::Build(set, options);
+    } catch (const InputError& e) {
+      throw InputError(std::string(calibration ? "calibration" : "skeleton") + ": " + e.what());
+    }
+  }
+
+  int num_joints() const { return joints_.joint_set().num_joints(); }
+  int num_links() const { return joints_.skeleton().num_links(); }
+  std::vector<std::string> joint_names() const {
+    std::vector<std::string> names;
+    for (const auto& j : joints_.joint_set().joints) names.push_back(j.name);
+    return names;
+  }
+  std::string skeleton_json() const { return SkeletonToJson(joints_.skeleton()); }
+
+  // joints: (num_joints, 7) rows [px, py, pz, qw, qx, qy, qz]; valid: one
+  // flag per joint (none: all valid). The link poses, (num_links, 7), or
+  // InputError with Convert's one line.
+  PoseArray Convert(const PoseArray& joints, const std::optional<std::vector<bool>>& valid,
+                    int64_t utime) const {
+    const int n = num_joints();
+    if (joints.ndim() != 2 || joints.shape(0) != n || joints.shape(1) != 7) {
+      throw py::value_error("joints must have shape (" + std::to_string(n) + ", 7)");
+    }
+    if (valid && static_cast<int>(valid->size()) != n) {
+      throw py::value_error("valid must have " + std::to_string(n) + " flags, got " +
+                            std::to_string(valid->size()));
+    }
+    JointFrame frame;
+    frame.utime = utime;
+    frame.joints.resize(n);
+    const double* v = joints.data();
+    for (int j = 0; j < n; ++j, v += 7) {
+      frame.joints[j].p = Eigen::Vector3d(v[0], v[1], v[2]);
+      frame.joints[j].q = Eigen::Quaterniond(v[3], v[4], v[5], v[6]);
+      frame.joints[j].valid = !valid || (*valid)[j];
+    }
+    Pose pose;
+    const std::string problem = joints_.Convert(frame, &pose);
+    if (!problem.empty()) throw InputError(problem);
+    PoseArray out({static_cast<py::ssize_t>(num_links()), static_cast<py::ssize_t>(7)});
+    double* o = out.mutable_data();
+    for (const LinkPose& l : pose.links) {
+      const double row[7] = {l.p.x(), l.p.y(), l.p.z(), l.q.w(), l.q.x(), l.q.y(), l.q.z()};
+      o = std::copy(row, row + 7, o);
+    }
+    return out;
+  }
+
+ private:
+  JointSkeleton joints_;
+};
+
 }  // namespace
 }  // namespace sweptccd
 
@@ -275,4 +358,15 @@ PYBIND11_MODULE(_sweptccd, m) {
            py::arg("max_intervals"))
       .def_property_readonly("avatar_ids", &PyWorld::avatar_ids)
       .def("records", &PyWorld::Records);
+  py::class_<PyJointSkeleton>(m, "JointSkeleton")
+      .def(py::init<const std::string&, double, const std::string&,
+                    const std::optional<std::string>&, double>(),
+           py::arg("joint_set"), py::arg("height_m"), py::arg("hands"),
+           py::arg("calibration_line"), py::arg("length_tolerance_m"))
+      .def_property_readonly("num_joints", &PyJointSkeleton::num_joints)
+      .def_property_readonly("num_links", &PyJointSkeleton::num_links)
+      .def_property_readonly("joint_names", &PyJointSkeleton::joint_names)
+      .def("skeleton_json", &PyJointSkeleton::skeleton_json)
+      .def("convert", &PyJointSkeleton::Convert, py::arg("joints"), py::arg("valid"),
+           py::arg("utime"));
 }

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Iterable, List, Mapping, Optional, Sequence, Union
+from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -19,7 +19,7 @@ import numpy.typing as npt
 from . import _sweptccd
 from ._records import (Contact, LinkBracket, Other, OtherContact, OtherLinkBracket, Record)
 
-__all__ = ["Engine", "World", "InputError", "Record", "Contact", "LinkBracket", "Other",
+__all__ = ["Engine", "World", "JointSkeleton", "InputError", "Record", "Contact", "LinkBracket", "Other",
            "OtherContact", "OtherLinkBracket"]
 
 #: Raised when an input cannot be used; the message is the one line
@@ -145,3 +145,65 @@ class World:
         """One Record per avatar pair, per avatar in world-file order, each in
         pair order; `avatar` and `others` set."""
         return [Record.from_json(line) for line in self.records_json()]
+
+
+class JointSkeleton:
+    """A tracking runtime's joint set as a SPEC 1 skeleton, and the
+    conversion of its joint frames to link poses (docs/SKELETONS.md): the C++
+    rule of `sweptccd skeleton --from JOINT_SET` and of the C++ client's
+    PublishJointFrame, so a frame converts to the same link poses everywhere.
+
+    joint_set: an id `sweptccd skeleton --from` takes (meta-full-body,
+    fb-body, webxr-body, htc-body, bd-body, ext-hand, webxr-hand,
+    vrm-humanoid). height (metres, 0.5..2.5) scales the default lengths and
+    radii; hands: "none", "simple" or "full". calibration: one joint frame
+    (a joint frame line of docs/SKELETONS.md, as a string or the same
+    document as a dict) whose joint distances set the bone lengths and, for
+    sets with runtime radii, the radii. length_tolerance: metres a frame's
+    bone may differ from the skeleton's (or 5 %, whichever is larger).
+    Raises InputError with the command's one line for a bad argument.
+    """
+
+    def __init__(self, joint_set: str, *, height: float = 1.75, hands: str = "full",
+                 calibration: Optional[Union[str, Mapping[str, Any]]] = None,
+                 length_tolerance: float = 0.01) -> None:
+        line = (json.dumps(calibration, allow_nan=True) if isinstance(calibration, Mapping)
+                else calibration)
+        self.joint_set = joint_set
+        self._joints = _sweptccd.JointSkeleton(joint_set, float(height), hands, line,
+                                               float(length_tolerance))
+
+    @property
+    def num_joints(self) -> int:
+        return self._joints.num_joints
+
+    @property
+    def num_links(self) -> int:
+        return self._joints.num_links
+
+    @property
+    def joint_names(self) -> List[str]:
+        """The specification's joint identifiers, in its order."""
+        return self._joints.joint_names
+
+    @property
+    def skeleton(self) -> Dict[str, Any]:
+        """The SPEC 1 skeleton (what `sweptccd skeleton --out` writes), as a
+        dict: give it to Engine, or to LiveClient as its skeleton."""
+        doc: Dict[str, Any] = json.loads(self._joints.skeleton_json())
+        return doc
+
+    def convert(self, joints: npt.ArrayLike, valid: Optional[Sequence[bool]] = None,
+                utime: int = 0) -> npt.NDArray[np.float64]:
+        """One frame of joint poses, (num_joints, 7) rows [px, py, pz, qw, qx,
+        qy, qz] in the joint set's order, to link poses, (num_links, 7) in the
+        same layout (a row of Engine.query's poses, of publish_pose7).
+        valid: one flag per joint, False where the runtime says the joint is
+        not tracked or not valid (OpenXR's location flags, WebXR's missing
+        pose); joints no link uses are never looked at. Raises InputError
+        with the one-line reason when the frame cannot be converted (a joint
+        a link needs not valid, NaN or out of range, a zero quaternion, a
+        bone off its length), ValueError for arrays of the wrong shape."""
+        flags = None if valid is None else [bool(v) for v in valid]
+        rows = np.ascontiguousarray(joints, dtype=np.float64)
+        return self._joints.convert(rows, flags, int(utime))

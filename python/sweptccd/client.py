@@ -27,13 +27,16 @@ import random
 import re
 import time
 from pathlib import Path
-from typing import (Any, AsyncIterator, Callable, Dict, List, Mapping, Optional, Sequence,
-                    Union)
+from typing import (TYPE_CHECKING, Any, AsyncIterator, Callable, Dict, List, Mapping, Optional,
+                    Sequence, Union)
 
 import websockets.client
 import websockets.exceptions
 
 from .rooms import hello_room_problem, with_room
+
+if TYPE_CHECKING:
+    from . import JointSkeleton
 
 __all__ = ["LiveClient", "JoinRefused", "ProtocolError", "proof", "parse_key", "skeleton_arrays"]
 
@@ -567,6 +570,31 @@ class LiveClient:
             return False
         self.sent_poses += 1
         return True
+
+    async def publish_joints(self, joints: "JointSkeleton", frame: Any, *,
+                             valid: Optional[Sequence[bool]] = None,
+                             utime: Optional[int] = None,
+                             seq: Optional[int] = None) -> Optional[str]:
+        """Publishes one frame of a tracking runtime's joint poses (OpenXR,
+        WebXR, VRM; docs/SKELETONS.md) as the link poses of `joints`'
+        skeleton, which must be the skeleton this client joined with:
+        converts it (JointSkeleton.convert, the C++ rule) and sends it as
+        publish() does. frame: (num_joints, 7) rows [px, py, pz, qw, qx,
+        qy, qz]; valid: one flag per joint (default all valid). Returns None
+        when sent; else nothing is sent and the one-line reason: the frame's
+        problem (an untracked joint a link needs, NaN, a bone off its
+        length), a link count that is not the joined skeleton's, or not
+        joined. The C++ client's PublishJointFrame, in Python."""
+        if joints.num_links != self.num_links:
+            return (f"joint frame: the joint skeleton has {joints.num_links} links, this "
+                    f"client joined with {self.num_links}")
+        try:
+            links = joints.convert(frame, valid)
+        except ValueError as e:  # InputError included: the frame's one line.
+            return str(e)
+        if not await self.publish_pose7(links, utime=utime, seq=seq):
+            return "not joined: the pose was dropped"
+        return None
 
     async def publish_pose7(self, pose: Any, *, utime: Optional[int] = None,
                             seq: Optional[int] = None) -> bool:

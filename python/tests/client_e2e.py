@@ -15,7 +15,12 @@ by client_e2e.sh inside a private network namespace):
     any frame; the room's own clients name it (client_e2e.sh: --room
     py-room) and pass the hello's room check;
   - a client of the daemon's configuration (pywalker, its own key) joins
-    through the door and the walk is answered as for a live client.
+    through the door and the walk is answered as for a live client;
+  - a hand joins with sweptccd.JointSkeleton("webxr-hand")'s skeleton and
+    publishes joint frames (publish_joints): each pair answered, at the
+    link poses JointSkeleton.convert gives; a frame with an untracked joint
+    is refused with its one line and nothing is sent; a joint skeleton of
+    another size is refused.
     python3 client_e2e.py URL KEY_FILE SKELETON POSES EXPECTED WALKER_KEY_FILE
 """
 
@@ -27,6 +32,9 @@ import sys
 from pathlib import Path
 from typing import Any, Dict, List
 
+import numpy as np
+
+import sweptccd
 from sweptccd.client import LiveClient, ProtocolError
 
 
@@ -154,6 +162,55 @@ async def main() -> None:
     await stream(walker, poses, expected, wgot)
     await walker.leave()
     log(f"configured client pywalker: {len(wgot)} events equal to sweptccd query")
+
+    await joint_frames(url, key)
+
+
+def hand_frame(k: int) -> np.ndarray:
+    """webxr-hand's 25 joints: the default hand (a frame at the default
+    skeleton's bone lengths) moved 5 mm a frame along x, 1 m above the
+    apartment's floor near its origin. Each joint's +Y along its bone: the
+    skeleton's own link frames, composed from the default skeleton."""
+    js = sweptccd.JointSkeleton("webxr-hand")
+    names = js.joint_names
+    frame = np.zeros((len(names), 7))
+    frame[:, 3] = 1.0
+    # Joints along +Y: each link "A>B" of the default skeleton puts B at
+    # A + (0, length, 0) when every joint has the identity orientation.
+    for link in js.skeleton["links"]:
+        parts = link["name"].rstrip("~").split(">")
+        if len(parts) == 2 and parts[1] != "end":
+            a, b = names.index(parts[0]), names.index(parts[1])
+            frame[b, :3] = frame[a, :3] + np.array([0.0, link["b"][1], 0.0])
+    frame[:, :3] += np.array([0.005 * k, 0.0, 1.0])
+    return frame
+
+
+async def joint_frames(url: str, key: str) -> None:
+    js = sweptccd.JointSkeleton("webxr-hand")
+    hand = LiveClient(url, "pyhand", js.skeleton, key=key, room="py-room")
+    got: List[Dict[str, Any]] = []
+    hand.on("contact", got.append)
+    await hand.join()
+    for k in range(4):  # Lock-step, as stream(): frame k + 1 after pair k - 1's answer.
+        assert await hand.publish_joints(js, hand_frame(k), utime=1_000_000 + 11_111 * k) is None
+        for _ in range(2000):
+            if len(got) >= k:
+                break
+            await asyncio.sleep(0.005)
+    assert [(e["pair"], e["seq0"], e["seq1"]) for e in got] == [(0, 0, 1), (1, 1, 2),
+                                                                 (2, 2, 3)], got
+    assert hand.sent_poses == 4
+    untracked = [True] * js.num_joints
+    untracked[js.joint_names.index("index-finger-tip")] = False
+    why = await hand.publish_joints(js, hand_frame(4), valid=untracked, utime=1_100_000)
+    assert why is not None and why.startswith("joint ") and "index-finger-tip" in why, why
+    other = sweptccd.JointSkeleton("ext-hand")
+    why2 = await hand.publish_joints(other, np.zeros((other.num_joints, 7)), utime=1_200_000)
+    assert why2 is not None and "links" in why2, why2
+    assert hand.sent_poses == 4
+    await hand.leave()
+    log(f"joint frames: 3 pairs answered; refused: {why!r}; {why2!r}")
 
 
 asyncio.run(main())
