@@ -509,3 +509,36 @@ test("a client names its room and refuses a door of another room", async () => {
   right.leave();
   await server.close();
 });
+
+test("joint frames: publishJoints converts, publishes, and refuses a bad frame with its line", async () => {
+  // A two-joint set's skeleton as `sweptccd skeleton` writes names: one bone
+  // "hip>knee" 0.4 m, one sphere "knee".
+  const skeleton = { links: [{ name: "hip>knee", parent: null, a: [0, 0, 0], b: [0, 0.4, 0], radius: 0.08 }, { name: "knee", parent: "hip>knee", a: [0, 0, 0], b: [0, 0, 0], radius: 0.06 }] };
+  const rules = lib.jointRulesOf(skeleton);
+  const server = await standIn((sock, msg, conn) => {
+    if (msg.type === "join_request") accept(sock, msg, 300 + conn);
+  });
+  const client = new lib.NodeLiveClient({ url: server.url, clientId: "legs", skeleton, key: KEY });
+  await client.connect();
+  const joints = new Map([
+    ["hip", { position: [0, 0, 1], orientation: [1, 0, 0, 0] }],
+    ["knee", { position: [0.4, 0, 1], orientation: [1, 0, 0, 0] }],
+  ]);
+  assert.equal(client.publishJoints(rules, joints, { utime: 5000 }), null);
+  await until(() => server.received.some((r) => r.msg.type === "tracker_pose"));
+  const sent = server.received.find((r) => r.msg.type === "tracker_pose").msg;
+  const want = lib.jointFrameToLinks(rules, joints);
+  assert.deepEqual([sent.position, sent.orientation, sent.utime, sent.seq], [want.links.map((l) => l[0]), want.links.map((l) => l[1]), 5000, 0]);
+  // The bone's +Y now points along +x: the hip's frame turned by -90 degrees about z.
+  assert.ok(Math.abs(sent.orientation[0][0] - Math.SQRT1_2) < 1e-12 && Math.abs(sent.orientation[0][3] + Math.SQRT1_2) < 1e-12, JSON.stringify(sent.orientation));
+  const sentBefore = client.sentPoses;
+  assert.match(client.publishJoints(rules, new Map([...joints, ["knee", null]]), { utime: 6000 }), /^joint knee: /);
+  assert.match(client.publishJoints(rules, new Map([...joints, ["knee", { position: [0.6, 0, 1], orientation: [1, 0, 0, 0] }]]), { utime: 6000 }), /^link 0 \(hip>knee\): joints 0\.6000 m apart/);
+  assert.match(client.publishJoints(rules.slice(0, 1), joints), /joint rules have 1 links, this client joined with 2/);
+  assert.equal(client.sentPoses, sentBefore);
+  client.leave();
+  await until(() => server.received.some((r) => r.msg.type === "leave"));
+  assert.equal(server.received.filter((r) => r.msg.type === "tracker_pose").length, 1);
+  assert.match(client.publishJoints(rules, joints, { utime: 7000 }), /dropped/);
+  await server.close();
+});

@@ -31,6 +31,8 @@ import {
   Vec3,
 } from "./protocol.js";
 import { SkeletonFile, skeletonToArrays } from "./skeleton.js";
+import { jointFrameToLinks } from "./joint_frame.js";
+import type { JointFrameOptions, JointLinkRule, JointSample } from "./joint_frame.js";
 
 const CLIENT_ID = /^[A-Za-z0-9_.-]{1,64}$/;
 
@@ -230,6 +232,35 @@ export class LiveClient extends Connection<LiveClientEvents> {
     }
     this.sentPoses++;
     return true;
+  }
+
+  /**
+   * Publishes one frame of a tracking runtime's joint poses (WebXR, OpenXR,
+   * VRM; docs/SKELETONS.md) as the link poses of the skeleton this client
+   * joined with, `rules` being that skeleton's jointRulesOf: converts it
+   * (jointFrameToLinks, the C++ rule's mirror) and publishes it as
+   * publishPose does. Returns null when sent; else nothing is sent and the
+   * one-line reason: the frame's problem (a joint a link needs not tracked,
+   * NaN, a bone off its length), rules for another link count, or the pose
+   * dropped (not joined, send buffer full). The C++ client's
+   * PublishJointFrame and the Python client's publish_joints.
+   */
+  publishJoints(
+    rules: JointLinkRule[],
+    joints: Map<string, JointSample | null>,
+    options: JointFrameOptions & { utime?: number; seq?: number } = {},
+  ): string | null {
+    const n = this.skeleton.link_name.length;
+    if (rules.length !== n) return `joint frame: the joint rules have ${rules.length} links, this client joined with ${n}`;
+    const frame = jointFrameToLinks(rules, joints, options);
+    if ("error" in frame) return frame.error;
+    const pose: PoseInput = {
+      position: frame.links.map((l) => l[0]),
+      orientation: frame.links.map((l) => l[1]),
+      utime: options.utime,
+      seq: options.seq,
+    };
+    return this.publishPose(pose) ? null : "not joined or the send buffer is full: the pose was dropped";
   }
 
   /** Ends the session (a leave message), then closes. Idempotent. */
