@@ -336,15 +336,12 @@ bool LiveClient::PublishPose(tracker_pose_t pose) {
 
 std::string LiveClient::PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame,
                                           int64_t seq) {
-  const int num_links = joints.skeleton().num_links();
-  if (options_.skeleton && options_.skeleton->num_links() != num_links) {
-    return "the joint set's skeleton has " + std::to_string(num_links) +
-           " links, this client joined with " + std::to_string(options_.skeleton->num_links());
+  tracker_pose_t m;
+  const int joined_links = options_.skeleton ? options_.skeleton->num_links() : -1;
+  if (std::string problem = TrackerPoseOfJointFrame(joints, frame, joined_links, seq, &m);
+      !problem.empty()) {
+    return problem;
   }
-  Pose pose;
-  if (std::string problem = joints.Convert(frame, &pose); !problem.empty()) return problem;
-  tracker_pose_t m = TrackerPoseOf(pose);
-  m.seq = seq;
   if (!joined()) return "not joined (no session)";
   if (!PublishPose(std::move(m))) return "not published (not joined, or LCM refused)";
   return "";

@@ -42,4 +42,18 @@ tracker_pose_t TrackerPoseOfLine(const std::string& line) {
   return TrackerPoseOf(*pose);
 }
 
+std::string TrackerPoseOfJointFrame(const JointSkeleton& joints, const JointFrame& frame,
+                                    int joined_links, int64_t seq, tracker_pose_t* out) {
+  const int num_links = joints.skeleton().num_links();
+  if (joined_links >= 0 && joined_links != num_links) {
+    return "the joint set's skeleton has " + std::to_string(num_links) +
+           " links, this client joined with " + std::to_string(joined_links);
+  }
+  Pose pose;
+  if (std::string problem = joints.Convert(frame, &pose); !problem.empty()) return problem;
+  *out = TrackerPoseOf(pose);
+  out->seq = seq;
+  return "";
+}
+
 }  // namespace sweptccd

@@ -23,6 +23,7 @@
 #include "service/ws/lcm_json.h"
 #include "service/ws/proof.h"
 #include "sweptccd_client/pair_ledger.h"
+#include "sweptccd_client/tracker_pose.h"
 
 namespace sweptccd {
 
@@ -742,6 +743,19 @@ bool WsLiveClient::PublishPose(tracker_pose_t pose) {
     impl->SendLive(seq, std::move(*text));
   });
   return true;
+}
+
+std::string WsLiveClient::PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame,
+                                            int64_t seq) {
+  const std::optional<Skeleton>& skeleton = impl_->options.skeleton;  // Immutable after start.
+  tracker_pose_t m;
+  if (std::string problem =
+          TrackerPoseOfJointFrame(joints, frame, skeleton ? skeleton->num_links() : -1, seq, &m);
+      !problem.empty()) {
+    return problem;
+  }
+  if (!PublishPose(std::move(m))) return "not joined (no session), or left";
+  return "";
 }
 
 bool WsLiveClient::Send(const std::string& text) {

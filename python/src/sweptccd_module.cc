@@ -361,8 +361,8 @@ PYBIND11_MODULE(_sweptccd, m) {
   py::class_<PyJointSkeleton>(m, "JointSkeleton")
       .def(py::init<const std::string&, double, const std::string&,
                     const std::optional<std::string>&, double>(),
-           py::arg("joint_set"), py::arg("height_m"), py::arg("hands"),
-           py::arg("calibration_line"), py::arg("length_tolerance_m"))
+           py::arg("joint_set"), py::arg("height_m"), py::arg("hands"), py::arg("calibration_line"),
+           py::arg("length_tolerance_m"))
       .def_property_readonly("num_joints", &PyJointSkeleton::num_joints)
       .def_property_readonly("num_links", &PyJointSkeleton::num_links)
       .def_property_readonly("joint_names", &PyJointSkeleton::joint_names)

@@ -11,6 +11,10 @@
 #    second instance gets id_in_use while it holds the id, and a new one
 #    takes it (a greater session) once it left; the same in unsigned mode
 #    (no proofs).
+#  - Joint frames: a hand (webxr-hand) streams joint frames through the C++
+#    client's PublishJointFrame; every pair equal to `sweptccd query` on
+#    `sweptccd skeleton --joints`' conversion of the same frames; an
+#    untracked joint and another joint set's frame refused, nothing sent.
 #  - The epoch fence: a stale server of arcade-7 (started first: an older
 #    instance) answered once by the resolver after the daemon is killed and
 #    restarted: its hello is fenced, the restarted daemon joined.
@@ -54,6 +58,14 @@ grep -q "^ok rooms:" "$work/rooms.out"
 grep -q "^ok configured:" "$work/configured.out"
 grep -q "'walker' joined, session" "$work/daemon.log"
 grep -q "configured client 'walker' joined: session" "$work/daemon.log"
+"$tool" joint-frames "$work/hand_frames.jsonl"
+"$sweptccd" skeleton --from webxr-hand --out "$work/hand.json" --joints "$work/hand_frames.jsonl" \
+  --poses-out "$work/hand_poses.jsonl"
+"$sweptccd" query --skeleton "$work/hand.json" --poses "$work/hand_poses.jsonl" --env "$env" \
+  --output "$work/hand_expected.jsonl"
+"$tool" joints $port "$work/room.key" "$work/hand_frames.jsonl" "$work/hand_expected.jsonl" |
+  tee "$work/joints.out"
+grep -q "^ok joints:" "$work/joints.out"
 # Unsigned mode (a lab bench): the configured client joins without a proof,
 # the same rules otherwise.
 "$service" --lcm-url "udpm://239.255.76.69:7669?ttl=0" --env "$env" --security-mode unsigned \

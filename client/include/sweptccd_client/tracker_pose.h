@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <string>
 
+#include "core/avatar/joint_frame.h"
 #include "core/avatar/pose.h"
 #include "sweptccd/tracker_pose_t.hpp"
 
@@ -25,5 +26,16 @@ tracker_pose_t TrackerPoseOf(const Pose& pose, const Eigen::Vector3d& offset_W);
 /// validated) as a tracker_pose_t (TrackerPoseOf). Throws InputError with
 /// the line's problem when it does not parse.
 tracker_pose_t TrackerPoseOfLine(const std::string& line);
+
+/// One frame of a tracking runtime's joint poses (docs/SKELETONS.md) as the
+/// tracker_pose_t of a client that joined with `joined_links` links (-1: not
+/// checked), `seq` set: the one rule of every client's PublishJointFrame
+/// (LiveClient over LCM, WsLiveClient over the WebSocket door). Converts it
+/// with JointSkeleton::Convert; returns "" and sets *out, else the one-line
+/// reason and leaves *out alone: the frame's problem (a joint a link needs
+/// not tracked, NaN, a wrong joint count, a bone off its length) or a
+/// joint skeleton of another link count.
+std::string TrackerPoseOfJointFrame(const JointSkeleton& joints, const JointFrame& frame,
+                                    int joined_links, int64_t seq, tracker_pose_t* out);
 
 }  // namespace sweptccd

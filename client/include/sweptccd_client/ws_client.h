@@ -127,6 +127,14 @@ class WsLiveClient {
   /// Fills client_id and session; queues the pose. False when not joined
   /// yet or left; true while re-joining (the pose waits for the re-join).
   bool PublishPose(tracker_pose_t pose);
+  /// Publishes one frame of a tracking runtime's joint poses (OpenXR,
+  /// WebXR, VRM; docs/SKELETONS.md) as the link poses of `joints`'
+  /// skeleton, which must be the skeleton this client joins with: converts
+  /// it (TrackerPoseOfJointFrame, the rule of LiveClient::PublishJointFrame)
+  /// and queues it with `seq` as PublishPose does. Returns "" when queued;
+  /// else nothing is sent and the one-line reason: the frame's problem, a
+  /// link count that is not the joined skeleton's, or not joined / left.
+  std::string PublishJointFrame(const JointSkeleton& joints, const JointFrame& frame, int64_t seq);
   /// Sends raw text (tests, attack tools). False when not connected.
   bool Send(const std::string& text);
   /// Sends leave and closes; no reconnect afterwards. Idempotent.

@@ -20,6 +20,16 @@
 //     SIGKILLs that daemon and starts it again; the client must refuse the
 //     stale server's hello (older than the instance it joined: fenced) and
 //     join the restarted one.
+//   ws_room_tool joint-frames OUT
+//     writes 16 joint frames of WebXR's hand (webxr-hand, the default
+//     skeleton's bone lengths) lowered 2 cm a frame from 0.22 m above the
+//     floor through it, for `sweptccd skeleton --joints` and `sweptccd query`.
+//   ws_room_tool joints PORT ROOM_KEY FRAMES EXPECTED
+//     joins with webxr-hand's default skeleton and streams FRAMES lock-step
+//     with WsLiveClient::PublishJointFrame: each pair equal to `sweptccd
+//     query`'s record on the command's conversion (EXPECTED); a frame with
+//     an untracked joint and a joint skeleton of another size are refused
+//     with their one line and nothing is sent.
 // Prints "ok MODE: ..." on success, else "FAIL MODE: ..." and exits 1.
 #include <algorithm>
 #include <atomic>
@@ -35,6 +45,8 @@
 #include <thread>
 #include <vector>
 
+#include "core/avatar/joint_frame.h"
+#include "core/avatar/joint_set.h"
 #include "msgs/signing.h"
 #include "sweptccd_client/room_resolver.h"
 #include "sweptccd_client/tracker_pose.h"
@@ -284,6 +296,130 @@ int Configured(uint16_t port, const std::string& id, const std::optional<MacKey>
   return 0;
 }
 
+// The hand of `joints` (every joint at identity orientation, each bone's
+// far joint its length along +Y from the near one), at `origin`.
+JointFrame HandFrame(const JointSkeleton& joints, const Eigen::Vector3d& origin, int64_t utime) {
+  const JointSet& set = joints.joint_set();
+  JointFrame frame;
+  frame.utime = utime;
+  frame.joints.resize(set.num_joints());
+  for (JointSample& j : frame.joints) j.p = origin;
+  const Skeleton& skeleton = joints.skeleton();
+  for (int i = 0; i < skeleton.num_links(); ++i) {  // Parents first.
+    const LinkDef& link = *joints.plan()[i].def;
+    if (link.joint_b < 0 || link.fixed_length) continue;  // Only bones are measured.
+    frame.joints[link.joint_b].p =
+        frame.joints[link.joint_a].p + Eigen::Vector3d(0, skeleton.link(i).b_L.norm(), 0);
+  }
+  return frame;
+}
+
+JointSkeleton HandJoints() { return JointSkeleton::Build(FindJointSet("webxr-hand"), {}); }
+
+int WriteJointFrames(const std::string& out_path) {
+  const JointSkeleton joints = HandJoints();
+  std::ofstream out(out_path);
+  for (int k = 0; k < 16; ++k) {
+    out << JointFrameToJsonLine(HandFrame(joints, Eigen::Vector3d(1.0, -1.0, 0.22 - 0.02 * k),
+                                          1'000'000 + 33'333 * k))
+        << '\n';
+  }
+  out.flush();
+  if (!out) return Fail("joint-frames", "cannot write " + out_path);
+  std::printf("ok joint-frames: 16 frames in %s\n", out_path.c_str());
+  return 0;
+}
+
+int Joints(uint16_t port, const MacKey& key, const std::vector<std::string>& frames,
+           const std::vector<std::string>& expected) {
+  const std::string mode = "joints";
+  const JointSkeleton joints = HandJoints();
+  if (frames.size() < 2 || expected.size() != frames.size() - 1) {
+    return Fail(mode, std::to_string(frames.size()) + " frames, " +
+                          std::to_string(expected.size()) + " expected records");
+  }
+  WsLiveClient client(Base(port, "hand", key, joints.skeleton()));
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::map<int64_t, int> answered;  // seq1 -> times
+  int64_t mismatches = 0, contacts = 0;
+  client.OnContact([&](const contact_event_t& e) {
+    std::lock_guard<std::mutex> lock(mutex);
+    ++answered[e.seq1];
+    const size_t k = static_cast<size_t>(e.seq1 - 1);
+    bool same = e.seq0 == e.seq1 - 1 && e.seq1 >= 1 && k < expected.size();
+    try {  // A record that does not read as expected is a mismatch, not a lost callback.
+      if (same) {
+        const nlohmann::json want = nlohmann::json::parse(expected[k]);
+        const int w = want["result"] == "contact" ? 1 : want["result"] == "free" ? 0 : 2;
+        same =
+            e.result == w &&
+            (w != 1 ||
+             (e.s_lo == want["s_lo"].get<double>() && e.s_hi == want["s_hi"].get<double>() &&
+              e.initially_colliding == want["initially_colliding"].get<bool>() &&
+              !e.contacts.empty() && e.contacts[0].link == want["contacts"][0]["link"].get<int>() &&
+              e.contacts[0].triangle == want["contacts"][0]["triangle"].get<int64_t>()));
+      }
+    } catch (const std::exception&) {
+      same = false;
+    }
+    if (!same) ++mismatches;
+    if (e.result == 1) ++contacts;
+    cv.notify_all();
+  });
+  const JoinResult joined = client.Join();
+  if (!joined.ok()) return Fail(mode, "join: " + joined.message);
+  for (size_t k = 0; k < frames.size(); ++k) {
+    std::string error;
+    const std::optional<JointFrame> frame =
+        ParseJointFrameLine(frames[k], joints.joint_set().num_joints(), &error);
+    if (!frame) return Fail(mode, "frame " + std::to_string(k) + ": " + error);
+    const std::string problem = client.PublishJointFrame(joints, *frame, static_cast<int64_t>(k));
+    if (!problem.empty()) return Fail(mode, "frame " + std::to_string(k) + ": " + problem);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));  // Under max_pose_rate_hz.
+    if (k == 0) continue;
+    std::unique_lock<std::mutex> lock(mutex);
+    if (!cv.wait_for(lock, std::chrono::seconds(5),
+                     [&] { return answered.count(static_cast<int64_t>(k)) > 0; })) {
+      return Fail(mode, "no answer for pair " + std::to_string(k));
+    }
+  }
+  // Refused before anything is sent: an untracked joint a link needs, and
+  // the joint skeleton of another set.
+  std::string error;
+  JointFrame bad = *ParseJointFrameLine(frames.back(), joints.joint_set().num_joints(), &error);
+  bad.utime += 33'333;
+  bad.joints[joints.joint_set().num_joints() - 1].valid = false;  // pinky-finger-tip
+  const std::string untracked =
+      client.PublishJointFrame(joints, bad, static_cast<int64_t>(frames.size()));
+  const JointSkeleton body = JointSkeleton::Build(FindJointSet("htc-body"), {});
+  JointFrame other;
+  other.joints.resize(body.joint_set().num_joints());
+  const std::string wrong_set =
+      client.PublishJointFrame(body, other, static_cast<int64_t>(frames.size()));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // An answer would be back.
+  std::lock_guard<std::mutex> lock(mutex);
+  int64_t twice = 0;
+  for (const auto& [seq1, n] : answered) twice += n > 1 ? 1 : 0;
+  if (answered.size() != expected.size() || twice != 0 || mismatches != 0) {
+    return Fail(mode, std::to_string(answered.size()) + " of " + std::to_string(expected.size()) +
+                          " pairs, " + std::to_string(twice) + " twice, " +
+                          std::to_string(mismatches) + " unequal to sweptccd query");
+  }
+  if (contacts == 0) return Fail(mode, "no contact among the pairs: the frames miss the floor");
+  if (untracked.find("pinky-finger-tip") == std::string::npos ||
+      untracked.find("not tracked") == std::string::npos ||
+      wrong_set.find("this client joined with") == std::string::npos) {
+    return Fail(mode, "refusals: '" + untracked + "', '" + wrong_set + "'");
+  }
+  client.Leave();
+  std::printf(
+      "ok joints: %zu pairs of joint frames equal to sweptccd query (%lld contacts); refused: "
+      "'%s', '%s'\n",
+      expected.size(), static_cast<long long>(contacts), untracked.c_str(), wrong_set.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -298,6 +434,11 @@ int main(int argc, char** argv) {
                         KeyArg(argv[5]), LoadSkeletonFile(argv[6]), ReadLines(argv[7]),
                         ReadLines(argv[8]));
     }
+    if (mode == "joint-frames" && argc == 3) return WriteJointFrames(argv[2]);
+    if (mode == "joints" && argc == 6) {
+      return Joints(static_cast<uint16_t>(std::stoi(argv[2])), LoadKeyFile(argv[3]),
+                    ReadLines(argv[4]), ReadLines(argv[5]));
+    }
     if (mode == "fence" && argc == 7) {
       return Fence(static_cast<uint16_t>(std::stoi(argv[2])),
                    static_cast<uint16_t>(std::stoi(argv[3])), argv[4], LoadKeyFile(argv[5]),
@@ -311,6 +452,8 @@ int main(int argc, char** argv) {
                "usage: ws_room_tool rooms PORT ROOM ROOM_KEY SKELETON\n"
                "       ws_room_tool configured PORT ID OWN_KEY ROOM_KEY SKELETON POSES "
                "EXPECTED\n"
-               "       ws_room_tool fence PORT STALE_PORT ROOM ROOM_KEY SKELETON\n");
+               "       ws_room_tool fence PORT STALE_PORT ROOM ROOM_KEY SKELETON\n"
+               "       ws_room_tool joint-frames OUT\n"
+               "       ws_room_tool joints PORT ROOM_KEY FRAMES EXPECTED\n");
   return 2;
 }
