@@ -19,12 +19,18 @@ constexpr size_t kKeptIntervals = 4096;
 // room and walks much of its BVH). Past either the group is not cleared.
 constexpr int kGroupBudget = 8;
 constexpr double kGroupMaxRadiusM = 0.5;
+// Groups of fewer links are left to their links' loose capsules
+// (CullLoose), which cost a fraction of a ball test each in the shared
+// traversal: a finger's or a foot's ball cost more than it saved.
+constexpr int kGroupMinLinks = 8;
 
 }  // namespace
 
 QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
                    const QueryOptions& options, const PairMotion* motion, const PairClears* clears)
     : options_(options),
+      pose0_(pose0),
+      pose1_(pose1),
       clears_(clears),
       num_links_(engine.skeleton().num_links()),
       groups_(engine.link_groups()),
@@ -63,6 +69,9 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.roots.links, kKeptLinks);
   FreeIfAbove(&b.roots.link_order, kKeptLinks);
   FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
+  FreeIfAbove(&b.loose_roots.links, kKeptLinks);
+  FreeIfAbove(&b.loose_roots.link_order, kKeptLinks);
+  FreeIfAbove(&b.loose_roots.link_nodes, 2 * kKeptLinks);
   FreeIfAbove(&b.pool, kKeptCandidates);
   FreeIfAbove(&b.queue, kKeptIntervals);
   FreeIfAbove(&b.reach, kKeptLinks);
@@ -76,7 +85,10 @@ QueryResult QueryRun::Run() {
   // link's first primitive. Nothing is listed for the whole pair: its
   // capsules are the fattest of the descent, and the halves' own BVH queries
   // refuse far triangles in groups where refining a long list tests each one.
-  ClearGroups();
+  if (use_groups_) {
+    ClearGroups();
+    CullLoose();
+  }
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots,
                  use_groups_ ? &group_cleared_ : nullptr);
   const LinkIndex rest = CloseLeadingLink();
@@ -108,53 +120,72 @@ QueryResult QueryRun::Run() {
 
 // Hierarchical link bounds (link_groups.h), parents first: a group whose
 // ball meets nothing leaves all its links culled, as their own whole-pair
-// capsules (inside the ball) would, so the answer is the same; their poses
-// are never composed. Every other link's ends are composed here, before
-// anything reads them.
+// capsules (inside the ball) would, so the answer is the same. The balls
+// are centred between two input poses (GroupBallAtMidpoint), so no test
+// composes a pose or finishes a motion; a cleared group's links never are.
 void QueryRun::ClearGroups() {
-  if (!use_groups_) return;
-  PairMotion& motion = *own_motion_;
   const Skeleton& skeleton = target_.skeleton();
   bool have_reach = false;
   for (const LinkIndex l : groups_.preorder()) {
     const int parent = skeleton.link(l).parent;
     if (parent >= 0 && group_cleared_[parent] != 0) {
-      group_cleared_[l] = 1;
+      group_cleared_[l] = kGroup;
       continue;
     }
-    motion.CompleteEnds(l);
-    if (groups_.IsRoot(l)) {
-      if (!have_reach) {
-        SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
-        have_reach = true;
-      }
-      // A group reaching past twice the largest ball tested is not
-      // centred (its ball would hardly be narrow enough): skipped.
-      if (!(buffers_->reach[l] <= 2 * kGroupMaxRadiusM)) continue;
-      double radius = 0;
-      const LinkIndex centre =
-          BallCentre(groups_, skeleton, motion, buffers_->reach, buffers_->growth, l, &radius);
-      if (!(radius <= kGroupMaxRadiusM)) continue;  // GroupBallClear would refuse it.
-      // The ball's centre is composed (its chain from l down: the same
-      // bits as when its links' turn comes; harmless if the group clears).
-      CompleteChain(l, centre);
-      if (GroupBallClear(l, GroupBall(motion, centre, radius, bounds_.tolerance_m()))) {
-        group_cleared_[l] = 1;
-        ++stats_.groups_cleared;
-      }
+    if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= kGroupMinLinks &&
+        TryGroup(l, &have_reach)) {
+      group_cleared_[l] = kGroup;
+      ++stats_.groups_cleared;
     }
   }
 }
 
-void QueryRun::CompleteChain(LinkIndex top, LinkIndex link) {
-  LinkIndex chain[kMaxCentreSteps + 1];  // BallCentre's steps: at most this far below top.
-  int count = 0;
-  for (LinkIndex l = link; l != top && !own_motion_->EndsReady(l);
-       l = own_motion_->motion_parent(l)) {
-    SWEPTCCD_CHECK(count < kMaxCentreSteps + 1);
-    chain[count++] = l;
+// The links no group cleared: their loose capsules (SweptBounds::LooseOver,
+// from the input poses: nothing composed) in one traversal of the scene
+// (RootCandidates, without a touch check); a link whose loose capsule meets
+// nothing is not open for the pair either (its whole-pair capsule lies
+// inside), so it is cleared as a group's links are. Then the ends of the
+// links left are composed (with their ancestors'), parents first.
+void QueryRun::CullLoose() {
+  const RootCandidates::LoosePoses poses{&pose0_, &pose1_};
+  RootCandidates loose(target_, bounds_, &pool_, &buffers_->loose_roots, &group_cleared_, &poses);
+  loose.FindOpen();
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (group_cleared_[l] == 0 && !loose.Open(l)) group_cleared_[l] = kLooseCapsule;
   }
-  while (count > 0) own_motion_->CompleteEnds(chain[--count]);
+  loose.Release(&buffers_->loose_roots);
+  for (const LinkIndex l : groups_.preorder()) {
+    if (group_cleared_[l] == 0) EnsureEnds(l);
+  }
+}
+
+void QueryRun::EnsureEnds(LinkIndex link) {
+  PairMotion& motion = *own_motion_;
+  if (motion.EndsReady(link)) return;
+  // Ancestors the loose capsules cleared are not composed yet: first them.
+  chain_.clear();
+  for (LinkIndex l = link; l.is_valid() && !motion.EndsReady(l); l = motion.motion_parent(l)) {
+    chain_.push_back(l);
+  }
+  for (auto it = chain_.rbegin(); it != chain_.rend(); ++it) motion.CompleteEnds(*it);
+}
+
+bool QueryRun::TryGroup(LinkIndex l, bool* have_reach) {
+  const PairMotion& motion = *own_motion_;
+  const Skeleton& skeleton = target_.skeleton();
+  if (!*have_reach) {
+    SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
+    *have_reach = true;
+  }
+  // A group reaching past twice the largest ball tested is not centred
+  // (its ball would hardly be narrow enough): skipped.
+  if (!(buffers_->reach[l] <= 2 * kGroupMaxRadiusM)) return false;
+  double radius = 0;
+  const LinkIndex centre =
+      BallCentre(groups_, skeleton, motion, buffers_->reach, buffers_->growth, l, &radius);
+  if (!(radius <= kGroupMaxRadiusM)) return false;  // GroupBallClear would refuse it.
+  return GroupBallClear(
+      l, GroupBallAtMidpoint(motion, pose0_, pose1_, centre, radius, bounds_.tolerance_m()));
 }
 
 bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {

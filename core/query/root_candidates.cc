@@ -6,10 +6,11 @@ namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
                                CandidatePool* pool, Buffers* buffers,
-                               const std::vector<char>* group_cleared)
+                               const std::vector<char>* group_cleared, const LoosePoses* loose)
     : target_(target),
       pool_(*pool),
       group_cleared_(group_cleared),
+      loose_(loose != nullptr),
       depth_first_(target.skeleton().depth_first_order()) {
   if (buffers != nullptr) {
     links_ = std::move(buffers->links);
@@ -29,7 +30,8 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
       root.box = Aabb::Empty();
       continue;
     }
-    root.capsule = bounds.Over(l, 0, 1);
+    root.capsule = loose != nullptr ? bounds.LooseOver(l, *loose->pose0, *loose->pose1)
+                                    : bounds.Over(l, 0, 1);
     root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
     root.open = false;
   }
@@ -123,7 +125,14 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
   if (node.count == 1) {
     const LinkIndex l = link_order_[node.first];
     if (!Dropped(l)) {
-      if (touches_ == nullptr) {
+      if (loose_) {
+        // A bounded search: past it the link is left open (only not
+        // cleared: its whole-pair capsule is searched next).
+        if (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLooseBudget) ==
+            CandidatePool::Search::kNone) {
+          return;
+        }
+      } else if (touches_ == nullptr) {
         if (!pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
       } else {
         switch (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLeafBudget)) {
