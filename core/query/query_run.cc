@@ -14,10 +14,14 @@ namespace {
 constexpr size_t kKeptLinks = 1024;
 constexpr size_t kKeptCandidates = size_t{1} << 16;
 constexpr size_t kKeptIntervals = 4096;
-// What a group ball may cost (QueryRun::GroupBallClear): triangle tests,
-// and its radius (a wider ball, e.g. a whole upper body's, rarely clears a
-// room and walks much of its BVH). Past either the group is not cleared.
-constexpr int kGroupBudget = 8;
+// What a group ball may cost (QueryRun::GroupBallClear): triangle tests
+// (none: a ball that reaches a triangle the BVH's node and triangle boxes
+// cannot refuse is not cleared; its links' loose capsules are tested next,
+// and testing the triangles first cost more on the bundled rooms, docs/
+// BENCHMARKS-LOG.md 2026-11-28 11:50), and its radius (a wider ball, e.g. a
+// whole upper body's, rarely clears a room and walks much of its BVH).
+// Past either the group is not cleared.
+constexpr int kGroupBudget = 0;
 constexpr double kGroupMaxRadiusM = 0.5;
 // Groups of fewer links are left to their links' loose capsules
 // (CullLoose), which cost a fraction of a ball test each in the shared
@@ -201,7 +205,8 @@ bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {
       }
     }
     // A bounded search: past kGroupBudget triangle tests the group is not
-    // cleared (its links are then tested on their own, as without groups).
+    // cleared (its links are then tested on their own: their loose
+    // capsules, then their whole-pair capsules).
     if (ball.link.is_valid() &&
         pool_.AnyWithinBudget(ball, o, 0, kGroupBudget) != CandidatePool::Search::kNone) {
       return false;

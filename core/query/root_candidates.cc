@@ -126,8 +126,7 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
     const LinkIndex l = link_order_[node.first];
     if (!Dropped(l)) {
       if (loose_) {
-        // A bounded search: past it the link is left open (only not
-        // cleared: its whole-pair capsule is searched next).
+        // A bounded search (kLooseBudget): past it the link is left open.
         if (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLooseBudget) ==
             CandidatePool::Search::kNone) {
           return;

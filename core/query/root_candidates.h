@@ -106,10 +106,13 @@ class RootCandidates {
   CandidatePool& pool_;
   const std::vector<char>* group_cleared_;
   // Loose capsules: each link's search at a leaf stops after kLooseBudget
-  // triangle tests, leaving the link open (not cleared), so a link near a
-  // dense mesh costs little more than without them.
+  // triangle tests (none: a triangle the BVH's boxes cannot refuse), leaving
+  // the link open (only not cleared: its whole-pair capsule is searched
+  // next), so a link near a dense mesh costs little more than without them
+  // (a budget of 8 cost the contact-heavy grey room walk 19 % more
+  // instructions, 0 cost 3 % less; docs/BENCHMARKS-LOG.md).
   const bool loose_;
-  static constexpr int kLooseBudget = 8;
+  static constexpr int kLooseBudget = 0;
   std::vector<LinkRoot> links_;          // By link index.
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.
