@@ -23,10 +23,6 @@ constexpr size_t kKeptIntervals = 4096;
 // Past either the group is not cleared.
 constexpr int kGroupBudget = 0;
 constexpr double kGroupMaxRadiusM = 0.5;
-// Groups of fewer links are left to their links' loose capsules
-// (CullLoose), which cost a fraction of a ball test each in the shared
-// traversal: a finger's or a foot's ball cost more than it saved.
-constexpr int kGroupMinLinks = 8;
 
 }  // namespace
 
@@ -136,7 +132,7 @@ void QueryRun::ClearGroups() {
       group_cleared_[l] = kGroup;
       continue;
     }
-    if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= kGroupMinLinks &&
+    if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= options_.link_group_min_size &&
         TryGroup(l, &have_reach)) {
       group_cleared_[l] = kGroup;
       ++stats_.groups_cleared;
@@ -155,7 +151,10 @@ void QueryRun::CullLoose() {
   RootCandidates loose(target_, bounds_, &pool_, &buffers_->loose_roots, &group_cleared_, &poses);
   loose.FindOpen();
   for (LinkIndex l(0); l < num_links_; ++l) {
-    if (group_cleared_[l] == 0 && !loose.Open(l)) group_cleared_[l] = kLooseCapsule;
+    if (group_cleared_[l] == 0 && !loose.Open(l)) {
+      group_cleared_[l] = kLooseCapsule;
+      ++stats_.loose_cleared;
+    }
   }
   loose.Release(&buffers_->loose_roots);
   for (const LinkIndex l : groups_.preorder()) {

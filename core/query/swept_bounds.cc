@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <limits>
 
 #include "core/geometry/rounding_slack.h"
 
@@ -41,6 +42,10 @@ LinkCapsule SweptBounds::LooseOver(LinkIndex link, const Pose& pose0, const Pose
   // covers, as it covers the sums' rounding).
   c.radius = l.radius + 2 * motion_.PairGrowthUpper(link) + tolerance_m_ +
              4 * motion_.rounding_slack() + BoxPad(motion_.coordinate_scale());
+  // A bound that is not finite meets everything (a NaN would meet nothing).
+  if (!(c.radius <= std::numeric_limits<double>::max())) {
+    c.radius = std::numeric_limits<double>::infinity();
+  }
   c.link = link;
   return c;
 }
