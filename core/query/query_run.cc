@@ -69,9 +69,6 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.roots.links, kKeptLinks);
   FreeIfAbove(&b.roots.link_order, kKeptLinks);
   FreeIfAbove(&b.roots.link_nodes, 2 * kKeptLinks);
-  FreeIfAbove(&b.loose_roots.links, kKeptLinks);
-  FreeIfAbove(&b.loose_roots.link_order, kKeptLinks);
-  FreeIfAbove(&b.loose_roots.link_nodes, 2 * kKeptLinks);
   FreeIfAbove(&b.pool, kKeptCandidates);
   FreeIfAbove(&b.queue, kKeptIntervals);
   FreeIfAbove(&b.reach, kKeptLinks);
@@ -156,7 +153,11 @@ void QueryRun::CullLoose() {
       ++stats_.loose_cleared;
     }
   }
-  loose.Release(&buffers_->loose_roots);
+  RootCandidates::Buffers& kept = buffers_->loose_roots;
+  loose.Release(&kept);
+  FreeIfAbove(&kept.links, kKeptLinks);
+  FreeIfAbove(&kept.link_order, kKeptLinks);
+  FreeIfAbove(&kept.link_nodes, 2 * kKeptLinks);
   for (const LinkIndex l : groups_.preorder()) {
     if (group_cleared_[l] == 0) EnsureEnds(l);
   }

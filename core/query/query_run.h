@@ -27,8 +27,8 @@ struct QueryBuffers {
   RootCandidates::Buffers roots;
   std::vector<Candidate> pool;
   std::vector<Interval> queue;
-  std::vector<double> reach;   // ClearGroups: SubtreeReach.
-  std::vector<double> growth;  // Ditto.
+  std::vector<double> reach;            // ClearGroups: SubtreeReach.
+  std::vector<double> growth;           // Ditto.
   RootCandidates::Buffers loose_roots;  // QueryRun::CullLoose.
 };
 

@@ -10,7 +10,7 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
     : target_(target),
       pool_(*pool),
       group_cleared_(group_cleared),
-      loose_(loose != nullptr),
+      no_check_budget_(loose != nullptr ? kLooseBudget : -1),
       depth_first_(target.skeleton().depth_first_order()) {
   if (buffers != nullptr) {
     links_ = std::move(buffers->links);
@@ -30,8 +30,11 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
       root.box = Aabb::Empty();
       continue;
     }
-    root.capsule = loose != nullptr ? bounds.LooseOver(l, *loose->pose0, *loose->pose1)
-                                    : bounds.Over(l, 0, 1);
+    if (loose == nullptr) {
+      root.capsule = bounds.Over(l, 0, 1);
+    } else {
+      root.capsule = bounds.LooseOver(l, *loose->pose0, *loose->pose1);
+    }
     root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
     root.open = false;
   }
@@ -125,14 +128,13 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
   if (node.count == 1) {
     const LinkIndex l = link_order_[node.first];
     if (!Dropped(l)) {
-      if (loose_) {
-        // A bounded search (kLooseBudget): past it the link is left open.
-        if (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLooseBudget) ==
+      if (touches_ == nullptr) {
+        // Exhaustive, or with loose capsules bounded (kLooseBudget: past it
+        // the link is left open).
+        if (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, no_check_budget_) ==
             CandidatePool::Search::kNone) {
           return;
         }
-      } else if (touches_ == nullptr) {
-        if (!pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
       } else {
         switch (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLeafBudget)) {
           case CandidatePool::Search::kNone:

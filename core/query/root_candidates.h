@@ -111,8 +111,9 @@ class RootCandidates {
   // next), so a link near a dense mesh costs little more than without them
   // (a budget of 8 cost the contact-heavy grey room walk 19 % more
   // instructions, 0 cost 3 % less; docs/BENCHMARKS-LOG.md).
-  const bool loose_;
   static constexpr int kLooseBudget = 0;
+  // Without a touch check: a leaf's search budget (-1: exhaustive).
+  const int no_check_budget_;
   std::vector<LinkRoot> links_;          // By link index.
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.

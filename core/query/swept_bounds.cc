@@ -1,7 +1,7 @@
 #include "core/query/swept_bounds.h"
 
-#include <algorithm>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <limits>
 

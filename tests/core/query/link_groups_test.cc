@@ -350,8 +350,8 @@ Holding CheckMidpointBalls(uint64_t seed, int cases, double shrink) {
   for (int c = 0; c < cases; ++c) {
     const Rig rig = RandomRig(rng, 4 + rng.I(60), 2 + rng.I(12));
     const double turn = rng.P(0.1) ? 3.14159 : rng.P(0.3) ? rng.U(0, 0.05) : rng.U(0, 1.5);
-    const auto [p0, p1] = RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14), turn,
-                                     rng.P(0.2) ? 0.0 : rng.U(0, 0.5));
+    const auto [p0, p1] =
+        RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14), turn, rng.P(0.2) ? 0.0 : rng.U(0, 0.5));
     PairMotion motion(rig.skeleton, p0, p1, MotionModel::kArticulated, nullptr,
                       PairMotion::Ends::kOnDemand);
     const double tol = rng.P(0.5) ? 1e-9 : rng.U(1e-7, 1e-4);
@@ -425,8 +425,8 @@ LooseHolding CheckLoose(uint64_t seed, int cases, double shrink) {
   for (int c = 0; c < cases; ++c) {
     const Rig rig = RandomRig(rng, 1 + rng.I(60), 1 + rng.I(12));
     const double turn = rng.P(0.1) ? 3.14159 : rng.P(0.3) ? rng.U(0, 0.05) : rng.U(0, 1.5);
-    const auto [p0, p1] = RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14), turn,
-                                     rng.P(0.2) ? 0.0 : rng.U(0, 0.5));
+    const auto [p0, p1] =
+        RandomPair(rng, rig, rng.Box(3.0), rng.U(0, 3.14), turn, rng.P(0.2) ? 0.0 : rng.U(0, 0.5));
     PairMotion motion(rig.skeleton, p0, p1, MotionModel::kArticulated, nullptr,
                       PairMotion::Ends::kOnDemand);
     const double tol = rng.P(0.5) ? 1e-9 : rng.U(1e-7, 1e-4);
