@@ -18,7 +18,7 @@ constexpr size_t kKeptIntervals = 4096;
 // (none: a ball that reaches a triangle the BVH's node and triangle boxes
 // cannot refuse is not cleared; its links' loose capsules are tested next,
 // and testing the triangles first cost more on the bundled rooms, docs/
-// BENCHMARKS-LOG.md 2026-11-28 11:50), and its radius (a wider ball, e.g. a
+// BENCHMARKS-LOG.md 2026-11-28 12:10), and its radius (a wider ball, e.g. a
 // whole upper body's, rarely clears a room and walks much of its BVH).
 // Past either the group is not cleared.
 constexpr int kGroupBudget = 0;
