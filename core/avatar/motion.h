@@ -182,6 +182,10 @@ class PairMotion {
     CheckMotionReady(link);
     return links_[link].bounds.speed;
   }
+  /// origin_speed_bound once the link's motion is complete; before, the
+  /// upper bound of it that PairGrowthUpper reads (FirstOrderBoundsUpper:
+  /// never below it, infinite where a step overflows). Never needs the motion.
+  double OriginSpeedUpper(LinkIndex link) const { return links_[link].bounds.speed; }
   /// Upper bound on the angular speed of the link frame (radians per unit s).
   double angular_speed_bound(LinkIndex link) const {
     CheckMotionReady(link);

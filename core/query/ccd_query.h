@@ -46,6 +46,11 @@ struct QueryOptions {
   /// subtrees are an arm's few links, which the BVH culls one by one as
   /// cheaply. 0: on every skeleton (the tests that compare both ways).
   int link_groups_min_links = 32;
+  /// Groups of fewer links (a finger's, a foot's) are not tested: their
+  /// links' loose capsules (docs/DESIGN.md, "Loose capsules") cost less than
+  /// the ball's test on the bundled rooms. The answer is the same for any
+  /// value (tested with 0 too).
+  int link_group_min_size = 8;
 };
 
 /// Empty when the options are usable, else the problem (names the option).
@@ -77,6 +82,7 @@ struct QueryStats {
   int links_tested = 0;    // Links whose swept bound met the environment.
   int links_culled = 0;    // Links the link BVH cleared for the whole pair.
   int groups_cleared = 0;  // Link groups whose ball met nothing (their links are culled).
+  int loose_cleared = 0;   // Other links whose loose capsule met nothing (culled, never composed).
   int64_t intervals = 0;   // Time intervals tested.
   int64_t triangle_tests = 0;
   // With a culler (the GPU backend): round trips, capsules sent, and

@@ -152,4 +152,17 @@ LinkCapsule GroupBall(const PairMotion& motion, LinkIndex centre, double radius,
   return ball;
 }
 
+LinkCapsule GroupBallAtMidpoint(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
+                                LinkIndex centre, double radius, double tolerance_m) {
+  SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
+  LinkCapsule ball;
+  ball.a = ball.b = 0.5 * (pose0.links[centre].p + pose1.links[centre].p);
+  // The products by 0.5 and 8 are exact (short of subnormals, which BoxPad
+  // covers, as it covers the sums' rounding and the midpoint's).
+  ball.radius = radius + 0.5 * motion.OriginSpeedUpper(centre) + tolerance_m +
+                8 * motion.rounding_slack() + BoxPad(motion.coordinate_scale());
+  ball.link = centre;
+  return ball;
+}
+
 }  // namespace sweptccd::internal

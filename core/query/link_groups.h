@@ -96,5 +96,16 @@ LinkIndex BallCentre(const LinkGroups& groups, const Skeleton& skeleton, const P
 /// triangle that no test finds within it is not found within any of them.
 LinkCapsule GroupBall(const PairMotion& motion, LinkIndex centre, double radius,
                       double tolerance_m);
+/// A ball holding the same capsules with no pose composed nor motion
+/// finished (the one QueryRun::ClearGroups tests): centred at the midpoint
+/// m of the centre link's origins in `pose0` and `pose1` (the poses the
+/// motion was built from), radius `radius` + V / 2 (V the centre's origin
+/// speed bound, PairMotion::OriginSpeedUpper: the origin's SPEC 3 path from
+/// o(0) to o(1) is at most V long, so o(0.5) is within V / 2 of m) +
+/// `tolerance_m` + 8 rounding slacks (GroupBall's 4; the composed origin at
+/// 0.5 and the poses' origins against the exact motion's) + BoxPad.
+/// docs/DESIGN.md, "Hierarchical link bounds".
+LinkCapsule GroupBallAtMidpoint(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
+                                LinkIndex centre, double radius, double tolerance_m);
 
 }  // namespace sweptccd::internal

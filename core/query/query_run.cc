@@ -14,10 +14,14 @@ namespace {
 constexpr size_t kKeptLinks = 1024;
 constexpr size_t kKeptCandidates = size_t{1} << 16;
 constexpr size_t kKeptIntervals = 4096;
-// What a group ball may cost (QueryRun::GroupBallClear): triangle tests,
-// and its radius (a wider ball, e.g. a whole upper body's, rarely clears a
-// room and walks much of its BVH). Past either the group is not cleared.
-constexpr int kGroupBudget = 8;
+// What a group ball may cost (QueryRun::GroupBallClear): triangle tests
+// (none: a ball that reaches a triangle the BVH's node and triangle boxes
+// cannot refuse is not cleared; its links' loose capsules are tested next,
+// and testing the triangles first cost more on the bundled rooms, docs/
+// BENCHMARKS-LOG.md 2026-11-28 12:10), and its radius (a wider ball, e.g. a
+// whole upper body's, rarely clears a room and walks much of its BVH).
+// Past either the group is not cleared.
+constexpr int kGroupBudget = 0;
 constexpr double kGroupMaxRadiusM = 0.5;
 
 }  // namespace
@@ -25,6 +29,8 @@ constexpr double kGroupMaxRadiusM = 0.5;
 QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1,
                    const QueryOptions& options, const PairMotion* motion, const PairClears* clears)
     : options_(options),
+      pose0_(pose0),
+      pose1_(pose1),
       clears_(clears),
       num_links_(engine.skeleton().num_links()),
       groups_(engine.link_groups()),
@@ -76,7 +82,10 @@ QueryResult QueryRun::Run() {
   // link's first primitive. Nothing is listed for the whole pair: its
   // capsules are the fattest of the descent, and the halves' own BVH queries
   // refuse far triangles in groups where refining a long list tests each one.
-  ClearGroups();
+  if (use_groups_) {
+    ClearGroups();
+    CullLoose();
+  }
   roots_.emplace(target_, bounds_, &pool_, &buffers_->roots,
                  use_groups_ ? &group_cleared_ : nullptr);
   const LinkIndex rest = CloseLeadingLink();
@@ -108,53 +117,79 @@ QueryResult QueryRun::Run() {
 
 // Hierarchical link bounds (link_groups.h), parents first: a group whose
 // ball meets nothing leaves all its links culled, as their own whole-pair
-// capsules (inside the ball) would, so the answer is the same; their poses
-// are never composed. Every other link's ends are composed here, before
-// anything reads them.
+// capsules (inside the ball) would, so the answer is the same. The balls
+// are centred between two input poses (GroupBallAtMidpoint), so no test
+// composes a pose or finishes a motion; a cleared group's links never are.
 void QueryRun::ClearGroups() {
-  if (!use_groups_) return;
-  PairMotion& motion = *own_motion_;
   const Skeleton& skeleton = target_.skeleton();
   bool have_reach = false;
   for (const LinkIndex l : groups_.preorder()) {
     const int parent = skeleton.link(l).parent;
     if (parent >= 0 && group_cleared_[parent] != 0) {
-      group_cleared_[l] = 1;
+      group_cleared_[l] = kGroup;
       continue;
     }
-    motion.CompleteEnds(l);
-    if (groups_.IsRoot(l)) {
-      if (!have_reach) {
-        SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
-        have_reach = true;
-      }
-      // A group reaching past twice the largest ball tested is not
-      // centred (its ball would hardly be narrow enough): skipped.
-      if (!(buffers_->reach[l] <= 2 * kGroupMaxRadiusM)) continue;
-      double radius = 0;
-      const LinkIndex centre =
-          BallCentre(groups_, skeleton, motion, buffers_->reach, buffers_->growth, l, &radius);
-      if (!(radius <= kGroupMaxRadiusM)) continue;  // GroupBallClear would refuse it.
-      // The ball's centre is composed (its chain from l down: the same
-      // bits as when its links' turn comes; harmless if the group clears).
-      CompleteChain(l, centre);
-      if (GroupBallClear(l, GroupBall(motion, centre, radius, bounds_.tolerance_m()))) {
-        group_cleared_[l] = 1;
-        ++stats_.groups_cleared;
-      }
+    if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= options_.link_group_min_size &&
+        TryGroup(l, &have_reach)) {
+      group_cleared_[l] = kGroup;
+      ++stats_.groups_cleared;
     }
   }
 }
 
-void QueryRun::CompleteChain(LinkIndex top, LinkIndex link) {
-  LinkIndex chain[kMaxCentreSteps + 1];  // BallCentre's steps: at most this far below top.
-  int count = 0;
-  for (LinkIndex l = link; l != top && !own_motion_->EndsReady(l);
-       l = own_motion_->motion_parent(l)) {
-    SWEPTCCD_CHECK(count < kMaxCentreSteps + 1);
-    chain[count++] = l;
+// The links no group cleared: their loose capsules (SweptBounds::LooseOver,
+// from the input poses: nothing composed) in one traversal of the scene
+// (RootCandidates, without a touch check); a link whose loose capsule meets
+// nothing is not open for the pair either (its whole-pair capsule lies
+// inside), so it is cleared as a group's links are. Then the ends of the
+// links left are composed (with their ancestors'), parents first.
+void QueryRun::CullLoose() {
+  const RootCandidates::LoosePoses poses{&pose0_, &pose1_};
+  RootCandidates loose(target_, bounds_, &pool_, &buffers_->loose_roots, &group_cleared_, &poses);
+  loose.FindOpen();
+  for (LinkIndex l(0); l < num_links_; ++l) {
+    if (group_cleared_[l] == 0 && !loose.Open(l)) {
+      group_cleared_[l] = kLooseCapsule;
+      ++stats_.loose_cleared;
+    }
   }
-  while (count > 0) own_motion_->CompleteEnds(chain[--count]);
+  RootCandidates::Buffers& kept = buffers_->loose_roots;
+  loose.Release(&kept);
+  FreeIfAbove(&kept.links, kKeptLinks);
+  FreeIfAbove(&kept.link_order, kKeptLinks);
+  FreeIfAbove(&kept.link_nodes, 2 * kKeptLinks);
+  for (const LinkIndex l : groups_.preorder()) {
+    if (group_cleared_[l] == 0) EnsureEnds(l);
+  }
+}
+
+void QueryRun::EnsureEnds(LinkIndex link) {
+  PairMotion& motion = *own_motion_;
+  if (motion.EndsReady(link)) return;
+  // Ancestors the loose capsules cleared are not composed yet: first them.
+  chain_.clear();
+  for (LinkIndex l = link; l.is_valid() && !motion.EndsReady(l); l = motion.motion_parent(l)) {
+    chain_.push_back(l);
+  }
+  for (auto it = chain_.rbegin(); it != chain_.rend(); ++it) motion.CompleteEnds(*it);
+}
+
+bool QueryRun::TryGroup(LinkIndex l, bool* have_reach) {
+  const PairMotion& motion = *own_motion_;
+  const Skeleton& skeleton = target_.skeleton();
+  if (!*have_reach) {
+    SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
+    *have_reach = true;
+  }
+  // A group reaching past twice the largest ball tested is not centred
+  // (its ball would hardly be narrow enough): skipped.
+  if (!(buffers_->reach[l] <= 2 * kGroupMaxRadiusM)) return false;
+  double radius = 0;
+  const LinkIndex centre =
+      BallCentre(groups_, skeleton, motion, buffers_->reach, buffers_->growth, l, &radius);
+  if (!(radius <= kGroupMaxRadiusM)) return false;  // GroupBallClear would refuse it.
+  return GroupBallClear(
+      l, GroupBallAtMidpoint(motion, pose0_, pose1_, centre, radius, bounds_.tolerance_m()));
 }
 
 bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {
@@ -170,7 +205,8 @@ bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {
       }
     }
     // A bounded search: past kGroupBudget triangle tests the group is not
-    // cleared (its links are then tested on their own, as without groups).
+    // cleared (its links are then tested on their own: their loose
+    // capsules, then their whole-pair capsules).
     if (ball.link.is_valid() &&
         pool_.AnyWithinBudget(ball, o, 0, kGroupBudget) != CandidatePool::Search::kNone) {
       return false;

@@ -27,8 +27,9 @@ struct QueryBuffers {
   RootCandidates::Buffers roots;
   std::vector<Candidate> pool;
   std::vector<Interval> queue;
-  std::vector<double> reach;   // ClearGroups: SubtreeReach.
-  std::vector<double> growth;  // Ditto.
+  std::vector<double> reach;            // ClearGroups: SubtreeReach.
+  std::vector<double> growth;           // Ditto.
+  RootCandidates::Buffers loose_roots;  // QueryRun::CullLoose.
 };
 
 /// Runs one query. Single-use and single-threaded; holds references to the
@@ -52,6 +53,7 @@ class QueryRun {
  private:
   // The phases, in order.
   void ClearGroups();
+  void CullLoose();
   LinkIndex CloseLeadingLink();
   // RootCandidates::TouchCheck: TouchesAt(link, 0), kept in touches_at_start_.
   static bool CheckTouchesAtStart(void* self, LinkIndex link);
@@ -70,8 +72,12 @@ class QueryRun {
   // Whether no test finds a triangle of an object some link of the group
   // does not ignore within `ball`.
   bool GroupBallClear(LinkIndex root, LinkCapsule ball);
-  // Composes the ends of `link` and of its ancestors below `top` (composed).
-  void CompleteChain(LinkIndex top, LinkIndex link);
+  // The group rooted at `l`: its ball, centred by BallCentre, tested when
+  // narrow enough (SubtreeReach computed on first use). Whether it cleared.
+  bool TryGroup(LinkIndex l, bool* have_reach);
+  // Composes the ends of `link` and of its ancestors not composed yet
+  // (cleared by their loose capsules), parents first.
+  void EnsureEnds(LinkIndex link);
   enum class Step { kNext, kStop };
   // One interval of the descent: cleared, closed, or split into the queue.
   Step Visit(const Interval& interval);
@@ -81,6 +87,8 @@ class QueryRun {
   CandidateList CandidatesOf(const Interval& interval, const LinkCapsule& capsule);
 
   const QueryOptions& options_;
+  const Pose& pose0_;  // The pair (the group balls' centres read them).
+  const Pose& pose1_;
   const PairClears* const clears_;  // May be null.
   const int num_links_;
   const LinkGroups& groups_;
@@ -102,7 +110,12 @@ class QueryRun {
   Witnesses witnesses_;
   IntervalQueue queue_;
   std::vector<bool> cleared_by_culler_;  // The culler cleared the link's whole pair.
-  std::vector<char> group_cleared_;      // The link's group ball met nothing (ClearGroups).
+  // By link, why it is known not open for the pair (its poses are then
+  // never composed): 0 (not known), kGroup (a group's ball holding it met
+  // nothing: ClearGroups), kLooseCapsule (its loose capsule did: CullLoose).
+  static constexpr char kGroup = 1, kLooseCapsule = 2;
+  std::vector<char> group_cleared_;
+  std::vector<LinkIndex> chain_;  // EnsureEnds's.
   // Whether the link touches at s = 0, once asked during the traversal (-1
   // not asked, 0 no, 1 yes), and where yes, the triangle TouchesAt found
   // (Separation starts from it).

@@ -6,10 +6,11 @@ namespace sweptccd::internal {
 
 RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds,
                                CandidatePool* pool, Buffers* buffers,
-                               const std::vector<char>* group_cleared)
+                               const std::vector<char>* group_cleared, const LoosePoses* loose)
     : target_(target),
       pool_(*pool),
       group_cleared_(group_cleared),
+      no_check_budget_(loose != nullptr ? kLooseBudget : -1),
       depth_first_(target.skeleton().depth_first_order()) {
   if (buffers != nullptr) {
     links_ = std::move(buffers->links);
@@ -29,7 +30,11 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
       root.box = Aabb::Empty();
       continue;
     }
-    root.capsule = bounds.Over(l, 0, 1);
+    if (loose == nullptr) {
+      root.capsule = bounds.Over(l, 0, 1);
+    } else {
+      root.capsule = bounds.LooseOver(l, *loose->pose0, *loose->pose1);
+    }
     root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
     root.open = false;
   }
@@ -124,7 +129,12 @@ void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t e
     const LinkIndex l = link_order_[node.first];
     if (!Dropped(l)) {
       if (touches_ == nullptr) {
-        if (!pool_.AnyWithin(links_[l].capsule, object, env_node)) return;
+        // Exhaustive, or with loose capsules bounded (kLooseBudget: past it
+        // the link is left open).
+        if (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, no_check_budget_) ==
+            CandidatePool::Search::kNone) {
+          return;
+        }
       } else {
         switch (pool_.AnyWithinBudget(links_[l].capsule, object, env_node, kLeafBudget)) {
           case CandidatePool::Search::kNone:

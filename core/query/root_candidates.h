@@ -26,8 +26,17 @@ class RootCandidates {
   /// `group_cleared` (null: none): by link, non-zero for the links whose
   /// group ball met nothing (QueryRun::ClearGroups; link_groups.h). They are
   /// never open, and neither their capsules nor their poses are asked for.
+  /// `loose` (null: the whole-pair capsules): the two poses of the pair,
+  /// whose SweptBounds::LooseOver capsules (each holding the link's
+  /// whole-pair capsule) are tested instead; a link they leave closed is
+  /// not open for the pair, and none of its poses is asked for.
+  struct LoosePoses {
+    const Pose* pose0;
+    const Pose* pose1;
+  };
   RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool,
-                 Buffers* buffers = nullptr, const std::vector<char>* group_cleared = nullptr);
+                 Buffers* buffers = nullptr, const std::vector<char>* group_cleared = nullptr,
+                 const LoosePoses* loose = nullptr);
   /// Gives the arrays back for the next query; this object is left unusable.
   void Release(Buffers* buffers);
 
@@ -96,6 +105,15 @@ class RootCandidates {
   const EnvironmentTarget& target_;
   CandidatePool& pool_;
   const std::vector<char>* group_cleared_;
+  // Loose capsules: each link's search at a leaf stops after kLooseBudget
+  // triangle tests (none: a triangle the BVH's boxes cannot refuse), leaving
+  // the link open (only not cleared: its whole-pair capsule is searched
+  // next), so a link near a dense mesh costs little more than without them
+  // (a budget of 8 cost the contact-heavy grey room walk 19 % more
+  // instructions, 0 cost 3 % less; docs/BENCHMARKS-LOG.md).
+  static constexpr int kLooseBudget = 0;
+  // Without a touch check: a leaf's search budget (-1: exhaustive).
+  const int no_check_budget_;
   std::vector<LinkRoot> links_;          // By link index.
   const std::vector<int>& depth_first_;  // The skeleton's.
   std::vector<LinkIndex> link_order_;    // FindOpen: the links of the tree, leaf order.

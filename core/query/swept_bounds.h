@@ -42,6 +42,15 @@ class SweptBounds {
   /// Over). Its segment is the link's segment at the midpoint.
   LinkCapsule FromEnds(LinkIndex link, double s0, double s1, const SegmentEnds& ends) const;
 
+  /// A capsule holding Over(link, 0, 1) (`articulated`) that needs no pose
+  /// composed nor motion finished: the segment between the midpoints of the
+  /// link's segment ends in `pose0` and `pose1` (the poses the motion was
+  /// built from), radius link radius + 2 g + tolerance + 4 rounding slacks +
+  /// BoxPad, g = PairMotion::PairGrowthUpper. Every link point moves at most
+  /// 2 g over [0, 1] (SPEC 3; first order), so its place at s = 0.5 is
+  /// within g of the midpoint of its two ends. docs/DESIGN.md, "Loose
+  /// capsules".
+  LinkCapsule LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1) const;
   double tolerance_m() const { return tolerance_m_; }
   const PairMotion& motion() const { return motion_; }
 
