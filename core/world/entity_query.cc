@@ -18,7 +18,7 @@ OtherAnswer AnswerAgainstAvatar(const PairSide& a, const AvatarWindow& b, const 
   if (scale < 0) scale = WindowScale(b, window.pieces);
   const std::unique_ptr<OtherTarget> target = MakeAvatarTarget(a.who, b, scale, motions);
   return AnswerOther(a.skeleton, a.memo, a.utime0, a.utime1, window.pieces, *target, options,
-                     a.link_boxes);
+                     a.link_boxes, a.near_link_boxes);
 }
 
 OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const EntryWindow& window,

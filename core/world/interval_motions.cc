@@ -15,10 +15,19 @@ IntervalMotions::Held::Held(const AvatarWindow& e, int k, int k1)
       memo(motion, /*max_times=*/64) {}
 
 IntervalMotions::IntervalMotions(const AvatarWindow& entity, size_t max_kept,
-                                 std::vector<std::vector<Aabb>> link_boxes)
+                                 std::vector<std::vector<Aabb>> link_boxes,
+                                 std::vector<std::vector<Aabb>> near_boxes)
     : entity_(entity),
       max_kept_(std::max<size_t>(max_kept, 1)),
-      given_link_boxes_(std::move(link_boxes)) {}
+      given_link_boxes_(std::move(link_boxes)),
+      given_near_boxes_(std::move(near_boxes)) {}
+
+const std::vector<Aabb>& IntervalMotions::NearLinkBoxesOf(int k) const {
+  static const std::vector<Aabb> kNone;
+  if (given_near_boxes_.empty()) return kNone;
+  SWEPTCCD_CHECK(k >= 0 && static_cast<size_t>(k) < given_near_boxes_.size());
+  return given_near_boxes_[static_cast<size_t>(k)];
+}
 
 MotionMemo& IntervalMotions::MemoOf(int k) {
   auto it = held_.find(k);

@@ -26,8 +26,11 @@ class IntervalMotions {
   /// of interval k, 0) for every interval k, made by the caller (who built
   /// each motion once already); LinkBoxesOf then answers from it without
   /// building the motion.
+  /// `near_boxes`, likewise, NearLinkBoxes (near_link_boxes.h) of every
+  /// interval, with the margin of the answers' delta.
   explicit IntervalMotions(const AvatarWindow& entity, size_t max_kept = 4,
-                           std::vector<std::vector<Aabb>> link_boxes = {});
+                           std::vector<std::vector<Aabb>> link_boxes = {},
+                           std::vector<std::vector<Aabb>> near_boxes = {});
   IntervalMotions(const IntervalMotions&) = delete;
   IntervalMotions& operator=(const IntervalMotions&) = delete;
   /// The memo of the motion from sample k to k + 1 (k + 1 clamped).
@@ -39,6 +42,9 @@ class IntervalMotions {
   /// (valid as long as this), else computed once per interval kept (valid
   /// as MotionOf's answer).
   const std::vector<Aabb>& LinkBoxesOf(int k);
+  /// The caller's NearLinkBoxes of interval k, or an empty list when none
+  /// were given (then near boxes are not used).
+  const std::vector<Aabb>& NearLinkBoxesOf(int k) const;
 
  private:
   struct Held {
@@ -51,6 +57,7 @@ class IntervalMotions {
   size_t max_kept_;
   std::map<int, std::unique_ptr<Held>> held_;
   std::vector<std::vector<Aabb>> given_link_boxes_;  // By interval; empty: none given.
+  std::vector<std::vector<Aabb>> given_near_boxes_;  // Likewise.
 };
 
 }  // namespace sweptccd::world

@@ -58,6 +58,14 @@ class OtherTarget {
     (void)boxes;
     return false;
   }
+  /// Per candidate, its NearLinkBoxes over the piece's sample interval
+  /// (near_link_boxes.h, with the margin of the answer's delta). False,
+  /// *boxes untouched, when the target has none.
+  virtual bool NearLinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const {
+    (void)piece;
+    (void)boxes;
+    return false;
+  }
 };
 
 /// Widens a normalised time range by a relative 1e-12 (the rounding of the

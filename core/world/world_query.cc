@@ -10,6 +10,7 @@
 #include "core/world/entity_broad_phase.h"
 #include "core/world/interval_motions.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/near_link_boxes.h"
 #include "core/world/window_split.h"
 
 namespace sweptccd::world {
@@ -90,21 +91,27 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     object_times_.emplace_back();
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
+  const double near_margin = NearMargin(options.delta_m);
   for (const AvatarEntity& e : w_.world.avatars) {
     // Per sample interval, from one motion: the entity box and the link
     // boxes (both depend on the interval's samples only; the link boxes are
-    // kept so that an entry cleared by them never builds E's motion).
+    // kept so that an entry cleared by them never builds E's motion), and
+    // the near boxes (near_link_boxes.h) of the links and of the entity.
     avatar_boxes_.emplace_back();
-    std::vector<std::vector<Aabb>> link_boxes;
+    avatar_near_boxes_.emplace_back();
+    std::vector<std::vector<Aabb>> link_boxes, near_boxes;
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       const PairMotion motion(e.skeleton, e.used[k], e.used[k1], e.motion);
       avatar_boxes_.back().push_back(AvatarMotionBox(e.skeleton, motion));
       link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
+      MotionMemo memo(motion);
+      near_boxes.push_back(NearLinkBoxes(e.skeleton, &memo, near_margin));
+      avatar_near_boxes_.back().push_back(UnionOf(near_boxes.back()));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
         WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
-        std::move(link_boxes)));
+        std::move(link_boxes), std::move(near_boxes)));
     avatar_sample_scales_.emplace_back();
     for (const Pose& pose : e.used) avatar_sample_scales_.back().push_back(SampleScale(pose));
     avatar_skeleton_scales_.push_back(SkeletonScale(e.skeleton));
@@ -113,10 +120,17 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
     const double rho = ObjectRadius(bvh);
     object_boxes_.emplace_back();
+    object_near_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       object_boxes_.back().push_back(
           ObjectMotionBox(e.used[k], e.used[k1], rho, bvh.max_abs_coordinate()));
+      // Its near box: the same grown by the near margin (an avatar's near
+      // box holds the other half of delta).
+      Aabb near = object_boxes_.back().back();
+      near.lo.array() -= near_margin;
+      near.hi.array() += near_margin;
+      object_near_boxes_.back().push_back(near);
     }
   }
 }
@@ -150,7 +164,16 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
     box_a_ = a;
     box_r_ = r;
   }
-  if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; })) {
+  // Then, when A's record is its interval motion k, the near boxes
+  // (near_link_boxes.h): apart, every link pair stays more than delta apart,
+  // and the descent would answer `free` too.
+  const std::vector<Aabb>& near_boxes =
+      b.is_valid() ? avatar_near_boxes_[b] : object_near_boxes_[o];
+  RecordMotion(a, r);  // Sets motion_k_ (kept: PairBox made it).
+  if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; }) ||
+      (motion_k_ >= 0 &&
+       !EntryNear(avatar_near_boxes_[a][static_cast<size_t>(motion_k_)], window->pieces,
+                  [&](size_t k) -> const Aabb& { return near_boxes[k]; }))) {
     entry->answer.culled_by_box = true;
     return entry;
   }
@@ -158,13 +181,19 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
   if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {
       link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
+      near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(motion_k_);
     } else {
       link_boxes_ = LinkSweepBoxes(A.skeleton, *motion_, 0.0);
       link_boxes_a_ = &link_boxes_;
     }
   }
-  const PairSide side{FilterSide{A.id, w_.world.rules[a]},   A.skeleton, u0, u1, &*memo_,
-                      b.is_valid() ? link_boxes_a_ : nullptr};
+  const PairSide side{FilterSide{A.id, w_.world.rules[a]},
+                      A.skeleton,
+                      u0,
+                      u1,
+                      &*memo_,
+                      b.is_valid() ? link_boxes_a_ : nullptr,
+                      b.is_valid() ? near_link_boxes_a_ : nullptr};
   entry->answer =
       b.is_valid()
           ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
@@ -210,6 +239,7 @@ const PairMotion& WorldAnswerer::RecordMotion(AvatarIndex a, size_t r) const {
   motion_a_ = a;
   motion_r_ = r;
   link_boxes_a_ = nullptr;
+  near_link_boxes_a_ = nullptr;
   return *motion_;
 }
 
