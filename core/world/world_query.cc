@@ -92,6 +92,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
   const double near_margin = NearMargin(options.delta_m);
+  std::optional<MotionMemo> memo;  // Rebound from interval to interval (its memory kept).
   for (const AvatarEntity& e : w_.world.avatars) {
     // Per sample interval, from one motion: the entity box and the link
     // boxes (both depend on the interval's samples only; the link boxes are
@@ -105,8 +106,12 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
       const PairMotion motion(e.skeleton, e.used[k], e.used[k1], e.motion);
       avatar_boxes_.back().push_back(AvatarMotionBox(e.skeleton, motion));
       link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
-      MotionMemo memo(motion);
-      near_boxes.push_back(NearLinkBoxes(e.skeleton, &memo, near_margin));
+      if (memo) {
+        memo->Rebind(motion);
+      } else {
+        memo.emplace(motion);
+      }
+      near_boxes.push_back(NearLinkBoxes(e.skeleton, &*memo, near_margin));
       avatar_near_boxes_.back().push_back(UnionOf(near_boxes.back()));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
