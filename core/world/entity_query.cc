@@ -6,6 +6,7 @@
 #include "core/query/ccd_query.h"
 #include "core/world/avatar_target.h"
 #include "core/world/entity_run.h"
+#include "core/world/near_link_boxes.h"
 #include "core/world/object_target.h"
 
 namespace sweptccd::world {
@@ -24,10 +25,12 @@ OtherAnswer AnswerAgainstAvatar(const PairSide& a, const AvatarWindow& b, const 
 OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const EntryWindow& window,
                                 const EntityQueryOptions& options, double scale) {
   if (scale < 0) scale = WindowScale(o, window.pieces);
-  const std::unique_ptr<OtherTarget> target = MakeObjectTarget(a.who, o, scale);
+  // With A's near boxes, the object's too (the margin of the same delta).
+  const std::unique_ptr<OtherTarget> target = MakeObjectTarget(
+      a.who, o, scale, a.near_link_boxes != nullptr ? NearMargin(options.delta_m) : -1);
   // (An object has no link boxes: A's are not needed.)
   return AnswerOther(a.skeleton, a.memo, a.utime0, a.utime1, window.pieces, *target, options,
-                     nullptr);
+                     nullptr, a.near_link_boxes);
 }
 
 namespace {

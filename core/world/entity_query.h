@@ -79,8 +79,9 @@ struct PairSide {
   MotionMemo* memo = nullptr;
   const std::vector<Aabb>* link_boxes = nullptr;
   /// Optionally, that motion's NearLinkBoxes (near_link_boxes.h), with the
-  /// margin of the options' delta; used against an avatar whose motions
-  /// hold theirs (IntervalMotions::NearLinkBoxesOf).
+  /// margin of the options' delta (NearMargin); used against an avatar whose
+  /// motions hold theirs (IntervalMotions::NearLinkBoxesOf) and against any
+  /// object.
   const std::vector<Aabb>* near_link_boxes = nullptr;
 };
 

@@ -128,7 +128,10 @@ bool EntityRun::LinkBoxesClearAll() {
     have = have && piece_boxes.size() == num_e;
     boxes_e.insert(boxes_e.end(), piece_boxes.begin(), piece_boxes.end());
   }
-  if (!have) return false;
+  if (!have) {
+    NearBoxesPruneRoots();
+    return false;
+  }
   std::vector<Aabb> own_boxes;
   if (link_boxes_a_ == nullptr) {
     own_boxes = LinkSweepBoxes(skeleton_a_, memo_a_.motion(), 0.0);
@@ -179,9 +182,33 @@ bool EntityRun::LinkBoxesClearAll() {
   return !any && root_items <= options_.max_intervals;
 }
 
+// A target without link boxes (an object): a root candidate whose near box
+// is apart from A's link's in every piece leaves the link's roots (the
+// link can come no nearer than delta to it over the window, so no item of
+// the descent could close a bracket on it or find it touching at the start;
+// a link left with no root is never seeded, as a filtered one).
+void EntityRun::NearBoxesPruneRoots() {
+  if (num_links_ == 0 || !GatherNearBoxes(0)) return;
+  const std::vector<Aabb>& near_e = scratch_->near_e;
+  const size_t num_e = near_e.size() / num_pieces_;
+  for (int l = 0; l < num_links_; ++l) {
+    std::vector<int>& roots = scratch_->roots[static_cast<size_t>(l)];
+    const Aabb& near_a = (*near_boxes_a_)[static_cast<size_t>(l)];
+    size_t kept = 0;
+    for (int j : roots) {
+      bool near = static_cast<size_t>(j) >= num_e;  // No box: kept.
+      for (size_t p = 0; p < num_pieces_ && !near; ++p) {
+        near = !BoxesApart(near_a, near_e[p * num_e + static_cast<size_t>(j)]);
+      }
+      if (near) roots[kept++] = j;
+    }
+    roots.resize(kept);
+  }
+}
+
 // E's near boxes of every piece into near_e (as boxes_e) and their unions
 // per piece: true when A and the target both have them, for every piece,
-// one per link on each side.
+// one per link of A and num_e per piece (0: as many as the first piece's).
 bool EntityRun::GatherNearBoxes(size_t num_e) {
   if (near_boxes_a_ == nullptr || static_cast<int>(near_boxes_a_->size()) != num_links_) {
     return false;
@@ -192,9 +219,9 @@ bool EntityRun::GatherNearBoxes(size_t num_e) {
   near_e.clear();
   scratch.near_unions.assign(num_pieces_, Aabb::Empty());
   for (size_t p = 0; p < num_pieces_; ++p) {
-    if (!target_.NearLinkBoxes(pieces_[p], &piece_boxes) || piece_boxes.size() != num_e) {
-      return false;
-    }
+    if (!target_.NearLinkBoxes(pieces_[p], &piece_boxes)) return false;
+    if (num_e == 0 && p == 0) num_e = piece_boxes.size();
+    if (piece_boxes.size() != num_e) return false;
     for (const Aabb& b : piece_boxes) scratch.near_unions[p].Grow(b);
     near_e.insert(near_e.end(), piece_boxes.begin(), piece_boxes.end());
   }

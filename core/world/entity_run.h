@@ -66,6 +66,7 @@ class EntityRun {
   void FindRoots();
   bool LinkBoxesClearAll();
   bool GatherNearBoxes(size_t num_e);
+  void NearBoxesPruneRoots();
   bool EntityBoxesMeet();
   void CloseTouchingAtStart();
   void SeedRoots();

@@ -183,22 +183,19 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
     return entry;
   }
   RecordMotion(a, r);  // Sets memo_ to this record's.
+  if (motion_k_ >= 0) {
+    near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(motion_k_);
+  }
   if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {
       link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
-      near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(motion_k_);
     } else {
       link_boxes_ = LinkSweepBoxes(A.skeleton, *motion_, 0.0);
       link_boxes_a_ = &link_boxes_;
     }
   }
-  const PairSide side{FilterSide{A.id, w_.world.rules[a]},
-                      A.skeleton,
-                      u0,
-                      u1,
-                      &*memo_,
-                      b.is_valid() ? link_boxes_a_ : nullptr,
-                      b.is_valid() ? near_link_boxes_a_ : nullptr};
+  const PairSide side{FilterSide{A.id, w_.world.rules[a]},    A.skeleton,        u0, u1, &*memo_,
+                      b.is_valid() ? link_boxes_a_ : nullptr, near_link_boxes_a_};
   entry->answer =
       b.is_valid()
           ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,

@@ -27,6 +27,7 @@
 #include "core/world/entity_run.h"
 #include "core/world/interval_motions.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/object_target.h"
 #include "tests/common/random.h"
 #include "tests/common/twin_motion.h"
 
@@ -214,6 +215,18 @@ bool SameBracket(const OtherBracket& x, const OtherBracket& y) {
          x.has_witness == y.has_witness && (!x.has_witness || SameContact(x.witness, y.witness));
 }
 
+void ExpectSameAnswer(const OtherAnswer& x, const OtherAnswer& y, const std::string& at) {
+  ASSERT_EQ(x.contact, y.contact) << at;
+  if (x.contact) {
+    ASSERT_TRUE(SameBracket(x.bracket, y.bracket)) << at;
+  }
+  ASSERT_EQ(x.links.size(), y.links.size()) << at;
+  for (size_t i = 0; i < x.links.size(); ++i) {
+    ASSERT_TRUE(SameBracket(x.links[i], y.links[i])) << at;
+  }
+  ASSERT_LE(x.intervals, y.intervals) << at;
+}
+
 // The descent with near boxes on both sides against the same descent
 // without them (link boxes kept): the same answer, bit for bit, for two
 // avatars near each other (random skeletons and twisting chains, windows
@@ -277,17 +290,89 @@ TEST(NearLinkBoxes, LeaveEveryAnswerUnchanged) {
     const OtherAnswer y =
         AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, *target_plain, opt, &boxes_a);
     const std::string at = "seed " + std::to_string(seed);
-    ASSERT_EQ(x.contact, y.contact) << at;
-    if (x.contact) ASSERT_TRUE(SameBracket(x.bracket, y.bracket)) << at;
-    ASSERT_EQ(x.links.size(), y.links.size()) << at;
-    for (size_t i = 0; i < x.links.size(); ++i)
-      ASSERT_TRUE(SameBracket(x.links[i], y.links[i])) << at;
-    ASSERT_LE(x.intervals, y.intervals) << at;
+    ExpectSameAnswer(x, y, at);
+    if (HasFatalFailure()) return;
     ++answers;
     contacts += x.contact;
     spared += x.intervals < y.intervals;
   }
   std::printf("%d answers: %d contacts, %d with items spared by the near boxes\n", answers,
+              contacts, spared);
+  EXPECT_GT(contacts, 60);
+  EXPECT_GT(spared, 60);
+}
+
+// The same against a tracked object (a box of random triangles near A's
+// links, still or thrown, sampled at other times): A's links whose near
+// boxes are apart from the object's leave the roots; answers bit-identical.
+TEST(NearLinkBoxes, LeaveEveryObjectAnswerUnchanged) {
+  int contacts = 0, spared = 0, answers = 0;
+  for (int seed = 0; seed < 600; ++seed) {
+    Rng rng(53000 + seed);
+    World w;
+    w.avatars.resize(1);
+    w.rules.assign(1, {});
+    const Vector3d centre = rng.Box(1.0);
+    const int64_t u0 = 1'000'000, u1 = 1'011'111;
+    const Scene sc = rng.P(0.6) ? TwistScene(rng, centre) : RandomScene(rng, centre);
+    AvatarEntity& A = w.avatars[0];
+    A.id = "a";
+    A.skeleton = sc.skeleton;
+    A.motion = sc.model;
+    A.used = {sc.p0, sc.p1};
+    w.objects.resize(1);
+    ObjectEntity& O = w.objects[0];
+    O.id = "o";
+    TriangleMesh m;
+    for (int t = 0; t < 2 + rng.I(5); ++t) {
+      const Vector3d c = rng.Box(0.01);  // About the frame origin (a tight radius).
+      for (int v = 0; v < 3; ++v) {
+        m.vertices.push_back(Vector3d(c + rng.Box(0.08)).cast<float>());
+        m.indices.push_back(static_cast<uint32_t>(m.vertices.size() - 1));
+      }
+    }
+    auto mesh = std::make_shared<Environment>();
+    mesh->AddMesh(m, "mesh");
+    O.mesh = std::move(mesh);
+    const Vector3d velocity = rng.P(0.3) ? Vector3d(rng.Box(3.0)) : Vector3d::Zero();
+    RigidSample x;
+    x.utime = u0 - rng.I(8'000);
+    x.p = centre + rng.Box(0.25);
+    x.q = rng.Quat();
+    for (int i = 0; i < 2 + rng.I(2); ++i) {
+      O.used.push_back(x);
+      x.utime += 9'000;
+      x.p += velocity * 0.009;
+      x.q = (rng.Turn(rng.U(0, 0.3)) * x.q).normalized();
+    }
+    EntityQueryOptions opt;
+    opt.per_link = rng.P(0.5);
+    opt.delta_m = rng.P(0.5) ? 1e-3 : rng.U(1e-4, 2e-2);
+    const PairMotion motion_a(A.skeleton, A.used[0], A.used[1], A.motion);
+    MotionMemo memo_near(motion_a), memo_plain(motion_a), memo_boxes(motion_a);
+    const std::vector<Aabb> near_a =
+        NearLinkBoxes(A.skeleton, &memo_boxes, NearMargin(opt.delta_m));
+    const ObjectWindow window_o = WindowOfObject(w, TrackedObjectIndex(0));
+    const FilterSide who = WindowOfAvatar(w, AvatarIndex(0)).who;
+    const auto target_near = MakeObjectTarget(who, window_o, -1, NearMargin(opt.delta_m));
+    const auto target_plain = MakeObjectTarget(who, window_o, -1);
+    std::vector<int64_t> times;
+    for (const RigidSample& y : O.used) times.push_back(y.utime);
+    const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
+    if (t_from > t_to) continue;
+    const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
+    ASSERT_FALSE(pieces.empty());
+    const OtherAnswer a =
+        AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt, nullptr, &near_a);
+    const OtherAnswer b =
+        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, *target_plain, opt, nullptr);
+    ExpectSameAnswer(a, b, "seed " + std::to_string(seed));
+    if (HasFatalFailure()) return;
+    ++answers;
+    contacts += a.contact;
+    spared += a.intervals < b.intervals;
+  }
+  std::printf("%d object answers: %d contacts, %d with items spared by the near boxes\n", answers,
               contacts, spared);
   EXPECT_GT(contacts, 60);
   EXPECT_GT(spared, 60);
