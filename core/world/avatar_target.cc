@@ -121,9 +121,8 @@ class AvatarTarget : public OtherTarget {
     return true;
   }
 
-  bool NearLinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const override {
-    const std::vector<Aabb>& held = motions_->NearLinkBoxesOf(piece.k);
-    if (held.empty()) return false;
+  bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const override {
+    const std::vector<Aabb>& held = motions_->NearLinkBoxesOf(piece.k, margin);
     boxes->assign(held.begin(), held.end());
     return true;
   }

@@ -6,7 +6,6 @@
 #include "core/query/ccd_query.h"
 #include "core/world/avatar_target.h"
 #include "core/world/entity_run.h"
-#include "core/world/near_link_boxes.h"
 #include "core/world/object_target.h"
 
 namespace sweptccd::world {
@@ -25,9 +24,7 @@ OtherAnswer AnswerAgainstAvatar(const PairSide& a, const AvatarWindow& b, const 
 OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const EntryWindow& window,
                                 const EntityQueryOptions& options, double scale) {
   if (scale < 0) scale = WindowScale(o, window.pieces);
-  // With A's near boxes, the object's too (the margin of the same delta).
-  const std::unique_ptr<OtherTarget> target = MakeObjectTarget(
-      a.who, o, scale, a.near_link_boxes != nullptr ? NearMargin(options.delta_m) : -1);
+  const std::unique_ptr<OtherTarget> target = MakeObjectTarget(a.who, o, scale);
   // (An object has no link boxes: A's are not needed.)
   return AnswerOther(a.skeleton, a.memo, a.utime0, a.utime1, window.pieces, *target, options,
                      nullptr, a.near_link_boxes);

@@ -78,10 +78,8 @@ struct PairSide {
   int64_t utime0 = 0, utime1 = 0;
   MotionMemo* memo = nullptr;
   const std::vector<Aabb>* link_boxes = nullptr;
-  /// Optionally, that motion's NearLinkBoxes (near_link_boxes.h), with the
-  /// margin of the options' delta (NearMargin); used against an avatar whose
-  /// motions hold theirs (IntervalMotions::NearLinkBoxesOf) and against any
-  /// object.
+  /// Optionally, that motion's NearLinkBoxes (near_link_boxes.h) with
+  /// margin NearMargin(options.delta_m) (else made per answer).
   const std::vector<Aabb>* near_link_boxes = nullptr;
 };
 

@@ -8,6 +8,7 @@
 #include "core/geometry/rounding_slack.h"
 #include "core/query/certificate.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/near_link_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -210,20 +211,23 @@ void EntityRun::NearBoxesPruneRoots() {
 // per piece: true when A and the target both have them, for every piece,
 // one per link of A and num_e per piece (0: as many as the first piece's).
 bool EntityRun::GatherNearBoxes(size_t num_e) {
-  if (near_boxes_a_ == nullptr || static_cast<int>(near_boxes_a_->size()) != num_links_) {
-    return false;
-  }
+  const double margin = NearMargin(options_.delta_m);
   EntityScratch& scratch = *scratch_;
   std::vector<Aabb>& near_e = scratch.near_e;
   std::vector<Aabb>& piece_boxes = scratch.piece_boxes;
   near_e.clear();
   scratch.near_unions.assign(num_pieces_, Aabb::Empty());
   for (size_t p = 0; p < num_pieces_; ++p) {
-    if (!target_.NearLinkBoxes(pieces_[p], &piece_boxes)) return false;
+    if (!target_.NearLinkBoxes(pieces_[p], margin, &piece_boxes)) return false;
     if (num_e == 0 && p == 0) num_e = piece_boxes.size();
     if (piece_boxes.size() != num_e) return false;
     for (const Aabb& b : piece_boxes) scratch.near_unions[p].Grow(b);
     near_e.insert(near_e.end(), piece_boxes.begin(), piece_boxes.end());
+  }
+  // A's: the caller's, else made here (through A's memo: the same bits).
+  if (near_boxes_a_ == nullptr || static_cast<int>(near_boxes_a_->size()) != num_links_) {
+    own_near_ = NearLinkBoxes(skeleton_a_, &memo_a_, margin);
+    near_boxes_a_ = &own_near_;
   }
   return true;
 }

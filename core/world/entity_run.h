@@ -48,8 +48,9 @@ class EntityRun {
   /// `target` over `pieces` (chronological, contiguous; empty: no window);
   /// `link_boxes_a`: A's LinkSweepBoxes(skeleton_a, memo_a->motion(), 0),
   /// or null (made here when the target has link boxes); `near_boxes_a`:
-  /// A's NearLinkBoxes over that motion with the margin of options.delta_m
-  /// (near_link_boxes.h), or null (then near boxes are not used).
+  /// A's NearLinkBoxes over that motion with margin NearMargin(options.
+  /// delta_m) (near_link_boxes.h), or null (made here when the target has
+  /// near boxes).
   EntityRun(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0, int64_t utime1,
             const std::vector<Piece>& pieces, const OtherTarget& target,
             const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a,
@@ -98,6 +99,7 @@ class EntityRun {
   const EntityQueryOptions& options_;
   const std::vector<Aabb>* link_boxes_a_;
   const std::vector<Aabb>* near_boxes_a_;
+  std::vector<Aabb> own_near_;  // A's near boxes when not given.
   const int num_links_;
   const size_t num_pieces_;
   const double dur_;

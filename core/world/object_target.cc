@@ -14,12 +14,8 @@ namespace {
 // the object's frame, with A's link taken relative to the object's frame.
 class ObjectTarget : public OtherTarget {
  public:
-  ObjectTarget(const FilterSide& a, const ObjectWindow& o, double scale, double near_margin)
-      : a_(a),
-        e_(o),
-        bvh_(e_.mesh.object(0).bvh),
-        rho_(ObjectRadius(bvh_)),
-        near_margin_(near_margin) {
+  ObjectTarget(const FilterSide& a, const ObjectWindow& o, double scale)
+      : a_(a), e_(o), bvh_(e_.mesh.object(0).bvh), rho_(ObjectRadius(bvh_)) {
     if (scale < 0) scale = EntityScale(e_);
     tol_ = EntitySlack(scale, e_.mesh.coordinate_tolerance());
   }
@@ -108,13 +104,12 @@ class ObjectTarget : public OtherTarget {
 
   // The object's box over the piece's sample interval (as WorldAnswerer
   // makes it) grown by the near margin.
-  bool NearLinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const override {
-    if (near_margin_ < 0) return false;
+  bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const override {
     const size_t k = static_cast<size_t>(piece.k);
     const size_t k1 = std::min(k + 1, e_.samples.size() - 1);
     Aabb box = ObjectMotionBox(e_.samples[k], e_.samples[k1], rho_, bvh_.max_abs_coordinate());
-    box.lo.array() -= near_margin_;
-    box.hi.array() += near_margin_;
+    box.lo.array() -= margin;
+    box.hi.array() += margin;
     boxes->assign(1, box);
     return true;
   }
@@ -129,15 +124,14 @@ class ObjectTarget : public OtherTarget {
   ObjectWindow e_;
   const TriangleBvh& bvh_;
   double rho_ = 0;
-  double near_margin_ = -1;  // < 0: no near boxes.
   double tol_ = 0;
 };
 
 }  // namespace
 
 std::unique_ptr<OtherTarget> MakeObjectTarget(const FilterSide& a, const ObjectWindow& o,
-                                              double scale, double near_margin) {
-  return std::make_unique<ObjectTarget>(a, o, scale, near_margin);
+                                              double scale) {
+  return std::make_unique<ObjectTarget>(a, o, scale);
 }
 
 }  // namespace sweptccd::world

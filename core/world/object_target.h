@@ -12,10 +12,9 @@ namespace sweptccd::world {
 
 /// A's links (who: `a`) against object `o`. `scale` is WindowScale or
 /// EntityScale of o (< 0: EntityScale, computed here, O(samples)).
-/// `near_margin` >= 0: the target's NearLinkBoxes are its ObjectMotionBox
-/// over the piece's interval grown by it (near_link_boxes.h; the margin A's
-/// near boxes were made with); < 0: it has none.
+/// Its near box (OtherTarget::NearLinkBoxes) over a piece is its
+/// ObjectMotionBox over the piece's interval grown by the margin.
 std::unique_ptr<OtherTarget> MakeObjectTarget(const FilterSide& a, const ObjectWindow& o,
-                                              double scale = -1, double near_margin = -1);
+                                              double scale = -1);
 
 }  // namespace sweptccd::world

@@ -58,11 +58,13 @@ class OtherTarget {
     (void)boxes;
     return false;
   }
-  /// Per candidate, its NearLinkBoxes over the piece's sample interval
-  /// (near_link_boxes.h, with the margin of the answer's delta). False,
-  /// *boxes untouched, when the target has none.
-  virtual bool NearLinkBoxes(const Piece& piece, std::vector<Aabb>* boxes) const {
+  /// Per candidate, its near box over the piece's sample interval with
+  /// `margin` (near_link_boxes.h: NearLinkBoxes for an avatar's links, the
+  /// entity box grown by the margin for an object). False, *boxes
+  /// untouched, when the target has none.
+  virtual bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const {
     (void)piece;
+    (void)margin;
     (void)boxes;
     return false;
   }

@@ -97,9 +97,8 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     // Per sample interval, from one motion: the entity box and the link
     // boxes (both depend on the interval's samples only; the link boxes are
     // kept so that an entry cleared by them never builds E's motion), and
-    // the near boxes (near_link_boxes.h) of the links and of the entity.
+    // the links' near boxes (near_link_boxes.h).
     avatar_boxes_.emplace_back();
-    avatar_near_boxes_.emplace_back();
     std::vector<std::vector<Aabb>> link_boxes, near_boxes;
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
@@ -112,11 +111,10 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
         memo.emplace(motion);
       }
       near_boxes.push_back(NearLinkBoxes(e.skeleton, &*memo, near_margin));
-      avatar_near_boxes_.back().push_back(UnionOf(near_boxes.back()));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
         WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
-        std::move(link_boxes), std::move(near_boxes)));
+        std::move(link_boxes), std::move(near_boxes), near_margin));
     avatar_sample_scales_.emplace_back();
     for (const Pose& pose : e.used) avatar_sample_scales_.back().push_back(SampleScale(pose));
     avatar_skeleton_scales_.push_back(SkeletonScale(e.skeleton));
@@ -125,17 +123,10 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
     const double rho = ObjectRadius(bvh);
     object_boxes_.emplace_back();
-    object_near_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       object_boxes_.back().push_back(
           ObjectMotionBox(e.used[k], e.used[k1], rho, bvh.max_abs_coordinate()));
-      // Its near box: the same grown by the near margin (an avatar's near
-      // box holds the other half of delta).
-      Aabb near = object_boxes_.back().back();
-      near.lo.array() -= near_margin;
-      near.hi.array() += near_margin;
-      object_near_boxes_.back().push_back(near);
     }
   }
 }
@@ -169,22 +160,14 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
     box_a_ = a;
     box_r_ = r;
   }
-  // Then, when A's record is its interval motion k, the near boxes
-  // (near_link_boxes.h): apart, every link pair stays more than delta apart,
-  // and the descent would answer `free` too.
-  const std::vector<Aabb>& near_boxes =
-      b.is_valid() ? avatar_near_boxes_[b] : object_near_boxes_[o];
-  RecordMotion(a, r);  // Sets motion_k_ (kept: PairBox made it).
-  if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; }) ||
-      (motion_k_ >= 0 &&
-       !EntryNear(avatar_near_boxes_[a][static_cast<size_t>(motion_k_)], window->pieces,
-                  [&](size_t k) -> const Aabb& { return near_boxes[k]; }))) {
+  if (!EntryNear(box_, window->pieces, [&](size_t k) -> const Aabb& { return boxes[k]; })) {
     entry->answer.culled_by_box = true;
     return entry;
   }
-  RecordMotion(a, r);  // Sets memo_ to this record's.
-  if (motion_k_ >= 0) {
-    near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(motion_k_);
+  RecordMotion(a, r);    // Sets memo_ to this record's.
+  if (motion_k_ >= 0) {  // (Else EntityRun makes them.)
+    near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(
+        motion_k_, NearMargin(entity_options_.delta_m));
   }
   if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {

@@ -215,6 +215,37 @@ bool SameBracket(const OtherBracket& x, const OtherBracket& y) {
          x.has_witness == y.has_witness && (!x.has_witness || SameContact(x.witness, y.witness));
 }
 
+// A target as `t`, without near boxes: the descent as it was before them.
+class WithoutNearBoxes : public OtherTarget {
+ public:
+  explicit WithoutNearBoxes(const OtherTarget& t) : t_(t) {}
+  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
+    t_.RootCandidatesInto(link_a, out);
+  }
+  Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
+    return t_.PieceBox(p, tau0, tau1);
+  }
+  bool PieceBoxMeets(const Piece& p, double tau0, double tau1, const Aabb& box) const override {
+    return t_.PieceBoxMeets(p, tau0, tau1, box);
+  }
+  void Cull(const Piece& p, double tau0, double tau1, const Vector3d& a, const Vector3d& b,
+            double radius_a, double growth_a, std::vector<int>* cands) const override {
+    t_.Cull(p, tau0, tau1, a, b, radius_a, growth_a, cands);
+  }
+  bool Nearest(const Piece& p, double tau, LinkIndex link_a, const Vector3d& a, const Vector3d& b,
+               double radius_a, const std::vector<int>& cands, double search,
+               OtherContact* out) const override {
+    return t_.Nearest(p, tau, link_a, a, b, radius_a, cands, search, out);
+  }
+  double tolerance() const override { return t_.tolerance(); }
+  bool LinkBoxes(const Piece& p, std::vector<Aabb>* boxes) const override {
+    return t_.LinkBoxes(p, boxes);
+  }
+
+ private:
+  const OtherTarget& t_;
+};
+
 void ExpectSameAnswer(const OtherAnswer& x, const OtherAnswer& y, const std::string& at) {
   ASSERT_EQ(x.contact, y.contact) << at;
   if (x.contact) {
@@ -275,20 +306,23 @@ TEST(NearLinkBoxes, LeaveEveryAnswerUnchanged) {
       near_b.push_back(NearLinkBoxes(B.skeleton, &memo, margin));
     }
     const AvatarWindow window_b = WindowOfAvatar(w, AvatarIndex(1));
-    IntervalMotions with_near(window_b, 4, boxes_b, near_b), without(window_b, 4, boxes_b);
-    const auto target_near =
-        MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1, &with_near);
-    const auto target_plain =
+    // B's near boxes given (as WorldAnswerer gives them), or made by the
+    // target (as the daemon's are): the same boxes.
+    IntervalMotions with_near(window_b, 4, boxes_b, near_b, margin), without(window_b, 4, boxes_b);
+    const auto target_near = MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1,
+                                              rng.P(0.5) ? &with_near : &without);
+    const auto target_held =
         MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1, &without);
+    const WithoutNearBoxes target_plain(*target_held);
     std::vector<int64_t> times;
     for (const Pose& p : B.used) times.push_back(p.utime);
     const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
     const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
     ASSERT_FALSE(pieces.empty());
-    const OtherAnswer x =
-        AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt, &boxes_a, &near_a);
+    const OtherAnswer x = AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt,
+                                      &boxes_a, rng.P(0.5) ? &near_a : nullptr);
     const OtherAnswer y =
-        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, *target_plain, opt, &boxes_a);
+        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, target_plain, opt, &boxes_a);
     const std::string at = "seed " + std::to_string(seed);
     ExpectSameAnswer(x, y, at);
     if (HasFatalFailure()) return;
@@ -354,18 +388,18 @@ TEST(NearLinkBoxes, LeaveEveryObjectAnswerUnchanged) {
         NearLinkBoxes(A.skeleton, &memo_boxes, NearMargin(opt.delta_m));
     const ObjectWindow window_o = WindowOfObject(w, TrackedObjectIndex(0));
     const FilterSide who = WindowOfAvatar(w, AvatarIndex(0)).who;
-    const auto target_near = MakeObjectTarget(who, window_o, -1, NearMargin(opt.delta_m));
-    const auto target_plain = MakeObjectTarget(who, window_o, -1);
+    const auto target_near = MakeObjectTarget(who, window_o, -1);
+    const WithoutNearBoxes target_plain(*target_near);
     std::vector<int64_t> times;
     for (const RigidSample& y : O.used) times.push_back(y.utime);
     const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
     if (t_from > t_to) continue;
     const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
     ASSERT_FALSE(pieces.empty());
-    const OtherAnswer a =
-        AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt, nullptr, &near_a);
+    const OtherAnswer a = AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt,
+                                      nullptr, rng.P(0.5) ? &near_a : nullptr);
     const OtherAnswer b =
-        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, *target_plain, opt, nullptr);
+        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, target_plain, opt, nullptr);
     ExpectSameAnswer(a, b, "seed " + std::to_string(seed));
     if (HasFatalFailure()) return;
     ++answers;
