@@ -99,6 +99,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     // kept so that an entry cleared by them never builds E's motion), and
     // the links' near boxes (near_link_boxes.h).
     avatar_boxes_.emplace_back();
+    avatar_near_unions_.emplace_back();
     std::vector<std::vector<Aabb>> link_boxes, near_boxes;
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
@@ -111,6 +112,7 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
         memo.emplace(motion);
       }
       near_boxes.push_back(NearLinkBoxes(e.skeleton, &*memo, near_margin));
+      avatar_near_unions_.back().push_back(UnionOf(near_boxes.back()));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
         WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
@@ -123,10 +125,16 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
     const double rho = ObjectRadius(bvh);
     object_boxes_.emplace_back();
+    object_near_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       object_boxes_.back().push_back(
           ObjectMotionBox(e.used[k], e.used[k1], rho, bvh.max_abs_coordinate()));
+      // Its near box, as its target makes it (ObjectTarget::NearLinkBoxes).
+      Aabb near = object_boxes_.back().back();
+      near.lo.array() -= near_margin;
+      near.hi.array() += near_margin;
+      object_near_boxes_.back().push_back(near);
     }
   }
 }
@@ -168,6 +176,23 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
   if (motion_k_ >= 0) {  // (Else EntityRun makes them.)
     near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(
         motion_k_, NearMargin(entity_options_.delta_m));
+    // The near boxes' unions apart in every piece: EntityRun would clear
+    // the entry from its near boxes (every link pair apart; against an
+    // avatar when its root items are within the work limit, which
+    // links x pieces bounds), so it is cleared here without the answer's
+    // set-up, as the daemon clears it in EntityRun.
+    const std::vector<Aabb>& near_e = b.is_valid() ? avatar_near_unions_[b] : object_near_boxes_[o];
+    const Aabb& near_a = avatar_near_unions_[a][static_cast<size_t>(motion_k_)];
+    bool apart = !b.is_valid() || static_cast<int64_t>(A.skeleton.num_links()) *
+                                          static_cast<int64_t>(window->pieces.size()) <=
+                                      entity_options_.max_intervals;
+    for (const Piece& p : window->pieces) {
+      apart = apart && BoxesApart(near_a, near_e[static_cast<size_t>(p.k)]);
+    }
+    if (apart) {
+      entry->answer.culled_by_box = true;
+      return entry;
+    }
   }
   if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {

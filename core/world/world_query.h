@@ -61,6 +61,10 @@ class WorldAnswerer {
   // Per entity, a box holding it over each interval between used samples
   // (one box for an entity with one sample).
   std::vector<std::vector<Aabb>> avatar_boxes_, object_boxes_;
+  // Per interval likewise, near boxes (near_link_boxes.h, margin
+  // NearMargin(delta)): the union of an avatar's NearLinkBoxes, an object's
+  // box grown by the margin (as their targets make them).
+  std::vector<std::vector<Aabb>> avatar_near_unions_, object_near_boxes_;
   // Per avatar, the largest absolute coordinate of each used sample's links,
   // and of its skeleton's link ends: WindowScale of a window is the largest
   // of these over its samples and the skeleton's (a maximum is exact).
