@@ -121,6 +121,12 @@ class AvatarTarget : public OtherTarget {
     return true;
   }
 
+  bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const override {
+    const std::vector<Aabb>& held = motions_->NearLinkBoxesOf(piece.k, margin);
+    boxes->assign(held.begin(), held.end());
+    return true;
+  }
+
  private:
   // The union of B's link capsules over the piece's [tau0, tau1], grown
   // link by link; with `until`, it stops at the first link that makes the

@@ -18,7 +18,7 @@ OtherAnswer AnswerAgainstAvatar(const PairSide& a, const AvatarWindow& b, const 
   if (scale < 0) scale = WindowScale(b, window.pieces);
   const std::unique_ptr<OtherTarget> target = MakeAvatarTarget(a.who, b, scale, motions);
   return AnswerOther(a.skeleton, a.memo, a.utime0, a.utime1, window.pieces, *target, options,
-                     a.link_boxes);
+                     a.link_boxes, a.near_link_boxes);
 }
 
 OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const EntryWindow& window,
@@ -27,7 +27,7 @@ OtherAnswer AnswerAgainstObject(const PairSide& a, const ObjectWindow& o, const 
   const std::unique_ptr<OtherTarget> target = MakeObjectTarget(a.who, o, scale);
   // (An object has no link boxes: A's are not needed.)
   return AnswerOther(a.skeleton, a.memo, a.utime0, a.utime1, window.pieces, *target, options,
-                     nullptr);
+                     nullptr, a.near_link_boxes);
 }
 
 namespace {

@@ -78,6 +78,9 @@ struct PairSide {
   int64_t utime0 = 0, utime1 = 0;
   MotionMemo* memo = nullptr;
   const std::vector<Aabb>* link_boxes = nullptr;
+  /// Optionally, that motion's NearLinkBoxes (near_link_boxes.h) with
+  /// margin NearMargin(options.delta_m) (else made per answer).
+  const std::vector<Aabb>* near_link_boxes = nullptr;
 };
 
 /// A's pair against avatar `b` (against object `o`) over `window`, which

@@ -8,6 +8,7 @@
 #include "core/geometry/rounding_slack.h"
 #include "core/query/certificate.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/near_link_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -26,13 +27,15 @@ struct Later {
 
 EntityRun::EntityRun(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0, int64_t utime1,
                      const std::vector<Piece>& pieces, const OtherTarget& target,
-                     const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a)
+                     const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a,
+                     const std::vector<Aabb>* near_boxes_a)
     : skeleton_a_(skeleton_a),
       memo_a_(*memo_a),
       pieces_(pieces),
       target_(target),
       options_(options),
       link_boxes_a_(link_boxes_a),
+      near_boxes_a_(near_boxes_a),
       num_links_(skeleton_a.num_links()),
       num_pieces_(pieces.size()),
       dur_(static_cast<double>(utime1 - utime0)),
@@ -56,6 +59,8 @@ EntityRun::~EntityRun() {
   FreeIfAbove(&s.boxes_e, kKept);
   FreeIfAbove(&s.piece_boxes, kKept);
   FreeIfAbove(&s.unions, kKept);
+  FreeIfAbove(&s.near_e, kKept);
+  FreeIfAbove(&s.near_unions, kKept);
   FreeIfAbove(&s.queue, kKept);
   FreeIfAbove(&s.arena, kKept);
   FreeIfAbove(&s.work, kKept);
@@ -103,6 +108,13 @@ void EntityRun::FindRoots() {
 // descent's answer is unchanged; when none is left anywhere, it is `free`
 // (every item culled, none past the work limit, none touching at the
 // start) with no pose composed: then true.
+//
+// With near boxes on both sides (near_link_boxes.h), a pair whose near
+// boxes are apart leaves the candidates too: its capsules stay more than
+// delta (plus the slack) apart over the whole motion, so no item of the
+// descent could close a bracket on it (Nearest's sample separations would
+// all be over delta) or find it touching at the start; dropping it only
+// spares the items that would have culled it later.
 bool EntityRun::LinkBoxesClearAll() {
   EntityScratch& scratch = *scratch_;
   std::vector<Aabb>& boxes_e = scratch.boxes_e;  // Piece p's link j at p * num_e + j.
@@ -117,7 +129,10 @@ bool EntityRun::LinkBoxesClearAll() {
     have = have && piece_boxes.size() == num_e;
     boxes_e.insert(boxes_e.end(), piece_boxes.begin(), piece_boxes.end());
   }
-  if (!have) return false;
+  if (!have) {
+    NearBoxesPruneRoots();
+    return false;
+  }
   std::vector<Aabb> own_boxes;
   if (link_boxes_a_ == nullptr) {
     own_boxes = LinkSweepBoxes(skeleton_a_, memo_a_.motion(), 0.0);
@@ -130,6 +145,9 @@ bool EntityRun::LinkBoxesClearAll() {
   for (size_t p = 0; p < num_pieces_; ++p) {
     for (size_t j = 0; j < num_e; ++j) unions[p].Grow(boxes_e[p * num_e + j]);
   }
+  const bool use_near = GatherNearBoxes(num_e);
+  const std::vector<Aabb>& near_e = scratch.near_e;
+  const std::vector<Aabb>& near_unions = scratch.near_unions;
   // One pass: a link apart from the union of E's boxes over a piece is
   // apart from each of them (each lies inside the union), so its list
   // stays empty without testing them.
@@ -144,12 +162,16 @@ bool EntityRun::LinkBoxesClearAll() {
     const std::vector<int>& roots = scratch.roots[static_cast<size_t>(l)];
     if (roots.empty()) continue;
     const Aabb& box_a = (*link_boxes_a_)[static_cast<size_t>(l)];
+    const Aabb* near_a = use_near ? &(*near_boxes_a_)[static_cast<size_t>(l)] : nullptr;
     for (size_t p = 0; p < num_pieces_; ++p) {
       ++root_items;
       if (BoxesApart(box_a, unions[p], margin)) continue;
+      if (near_a != nullptr && BoxesApart(*near_a, near_unions[p])) continue;
       std::vector<int>& c = cands[static_cast<size_t>(l) * num_pieces_ + p];
       for (int j : roots) {
-        if (!BoxesApart(box_a, boxes_e[p * num_e + static_cast<size_t>(j)], margin)) {
+        const size_t i = p * num_e + static_cast<size_t>(j);
+        if (!BoxesApart(box_a, boxes_e[i], margin) &&
+            (near_a == nullptr || !BoxesApart(*near_a, near_e[i]))) {
           c.push_back(j);
         }
       }
@@ -159,6 +181,55 @@ bool EntityRun::LinkBoxesClearAll() {
   // (Own boxes die here: nothing below reads them.)
   if (link_boxes_a_ == &own_boxes) link_boxes_a_ = nullptr;
   return !any && root_items <= options_.max_intervals;
+}
+
+// A target without link boxes (an object): a root candidate whose near box
+// is apart from A's link's in every piece leaves the link's roots (the
+// link can come no nearer than delta to it over the window, so no item of
+// the descent could close a bracket on it or find it touching at the start;
+// a link left with no root is never seeded, as a filtered one).
+void EntityRun::NearBoxesPruneRoots() {
+  if (num_links_ == 0 || !GatherNearBoxes(0)) return;
+  const std::vector<Aabb>& near_e = scratch_->near_e;
+  const size_t num_e = near_e.size() / num_pieces_;
+  for (int l = 0; l < num_links_; ++l) {
+    std::vector<int>& roots = scratch_->roots[static_cast<size_t>(l)];
+    const Aabb& near_a = (*near_boxes_a_)[static_cast<size_t>(l)];
+    size_t kept = 0;
+    for (int j : roots) {
+      bool near = static_cast<size_t>(j) >= num_e;  // No box: kept.
+      for (size_t p = 0; p < num_pieces_ && !near; ++p) {
+        near = !BoxesApart(near_a, near_e[p * num_e + static_cast<size_t>(j)]);
+      }
+      if (near) roots[kept++] = j;
+    }
+    roots.resize(kept);
+  }
+}
+
+// E's near boxes of every piece into near_e (as boxes_e) and their unions
+// per piece: true when A and the target both have them, for every piece,
+// one per link of A and num_e per piece (0: as many as the first piece's).
+bool EntityRun::GatherNearBoxes(size_t num_e) {
+  const double margin = NearMargin(options_.delta_m);
+  EntityScratch& scratch = *scratch_;
+  std::vector<Aabb>& near_e = scratch.near_e;
+  std::vector<Aabb>& piece_boxes = scratch.piece_boxes;
+  near_e.clear();
+  scratch.near_unions.assign(num_pieces_, Aabb::Empty());
+  for (size_t p = 0; p < num_pieces_; ++p) {
+    if (!target_.NearLinkBoxes(pieces_[p], margin, &piece_boxes)) return false;
+    if (num_e == 0 && p == 0) num_e = piece_boxes.size();
+    if (piece_boxes.size() != num_e) return false;
+    for (const Aabb& b : piece_boxes) scratch.near_unions[p].Grow(b);
+    near_e.insert(near_e.end(), piece_boxes.begin(), piece_boxes.end());
+  }
+  // A's: the caller's, else made here (through A's memo: the same bits).
+  if (near_boxes_a_ == nullptr || static_cast<int>(near_boxes_a_->size()) != num_links_) {
+    own_near_ = NearLinkBoxes(skeleton_a_, &memo_a_, margin);
+    near_boxes_a_ = &own_near_;
+  }
+  return true;
 }
 
 // Entity-level broad phase: A's box over the window against E's per piece.
@@ -385,8 +456,11 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
-                        const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a) {
-  return EntityRun(skeleton_a, memo_a, utime0, utime1, pieces, target, options, link_boxes_a).Run();
+                        const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a,
+                        const std::vector<Aabb>* near_boxes_a) {
+  return EntityRun(skeleton_a, memo_a, utime0, utime1, pieces, target, options, link_boxes_a,
+                   near_boxes_a)
+      .Run();
 }
 
 }  // namespace sweptccd::world

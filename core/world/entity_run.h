@@ -35,7 +35,7 @@ struct EntityItem {
 /// overwritten before use.
 struct EntityScratch {
   std::vector<std::vector<int>> roots, cands;  // Lists: at most the links of an entity each.
-  std::vector<Aabb> boxes_e, piece_boxes, unions;
+  std::vector<Aabb> boxes_e, piece_boxes, unions, near_e, near_unions;
   std::vector<EntityItem> queue;
   std::vector<int> arena, work;
 };
@@ -47,10 +47,14 @@ class EntityRun {
   /// A's pair [utime0, utime1] with the memo of its motion, against
   /// `target` over `pieces` (chronological, contiguous; empty: no window);
   /// `link_boxes_a`: A's LinkSweepBoxes(skeleton_a, memo_a->motion(), 0),
-  /// or null (made here when the target has link boxes).
+  /// or null (made here when the target has link boxes); `near_boxes_a`:
+  /// A's NearLinkBoxes over that motion with margin NearMargin(options.
+  /// delta_m) (near_link_boxes.h), or null (made here when the target has
+  /// near boxes).
   EntityRun(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0, int64_t utime1,
             const std::vector<Piece>& pieces, const OtherTarget& target,
-            const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a);
+            const EntityQueryOptions& options, const std::vector<Aabb>* link_boxes_a,
+            const std::vector<Aabb>* near_boxes_a = nullptr);
   /// Frees what a rare large answer left in the thread's arrays.
   ~EntityRun();
   EntityRun(const EntityRun&) = delete;
@@ -62,6 +66,8 @@ class EntityRun {
   // The phases, in order.
   void FindRoots();
   bool LinkBoxesClearAll();
+  bool GatherNearBoxes(size_t num_e);
+  void NearBoxesPruneRoots();
   bool EntityBoxesMeet();
   void CloseTouchingAtStart();
   void SeedRoots();
@@ -92,6 +98,8 @@ class EntityRun {
   const OtherTarget& target_;
   const EntityQueryOptions& options_;
   const std::vector<Aabb>* link_boxes_a_;
+  const std::vector<Aabb>* near_boxes_a_;
+  std::vector<Aabb> own_near_;  // A's near boxes when not given.
   const int num_links_;
   const size_t num_pieces_;
   const double dur_;
@@ -113,10 +121,12 @@ OtherAnswer AnswerOther(const Skeleton& skeleton_a, const PairMotion& motion_a, 
 /// The same with A's memo, which callers answering one pair against many
 /// entities keep across them (the same bits: the memo answers as the motion),
 /// and optionally A's LinkSweepBoxes(skeleton_a, memo_a->motion(), 0), which
-/// they compute once for all entities (else computed here).
+/// they compute once for all entities (else computed here), and A's
+/// NearLinkBoxes (EntityRun's near_boxes_a).
 OtherAnswer AnswerOther(const Skeleton& skeleton_a, MotionMemo* memo_a, int64_t utime0,
                         int64_t utime1, const std::vector<Piece>& pieces, const OtherTarget& target,
                         const EntityQueryOptions& options,
-                        const std::vector<Aabb>* link_boxes_a = nullptr);
+                        const std::vector<Aabb>* link_boxes_a = nullptr,
+                        const std::vector<Aabb>* near_boxes_a = nullptr);
 
 }  // namespace sweptccd::world

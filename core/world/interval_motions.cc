@@ -6,6 +6,7 @@
 
 #include "core/errors.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/near_link_boxes.h"
 
 namespace sweptccd::world {
 
@@ -15,10 +16,33 @@ IntervalMotions::Held::Held(const AvatarWindow& e, int k, int k1)
       memo(motion, /*max_times=*/64) {}
 
 IntervalMotions::IntervalMotions(const AvatarWindow& entity, size_t max_kept,
-                                 std::vector<std::vector<Aabb>> link_boxes)
+                                 std::vector<std::vector<Aabb>> link_boxes,
+                                 std::vector<std::vector<Aabb>> near_boxes, double near_margin)
     : entity_(entity),
       max_kept_(std::max<size_t>(max_kept, 1)),
-      given_link_boxes_(std::move(link_boxes)) {}
+      given_link_boxes_(std::move(link_boxes)),
+      given_near_boxes_(std::move(near_boxes)),
+      given_near_margin_(near_margin) {}
+
+const std::vector<Aabb>& IntervalMotions::NearLinkBoxesOf(int k, double margin) {
+  if (!given_near_boxes_.empty() && margin == given_near_margin_) {
+    SWEPTCCD_CHECK(k >= 0 && static_cast<size_t>(k) < given_near_boxes_.size());
+    return given_near_boxes_[static_cast<size_t>(k)];
+  }
+  MemoOf(k);
+  Held& held = *held_.at(k);
+  if (held.near_boxes.empty() || held.near_margin != margin) {
+    // A memo of its own (the interval's memo keeps the descent's times).
+    if (near_memo_) {
+      near_memo_->Rebind(held.motion);
+    } else {
+      near_memo_.emplace(held.motion);
+    }
+    held.near_boxes = NearLinkBoxes(entity_.skeleton, &*near_memo_, margin);
+    held.near_margin = margin;
+  }
+  return held.near_boxes;
+}
 
 MotionMemo& IntervalMotions::MemoOf(int k) {
   auto it = held_.find(k);
@@ -38,6 +62,7 @@ MotionMemo& IntervalMotions::MemoOf(int k) {
                               entity_.samples[static_cast<size_t>(k1)], entity_.motion, &storage);
     held->memo.Rebind(held->motion);
     held->link_boxes.clear();
+    held->near_boxes.clear();
   } else {
     held = std::make_unique<Held>(entity_, k, k1);
   }

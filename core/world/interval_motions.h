@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <map>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "core/avatar/motion.h"
@@ -26,8 +27,11 @@ class IntervalMotions {
   /// of interval k, 0) for every interval k, made by the caller (who built
   /// each motion once already); LinkBoxesOf then answers from it without
   /// building the motion.
+  /// `near_boxes`, likewise, NearLinkBoxes (near_link_boxes.h) of every
+  /// interval with margin `near_margin`.
   explicit IntervalMotions(const AvatarWindow& entity, size_t max_kept = 4,
-                           std::vector<std::vector<Aabb>> link_boxes = {});
+                           std::vector<std::vector<Aabb>> link_boxes = {},
+                           std::vector<std::vector<Aabb>> near_boxes = {}, double near_margin = 0);
   IntervalMotions(const IntervalMotions&) = delete;
   IntervalMotions& operator=(const IntervalMotions&) = delete;
   /// The memo of the motion from sample k to k + 1 (k + 1 clamped).
@@ -39,18 +43,27 @@ class IntervalMotions {
   /// (valid as long as this), else computed once per interval kept (valid
   /// as MotionOf's answer).
   const std::vector<Aabb>& LinkBoxesOf(int k);
+  /// NearLinkBoxes(skeleton, memo of MotionOf(k), margin): the caller's
+  /// when given with this margin (valid as long as this), else computed once
+  /// per interval kept (valid as MotionOf's answer).
+  const std::vector<Aabb>& NearLinkBoxesOf(int k, double margin);
 
  private:
   struct Held {
     PairMotion motion;
     MotionMemo memo;               // Over `motion`.
     std::vector<Aabb> link_boxes;  // LinkSweepBoxes of `motion`; empty: not yet.
+    std::vector<Aabb> near_boxes;  // NearLinkBoxes of `motion`; empty: not yet.
+    double near_margin = 0;        // Theirs.
     Held(const AvatarWindow& e, int k, int k1);
   };
   AvatarWindow entity_;
   size_t max_kept_;
   std::map<int, std::unique_ptr<Held>> held_;
   std::vector<std::vector<Aabb>> given_link_boxes_;  // By interval; empty: none given.
+  std::vector<std::vector<Aabb>> given_near_boxes_;  // Likewise.
+  double given_near_margin_ = 0;
+  std::optional<MotionMemo> near_memo_;  // Composes the near boxes (rebound).
 };
 
 }  // namespace sweptccd::world

@@ -102,6 +102,18 @@ class ObjectTarget : public OtherTarget {
 
   double tolerance() const override { return tol_; }
 
+  // The object's box over the piece's sample interval (as WorldAnswerer
+  // makes it) grown by the near margin.
+  bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const override {
+    const size_t k = static_cast<size_t>(piece.k);
+    const size_t k1 = std::min(k + 1, e_.samples.size() - 1);
+    Aabb box = ObjectMotionBox(e_.samples[k], e_.samples[k1], rho_, bvh_.max_abs_coordinate());
+    box.lo.array() -= margin;
+    box.hi.array() += margin;
+    boxes->assign(1, box);
+    return true;
+  }
+
  private:
   RigidMotion MotionOf(int k) const {
     const int k1 = std::min<int>(k + 1, static_cast<int>(e_.samples.size()) - 1);

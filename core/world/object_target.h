@@ -12,6 +12,8 @@ namespace sweptccd::world {
 
 /// A's links (who: `a`) against object `o`. `scale` is WindowScale or
 /// EntityScale of o (< 0: EntityScale, computed here, O(samples)).
+/// Its near box (OtherTarget::NearLinkBoxes) over a piece is its
+/// ObjectMotionBox over the piece's interval grown by the margin.
 std::unique_ptr<OtherTarget> MakeObjectTarget(const FilterSide& a, const ObjectWindow& o,
                                               double scale = -1);
 

@@ -58,6 +58,16 @@ class OtherTarget {
     (void)boxes;
     return false;
   }
+  /// Per candidate, its near box over the piece's sample interval with
+  /// `margin` (near_link_boxes.h: NearLinkBoxes for an avatar's links, the
+  /// entity box grown by the margin for an object). False, *boxes
+  /// untouched, when the target has none.
+  virtual bool NearLinkBoxes(const Piece& piece, double margin, std::vector<Aabb>* boxes) const {
+    (void)piece;
+    (void)margin;
+    (void)boxes;
+    return false;
+  }
 };
 
 /// Widens a normalised time range by a relative 1e-12 (the rounding of the

@@ -10,6 +10,7 @@
 #include "core/world/entity_broad_phase.h"
 #include "core/world/interval_motions.h"
 #include "core/world/link_sweep_boxes.h"
+#include "core/world/near_link_boxes.h"
 #include "core/world/window_split.h"
 
 namespace sweptccd::world {
@@ -90,21 +91,32 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     object_times_.emplace_back();
     for (const RigidSample& x : o.used) object_times_.back().push_back(x.utime);
   }
+  const double near_margin = NearMargin(options.delta_m);
+  std::optional<MotionMemo> memo;  // Rebound from interval to interval (its memory kept).
   for (const AvatarEntity& e : w_.world.avatars) {
     // Per sample interval, from one motion: the entity box and the link
     // boxes (both depend on the interval's samples only; the link boxes are
-    // kept so that an entry cleared by them never builds E's motion).
+    // kept so that an entry cleared by them never builds E's motion), and
+    // the links' near boxes (near_link_boxes.h).
     avatar_boxes_.emplace_back();
-    std::vector<std::vector<Aabb>> link_boxes;
+    avatar_near_unions_.emplace_back();
+    std::vector<std::vector<Aabb>> link_boxes, near_boxes;
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       const PairMotion motion(e.skeleton, e.used[k], e.used[k1], e.motion);
       avatar_boxes_.back().push_back(AvatarMotionBox(e.skeleton, motion));
       link_boxes.push_back(LinkSweepBoxes(e.skeleton, motion, 0.0));
+      if (memo) {
+        memo->Rebind(motion);
+      } else {
+        memo.emplace(motion);
+      }
+      near_boxes.push_back(NearLinkBoxes(e.skeleton, &*memo, near_margin));
+      avatar_near_unions_.back().push_back(UnionOf(near_boxes.back()));
     }
     interval_motions_.push_back(std::make_unique<IntervalMotions>(
         WindowOfAvatar(w_.world, AvatarIndex(static_cast<int>(interval_motions_.size()))), 4,
-        std::move(link_boxes)));
+        std::move(link_boxes), std::move(near_boxes), near_margin));
     avatar_sample_scales_.emplace_back();
     for (const Pose& pose : e.used) avatar_sample_scales_.back().push_back(SampleScale(pose));
     avatar_skeleton_scales_.push_back(SkeletonScale(e.skeleton));
@@ -113,10 +125,16 @@ WorldAnswerer::WorldAnswerer(const LoadedWorld& world, const QueryOptions& optio
     const TriangleBvh& bvh = e.mesh->object(0).bvh;
     const double rho = ObjectRadius(bvh);
     object_boxes_.emplace_back();
+    object_near_boxes_.emplace_back();
     for (size_t k = 0; k < std::max<size_t>(e.used.size(), 2) - 1 && !e.used.empty(); ++k) {
       const size_t k1 = std::min(k + 1, e.used.size() - 1);
       object_boxes_.back().push_back(
           ObjectMotionBox(e.used[k], e.used[k1], rho, bvh.max_abs_coordinate()));
+      // Its near box, as its target makes it (ObjectTarget::NearLinkBoxes).
+      Aabb near = object_boxes_.back().back();
+      near.lo.array() -= near_margin;
+      near.hi.array() += near_margin;
+      object_near_boxes_.back().push_back(near);
     }
   }
 }
@@ -154,7 +172,28 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
     entry->answer.culled_by_box = true;
     return entry;
   }
-  RecordMotion(a, r);  // Sets memo_ to this record's.
+  RecordMotion(a, r);    // Sets memo_ to this record's.
+  if (motion_k_ >= 0) {  // (Else EntityRun makes them.)
+    near_link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->NearLinkBoxesOf(
+        motion_k_, NearMargin(entity_options_.delta_m));
+    // The near boxes' unions apart in every piece: EntityRun would clear
+    // the entry from its near boxes (every link pair apart; against an
+    // avatar when its root items are within the work limit, which
+    // links x pieces bounds), so it is cleared here without the answer's
+    // set-up, as the daemon clears it in EntityRun.
+    const std::vector<Aabb>& near_e = b.is_valid() ? avatar_near_unions_[b] : object_near_boxes_[o];
+    const Aabb& near_a = avatar_near_unions_[a][static_cast<size_t>(motion_k_)];
+    bool apart = !b.is_valid() || static_cast<int64_t>(A.skeleton.num_links()) *
+                                          static_cast<int64_t>(window->pieces.size()) <=
+                                      entity_options_.max_intervals;
+    for (const Piece& p : window->pieces) {
+      apart = apart && BoxesApart(near_a, near_e[static_cast<size_t>(p.k)]);
+    }
+    if (apart) {
+      entry->answer.culled_by_box = true;
+      return entry;
+    }
+  }
   if (b.is_valid() && link_boxes_a_ == nullptr) {
     if (motion_k_ >= 0) {
       link_boxes_a_ = &interval_motions_[static_cast<size_t>(a)]->LinkBoxesOf(motion_k_);
@@ -163,8 +202,8 @@ std::optional<WorldAnswerer::Entry> WorldAnswerer::AnswerEntity(AvatarIndex a, s
       link_boxes_a_ = &link_boxes_;
     }
   }
-  const PairSide side{FilterSide{A.id, w_.world.rules[a]},   A.skeleton, u0, u1, &*memo_,
-                      b.is_valid() ? link_boxes_a_ : nullptr};
+  const PairSide side{FilterSide{A.id, w_.world.rules[a]},    A.skeleton,        u0, u1, &*memo_,
+                      b.is_valid() ? link_boxes_a_ : nullptr, near_link_boxes_a_};
   entry->answer =
       b.is_valid()
           ? AnswerAgainstAvatar(side, WindowOfAvatar(w_.world, b), *window, entity_options_,
@@ -210,6 +249,7 @@ const PairMotion& WorldAnswerer::RecordMotion(AvatarIndex a, size_t r) const {
   motion_a_ = a;
   motion_r_ = r;
   link_boxes_a_ = nullptr;
+  near_link_boxes_a_ = nullptr;
   return *motion_;
 }
 

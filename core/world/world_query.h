@@ -61,6 +61,10 @@ class WorldAnswerer {
   // Per entity, a box holding it over each interval between used samples
   // (one box for an entity with one sample).
   std::vector<std::vector<Aabb>> avatar_boxes_, object_boxes_;
+  // Per interval likewise, near boxes (near_link_boxes.h, margin
+  // NearMargin(delta)): the union of an avatar's NearLinkBoxes, an object's
+  // box grown by the margin (as their targets make them).
+  std::vector<std::vector<Aabb>> avatar_near_unions_, object_near_boxes_;
   // Per avatar, the largest absolute coordinate of each used sample's links,
   // and of its skeleton's link ends: WindowScale of a window is the largest
   // of these over its samples and the skeleton's (a maximum is exact).
@@ -97,6 +101,9 @@ class WorldAnswerer {
   // IntervalMotions' boxes of interval motion_k_).
   mutable const std::vector<Aabb>* link_boxes_a_ = nullptr;
   mutable std::vector<Aabb> link_boxes_;
+  // NearLinkBoxes of A over *motion_ when it is A's interval motion (its
+  // IntervalMotions' NearLinkBoxesOf(motion_k_)), else null (not used).
+  mutable const std::vector<Aabb>* near_link_boxes_a_ = nullptr;
   // Each avatar's motions over its sample intervals, kept across records.
   std::vector<std::unique_ptr<IntervalMotions>> interval_motions_;
 };
