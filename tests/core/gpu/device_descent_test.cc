@@ -185,7 +185,7 @@ DescentStats CompareRecords(const Environment& env, const CcdEngine& engine,
   DeviceDescent descent(gpu_env, env, descent_options);
   const int e = descent.AddEngine(engine);
   std::vector<DeviceDescent::Pair> batch;
-  for (const auto& [p0, p1] : pairs) batch.push_back({e, &p0, &p1});
+  for (const auto& [p0, p1] : pairs) batch.push_back({e, &p0, &p1, {}});
   std::vector<PairClears> clears;
   EXPECT_TRUE(descent.Run(batch, options, &clears));
   EXPECT_EQ(clears.size(), pairs.size());
