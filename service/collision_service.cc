@@ -663,9 +663,15 @@ void CollisionService::AnswerDescentBatch(std::unique_lock<std::mutex>* lock) {
   std::vector<PairClears> clears;
   std::vector<const PairClears*> clears_of(clients.size(), nullptr);
   if (!descent_pairs.empty()) {
-    // Failed: clears nothing (logged once); the CPU answers alone.
-    (void)options_.device_descent->Run(descent_pairs, options_.query, &clears);
-    for (size_t j = 0; j < descent_slot.size(); ++j) clears_of[descent_slot[j]] = &clears[j];
+    try {
+      // A GPU failure clears nothing (logged once): the CPU answers alone.
+      (void)options_.device_descent->Run(descent_pairs, options_.query, &clears);
+      for (size_t j = 0; j < descent_slot.size(); ++j) clears_of[descent_slot[j]] = &clears[j];
+    } catch (const std::exception& e) {
+      // Not expected; the batch is answered on the CPU alone, never lost.
+      spdlog::error("device descent batch of {} pairs failed: {}", descent_pairs.size(),
+                    EscapeForDisplay(e.what(), 1024));
+    }
   }
   // Answered and published in the order taken, each client's bookkeeping
   // right after its own publication.
