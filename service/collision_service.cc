@@ -3,12 +3,14 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <exception>
 #include <set>
 #include <utility>
 
 #include "core/errors.h"
+#include "core/gpu/gl_context.h"
 #include "core/percentile.h"
 #include "core/query/result_json.h"
 #include "msgs/text.h"
@@ -40,7 +42,21 @@ CollisionService::Client::Client(ClientConfig c, const Environment& env,
     : config(std::move(c)),
       engine(std::make_unique<CcdEngine>(*config.skeleton, env, config.filter)),
       session(config.client_id, config.skeleton->num_links(), options.max_utime_jump_us),
-      pose_bucket(options.max_pose_rate_hz, options.pose_burst) {}
+      pose_bucket(options.max_pose_rate_hz, options.pose_burst) {
+  if (options.device_descent == nullptr) return;
+  try {
+    descent_engine = options.device_descent->AddEngine(*engine);
+    descent = options.device_descent;
+  } catch (const gpu::GpuError& e) {
+    // Its pairs are answered on the CPU alone (the same answers).
+    spdlog::error("client '{}': the device descent refused its engine: {}", config.client_id,
+                  e.what());
+  }
+}
+
+CollisionService::Client::~Client() {
+  if (descent != nullptr) descent->RemoveEngine(descent_engine);
+}
 
 namespace {
 
@@ -90,6 +106,13 @@ CollisionService::CollisionService(std::shared_ptr<const Environment> environmen
   if (options_.num_workers < 1) {
     throw InputError("collision service: num_workers is " + std::to_string(options_.num_workers) +
                      "; use 1 or more");
+  }
+  if (options_.descent_max_batch < 1 || options_.descent_max_batch > 4096 ||
+      options_.descent_gather_us < 0 || options_.descent_gather_us > 100000) {
+    throw InputError("collision service: descent_max_batch " +
+                     std::to_string(options_.descent_max_batch) + " / descent_gather_us " +
+                     std::to_string(options_.descent_gather_us) +
+                     "; use 1 to 4096 pairs and 0 to 100000 us");
   }
   if (options_.latency_window < 1) {
     throw InputError("collision service: latency_window is " +
@@ -464,7 +487,7 @@ void CollisionService::SafePublish(const std::function<void()>& publish, const c
 }
 
 contact_event_t CollisionService::Answer(const Client& client, const PosePair& pair,
-                                         double queue_us) const {
+                                         double queue_us, const PairClears* clears) const {
   contact_event_t ev;
   ev.client_id = client.config.client_id;
   ev.seq0 = pair.seq0;
@@ -482,7 +505,7 @@ contact_event_t CollisionService::Answer(const Client& client, const PosePair& p
   if (client.config.delta_m > 0) options.delta_m = client.config.delta_m;
   const SteadyClock::time_point start = SteadyClock::now();
   try {
-    const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options);
+    const QueryResult r = client.engine->Query(pair.pose0, pair.pose1, options, clears);
     FillContactEvent(MakeResultRecord(ev.pair, ev.utime0, ev.utime1, r, options.per_link), &ev);
   } catch (const std::exception& e) {
     // Not expected (the poses were validated); answered, never lost.
@@ -533,6 +556,10 @@ void CollisionService::WorkerLoop() {
       }
       continue;
     }
+    if (options_.device_descent != nullptr) {
+      AnswerDescentBatch(&lock);
+      continue;
+    }
     const std::shared_ptr<Client> index = ready_.front();
     ready_.pop_front();
     Client& client = *index;
@@ -554,31 +581,112 @@ void CollisionService::WorkerLoop() {
     const double latency_us = MicrosBetween(pair.receive_time, SteadyClock::now());
 
     lock.lock();
-    client.latencies_us.push_back(latency_us);
-    latency_histogram_.ObserveMicros(latency_us);
-    while (static_cast<int>(client.latencies_us.size()) > options_.latency_window) {
-      client.latencies_us.pop_front();
+    FinishPairLocked(index, pair, latency_us);
+  }
+}
+
+void CollisionService::FinishPairLocked(const std::shared_ptr<Client>& index, const PosePair& pair,
+                                        double latency_us) {
+  Client& client = *index;
+  client.latencies_us.push_back(latency_us);
+  latency_histogram_.ObserveMicros(latency_us);
+  while (static_cast<int>(client.latencies_us.size()) > options_.latency_window) {
+    client.latencies_us.pop_front();
+  }
+  client.session.FinishPair();
+  if (shared_ && !client.removed) {
+    // The pair's shared part, after its environment part was published:
+    // entries the other entities cover already are due at once.
+    std::vector<SharedJob> due;
+    const SteadyClock::time_point now = SteadyClock::now();
+    shared_->AddPair(client.config.client_id, pair, now, &due);
+    if (stopping_) shared_->CutAll(now, &due);
+    QueueSharedLocked(&due);
+  }
+  --in_flight_;
+  if (client.session.ready() && !client.removed) {
+    ready_.push_back(index);
+    work_cv_.notify_one();
+  }
+  if (IdleLocked()) {
+    idle_cv_.notify_all();
+    if (stopping_) work_cv_.notify_all();  // Let the other workers leave.
+  }
+}
+
+void CollisionService::AnswerDescentBatch(std::unique_lock<std::mutex>* lock) {
+  std::vector<std::shared_ptr<Client>> clients;
+  std::vector<PosePair> pairs;
+  const size_t max_batch = static_cast<size_t>(options_.descent_max_batch);
+  // Takes the ready clients' pairs (a client is in ready_ once at most and
+  // never while its pair is in flight: one pair per client in a batch).
+  auto take = [&] {
+    while (!ready_.empty() && clients.size() < max_batch) {
+      std::shared_ptr<Client> index = ready_.front();
+      ready_.pop_front();
+      if (index->removed) continue;  // Left or expired: its pending pair goes with it.
+      pairs.push_back(index->session.TakePair());
+      clients.push_back(std::move(index));
+      ++in_flight_;
     }
-    client.session.FinishPair();
-    if (shared_ && !client.removed) {
-      // The pair's shared part, after its environment part was published:
-      // entries the other entities cover already are due at once.
-      std::vector<SharedJob> due;
-      const SteadyClock::time_point now = SteadyClock::now();
-      shared_->AddPair(client.config.client_id, pair, now, &due);
-      if (stopping_) shared_->CutAll(now, &due);
-      QueueSharedLocked(&due);
-    }
-    --in_flight_;
-    if (client.session.ready() && !client.removed) {
-      ready_.push_back(index);
-      work_cv_.notify_one();
-    }
-    if (IdleLocked()) {
-      idle_cv_.notify_all();
-      if (stopping_) work_cv_.notify_all();  // Let the other workers leave.
+  };
+  take();
+  if (!clients.empty() && options_.descent_gather_us > 0 && clients_.size() > 1) {
+    // The gather window, counted from the oldest pair's receipt.
+    SteadyClock::time_point oldest = pairs.front().receive_time;
+    for (const PosePair& p : pairs) oldest = std::min(oldest, p.receive_time);
+    const SteadyClock::time_point deadline =
+        oldest + std::chrono::microseconds(options_.descent_gather_us);
+    while (clients.size() < max_batch && !stopping_ && clients.size() < clients_.size() &&
+           work_cv_.wait_until(*lock, deadline, [this] { return !ready_.empty() || stopping_; })) {
+      take();
     }
   }
+  if (clients.empty()) {
+    if (IdleLocked()) {
+      idle_cv_.notify_all();
+      if (stopping_) work_cv_.notify_all();
+    }
+    return;
+  }
+  lock->unlock();
+
+  // The batch's environment parts on the device (engines it refused: none).
+  std::vector<gpu::DeviceDescent::Pair> descent_pairs;
+  std::vector<size_t> descent_slot;
+  for (size_t i = 0; i < clients.size(); ++i) {
+    if (clients[i]->descent_engine < 0) continue;
+    descent_pairs.push_back(
+        {clients[i]->descent_engine, &pairs[i].pose0, &pairs[i].pose1, clients[i]->config.motion});
+    descent_slot.push_back(i);
+  }
+  std::vector<PairClears> clears;
+  std::vector<const PairClears*> clears_of(clients.size(), nullptr);
+  if (!descent_pairs.empty()) {
+    try {
+      // A GPU failure clears nothing (logged once): the CPU answers alone.
+      (void)options_.device_descent->Run(descent_pairs, options_.query, &clears);
+      for (size_t j = 0; j < descent_slot.size(); ++j) clears_of[descent_slot[j]] = &clears[j];
+    } catch (const std::exception& e) {
+      // Not expected; the batch is answered on the CPU alone, never lost.
+      spdlog::error("device descent batch of {} pairs failed: {}", descent_pairs.size(),
+                    EscapeForDisplay(e.what(), 1024));
+    }
+  }
+  // Answered and published in the order taken, each client's bookkeeping
+  // right after its own publication.
+  for (size_t i = 0; i < clients.size(); ++i) {
+    const PosePair& pair = pairs[i];
+    const double queue_us = MicrosBetween(pair.receive_time, SteadyClock::now());
+    contact_event_t event = Answer(*clients[i], pair, queue_us, clears_of[i]);
+    event.utime = NowUtime();
+    SafePublish([&] { publisher_->PublishContact(event); }, "contact event");
+    const double latency_us = MicrosBetween(pair.receive_time, SteadyClock::now());
+    lock->lock();
+    FinishPairLocked(clients[i], pair, latency_us);
+    lock->unlock();
+  }
+  lock->lock();
 }
 
 void CollisionService::WaitUntilIdle() {

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "core/avatar/skeleton.h"
+#include "core/gpu/device_descent.h"
 #include "core/query/ccd_query.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
@@ -140,6 +141,18 @@ struct ServiceOptions {
   /// OnObjectPose, before any validation or geometry: > 0 Hz, burst >= 1.
   double max_object_pose_rate_hz = 240;
   int object_pose_burst = 16;
+  /// The device descent (docs/SERVICE.md "The device descent"; docs/GPU.md):
+  /// when set, a worker takes the ready pairs of up to descent_max_batch
+  /// clients at once, has the GPU clear their environment parts' free
+  /// intervals in one batch, then answers and publishes them one by one on
+  /// the CPU skipping those (the same answers). Null: one pair per worker
+  /// turn, as always. Every client's engine is added to it.
+  std::shared_ptr<gpu::DeviceDescent> device_descent;
+  int descent_max_batch = 16;  // Pairs per batch, 1 to 4096.
+  /// How long a worker may wait for more pairs to fill its batch, counted
+  /// from its oldest pair's receipt, us, 0 to 100000. 0: a batch is what is
+  /// ready when the worker takes it; a room with one client never waits.
+  int64_t descent_gather_us = 0;
 };
 
 /// Owns the client sessions and the worker pool.
@@ -266,14 +279,29 @@ class CollisionService {
     std::optional<MacKey> key;           // Live, signed mode: the session key.
     SteadyClock::time_point last_heard;  // Live or held: the join or the latest pose.
     std::unique_ptr<CcdEngine> engine;
+    // The device descent's index of `engine` (-1: none, or it refused it).
+    std::shared_ptr<gpu::DeviceDescent> descent;
+    int descent_engine = -1;
     ClientSession session;
     std::deque<double> latencies_us;  // Newest at the back.
     TokenBucket pose_bucket;          // Input rate limit.
     int64_t rate_limited = 0;         // Poses shed by pose_bucket.
     Client(ClientConfig c, const Environment& env, const ServiceOptions& options);
+    ~Client();  // Forgets the engine in the device descent.
+    Client(const Client&) = delete;
+    Client& operator=(const Client&) = delete;
   };
 
   void WorkerLoop();
+  // The worker's turn with the device descent on (lock held on entry and
+  // exit): takes the ready pairs of up to descent_max_batch clients (waiting
+  // at most descent_gather_us for more), clears them on the device in one
+  // batch, then answers and publishes them one by one.
+  void AnswerDescentBatch(std::unique_lock<std::mutex>* lock);
+  // Under mutex_: the bookkeeping after a client's pair was published
+  // (latencies, its session, the shared world's part, back in the queue).
+  void FinishPairLocked(const std::shared_ptr<Client>& index, const PosePair& pair,
+                        double latency_us);
   // Under mutex_: a configured client's join through the WebSocket door
   // (JoinLive): checked against its configuration, then a new session.
   LiveJoinOutcome ClaimConfiguredLocked(const LiveJoinRequest& request);
@@ -300,7 +328,9 @@ class CollisionService {
   bool IdleLocked() const { return ready_.empty() && shared_ready_.empty() && in_flight_ == 0; }
   // Under mutex_: removes a client from the maps and the order.
   void RemoveLocked(const std::shared_ptr<Client>& client);
-  contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us) const;
+  // `clears`: what the device descent cleared of the pair (nullptr: none).
+  contact_event_t Answer(const Client& client, const PosePair& pair, double queue_us,
+                         const PairClears* clears = nullptr) const;
   // Publishes through the throttle, keyed by client_id when `attributed` (the
   // pose came from that registered client), else by "".
   void Reject(const std::string& client_id, int64_t seq, const Rejection& rejection,

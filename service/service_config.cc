@@ -176,6 +176,15 @@ void ParseSettings(const YAML::Node& root, const std::string& at, const std::str
     c->require_hardware = Get<bool>(root["require_hardware"], at + "require_hardware");
   }
   if (root["workers"]) c->workers = Get<int>(root["workers"], at + "workers");
+  if (root["device_descent"]) {
+    c->device_descent = Get<bool>(root["device_descent"], at + "device_descent");
+  }
+  if (root["descent_max_batch"]) {
+    c->descent_max_batch = Get<int>(root["descent_max_batch"], at + "descent_max_batch");
+  }
+  if (root["descent_gather_us"]) {
+    c->descent_gather_us = Get<int64_t>(root["descent_gather_us"], at + "descent_gather_us");
+  }
   if (root["status_period_s"]) {
     c->status_period_s = Get<double>(root["status_period_s"], at + "status_period_s");
   }
@@ -366,18 +375,34 @@ ServiceConfig ParseServiceConfig(const std::string& text, const std::string& sou
   ServiceConfig c;
   if (root.IsNull()) return c;
   if (!root.IsMap()) throw InputError(source + ": the configuration must be a YAML mapping");
-  CheckKeys(root, {"lcm_url",          "channels",
-                   "environment",      "query",
-                   "backend",          "gpu_device",
-                   "require_hardware", "workers",
-                   "status_period_s",  "log_level",
-                   "clients",          "security",
-                   "max_mesh_bytes",   "max_links",
-                   "max_pose_rate_hz", "max_object_pose_rate_hz",
-                   "max_live_clients", "silence_timeout_ms",
-                   "shared_world",     "objects",
-                   "websocket",        "room",
-                   "metrics",          "agones"},
+  CheckKeys(root,
+            {"lcm_url",
+             "channels",
+             "environment",
+             "query",
+             "backend",
+             "gpu_device",
+             "require_hardware",
+             "workers",
+             "device_descent",
+             "descent_max_batch",
+             "descent_gather_us",
+             "status_period_s",
+             "log_level",
+             "clients",
+             "security",
+             "max_mesh_bytes",
+             "max_links",
+             "max_pose_rate_hz",
+             "max_object_pose_rate_hz",
+             "max_live_clients",
+             "silence_timeout_ms",
+             "shared_world",
+             "objects",
+             "websocket",
+             "room",
+             "metrics",
+             "agones"},
             source);
   const std::string at = source + ": ";
   if (root["lcm_url"]) c.lcm_url = Get<std::string>(root["lcm_url"], at + "lcm_url");
@@ -477,6 +502,14 @@ void ValidateServiceConfig(const ServiceConfig& c) {
   }
   if (c.workers < 1)
     throw InputError("configuration: workers must be >= 1, got " + std::to_string(c.workers));
+  if (c.descent_max_batch < 1 || c.descent_max_batch > 4096) {
+    throw InputError("configuration: descent_max_batch must be 1 to 4096 pairs, got " +
+                     std::to_string(c.descent_max_batch));
+  }
+  if (c.descent_gather_us < 0 || c.descent_gather_us > 100000) {
+    throw InputError("configuration: descent_gather_us must be 0 to 100000 us, got " +
+                     std::to_string(c.descent_gather_us));
+  }
   if (!(c.status_period_s > 0)) throw InputError("configuration: status_period_s must be > 0");
   if (!(c.max_pose_rate_hz > 0 && c.max_pose_rate_hz <= 1e6)) {
     throw InputError("configuration: max_pose_rate_hz must be in (0, 1e6] Hz");

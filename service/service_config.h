@@ -61,6 +61,15 @@ struct ServiceConfig {
   int gpu_device = -1;            // EGL device index; -1: the first that works.
   bool require_hardware = false;  // gpu: refuse software renderers.
   int workers = 2;
+  /// The device descent (docs/SERVICE.md "The device descent"): with the
+  /// GPU backend chosen, the workers gather the ready pairs of all clients
+  /// (up to descent_max_batch, 1-4096; waiting at most descent_gather_us for
+  /// more, 0-100000, 0: never) and the GPU clears their environment parts'
+  /// free intervals in one batch; the CPU answers (the same answers). Off
+  /// by default; ignored (logged) when the backend is the CPU.
+  bool device_descent = false;
+  int descent_max_batch = 16;
+  int64_t descent_gather_us = 0;
   double status_period_s = 1.0;
   double max_pose_rate_hz = 240;         // Input rate limit per client, Hz, in (0, 1e6].
   double max_object_pose_rate_hz = 240;  // Input rate limit per tracked object, Hz, (0, 1e6].

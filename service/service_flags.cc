@@ -63,6 +63,15 @@ void AddServiceFlags(CLI::App* app, ServiceFlags* f) {
   app->add_option("--gpu-device", f->gpu_device, "EGL device index for the GPU backend");
   app->add_flag("--require-hardware", f->require_hardware,
                 "GPU backend: refuse software renderers (llvmpipe)");
+  app->add_flag("--device-descent", f->device_descent,
+                "GPU backend: gather the ready pairs of all clients and clear their free time "
+                "intervals on the GPU in one batch (docs/SERVICE.md)");
+  app->add_option("--descent-max-batch", f->descent_max_batch,
+                  "Device descent: pairs per batch at most")
+      ->check(CLI::Range(1, 4096));
+  app->add_option("--descent-gather-us", f->descent_gather_us,
+                  "Device descent: how long a worker may wait for more pairs, us (0: never)")
+      ->check(CLI::Range(int64_t{0}, int64_t{100000}));
   app->add_option("--status-period", f->status_period_s, "Seconds between status messages")
       ->check(CLI::Range(0.001, 3600.0));
   app->add_option("--max-pose-rate", f->max_pose_rate_hz,
@@ -136,6 +145,9 @@ void ApplyServiceFlags(const ServiceFlags& flags, ServiceConfig* config) {
   if (!flags.backend.empty()) config->backend = gpu::ParseBackendKind(flags.backend, "--backend");
   if (flags.gpu_device != -2) config->gpu_device = flags.gpu_device;
   if (flags.require_hardware) config->require_hardware = true;
+  if (flags.device_descent) config->device_descent = true;
+  if (flags.descent_max_batch != 0) config->descent_max_batch = flags.descent_max_batch;
+  if (flags.descent_gather_us >= 0) config->descent_gather_us = flags.descent_gather_us;
   if (flags.status_period_s >= 0) config->status_period_s = flags.status_period_s;
   if (flags.max_pose_rate_hz >= 0) config->max_pose_rate_hz = flags.max_pose_rate_hz;
   if (flags.max_object_pose_rate_hz >= 0) {

@@ -32,6 +32,9 @@ struct ServiceFlags {
   std::string backend;              // cpu, gpu or auto.
   int gpu_device = -2;              // -2: not given (-1 is a valid value).
   bool require_hardware = false;
+  bool device_descent = false;     // --device-descent (false: not given).
+  int descent_max_batch = 0;       // 0: not given.
+  int64_t descent_gather_us = -1;  // -1: not given.
   std::string log_level;
   std::string security_mode, room_key, service_key;
   std::vector<std::string> client_key_flags;  // ID=FILE.

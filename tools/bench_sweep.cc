@@ -75,7 +75,7 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
     for (size_t i = 0; i < batch; ++i) {
       const PairRef& r = pairs[(first + i) % num_pairs];
       const std::vector<Pose>& poses = *clips[r.clip].poses;
-      descent_pairs.push_back({descent_engine[r.clip], &poses[r.k], &poses[r.k + 1]});
+      descent_pairs.push_back({descent_engine[r.clip], &poses[r.k], &poses[r.k + 1], {}});
     }
     (void)descent->Run(descent_pairs, options.query, &clears);  // Failed: clears nothing.
     pool.Run(batch, [&](size_t i, int) { (*out)[i] = query(cpu_engines, first + i, &clears[i]); });

@@ -12,7 +12,9 @@
 # against `--backend cpu --threads 1`, the same sweep on the
 # 10.7 M-triangle scene (breakfast+dragons_10M), and the daemon on the CPU
 # then the GPU backend (tools/service_bench/backends.sh): 64 clients at 120
-# Hz, and 32 avatars in one room with the shared world on; rooms per GPU
+# Hz (then also the GPU backend with the device descent, the clients' ready
+# pairs in one device batch, docs/SERVICE.md "The device descent"), and 32
+# avatars in one room with the shared world on; rooms per GPU
 # host (tools/service_bench/capacity.sh with BACKEND=gpu). The GL vendor
 # library comes from the host's driver (glvnd's EGL vendor file of NVIDIA,
 # found under /usr/local/nvidia or /usr/share/glvnd).
@@ -105,10 +107,13 @@ part sweep
 timeout "$(cap 110)" "$B/sweptccd" bench --data "$root/data" --gpu hardware --no-peers --sweep \
   --threads "$(nproc)" --markdown "$results/sweep.md" > "$results/sweep.txt" 2>&1
 echo "exit $?" >> "$results/sweep.txt"
-# The daemon, CPU then GPU backend, same load, one run: 64 clients at 120 Hz
-# on the 1.1 M-triangle dragon room, every core's worker.
+# The daemon, CPU then GPU backend, then the GPU backend with the device
+# descent (batches of up to 16 ready pairs, no gather window), same load,
+# one run: 64 clients at 120 Hz on the 1.1 M-triangle dragon room, every
+# core's worker; each backend's answers against the CPU's.
 part daemon_64x120
-CLIENTS=64 RATE=120 WORKERS=$(nproc) REQUIRE_HARDWARE=1 timeout "$(cap 75)" \
+CLIENTS=64 RATE=120 WORKERS=$(nproc) REQUIRE_HARDWARE=1 BACKENDS="cpu gpu gpu-descent" \
+  timeout "$(cap 110)" \
   bash tools/service_bench/backends.sh "$bundle" 10 > "$results/daemon_64x120.txt" 2>&1
 echo "exit $?" >> "$results/daemon_64x120.txt"
 # 32 avatars in one room with the shared world on, CPU then GPU backend.

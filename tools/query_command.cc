@@ -99,7 +99,7 @@ int RunQueryCommand(const QueryCommandOptions& options) {
         descent_slot.clear();
         for (size_t i = 0; i < outcomes.size(); ++i) {
           if (!outcomes[i].valid) continue;
-          descent_pairs.push_back({descent_engine, &outcomes[i].pose0, &outcomes[i].pose1});
+          descent_pairs.push_back({descent_engine, &outcomes[i].pose0, &outcomes[i].pose1, {}});
           descent_slot.push_back(i);
         }
         (void)descent->Run(descent_pairs, options.query, &clears);  // Failed: clears nothing.

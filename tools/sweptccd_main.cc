@@ -111,6 +111,10 @@ int main(int argc, char** argv) {
   sweptccd::AddMaxLinksFlag(world, &wo.load.max_links);
   sweptccd::AddThreadsFlag(world, &wo.threads);
   world->add_flag("--per-link", wo.query.per_link, "A bracket for every touching link");
+  world->add_flag("--device-descent", wo.device_descent,
+                  "With the GPU chosen: clear the free time intervals of each chunk's "
+                  "environment parts on the GPU in a few dispatches, then answer on the CPU "
+                  "skipping them (docs/GPU.md)");
   world->add_option("--output", wo.output_path, "Results file (default: standard output)");
   world->add_flag("--bench", wo.bench,
                   "Print a table (counts, time per record) instead of the records");

@@ -12,7 +12,9 @@
 #include <vector>
 
 #include "core/errors.h"
+#include "core/gpu/device_descent.h"
 #include "core/percentile.h"
+#include "core/query/pair_clears.h"
 #include "core/world/world_query.h"
 #include "msgs/text.h"
 
@@ -53,9 +55,29 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     if (options.backend.backend != gpu::BackendKind::kCpu) {
       std::fprintf(stderr, "sweptccd world: backend %s\n", backend.reason().c_str());
     }
-    for (auto& answerer : answerers) {
-      answerer->ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
+    // --device-descent: each chunk's environment parts cleared on the GPU in
+    // one batch, then the CPU engines (no culler: what the device left is
+    // decided by the CPU). Not with an empty environment (every part free).
+    std::unique_ptr<gpu::DeviceDescent> descent;
+    if (options.device_descent && backend.gpu() && loaded.env.num_objects() > 0) {
+      descent = backend.MakeDescent(loaded.env, gpu::DescentOptions());
     }
+    // The descent's engine of each avatar: answerers[0]'s (every answerer's
+    // engine of an avatar has the same skeleton, filter and environment).
+    std::vector<int> descent_engine;
+    if (descent != nullptr) {
+      answerers[0]->ForEachEngine(
+          [&](CcdEngine* engine) { descent_engine.push_back(descent->AddEngine(*engine)); });
+      SWEPTCCD_CHECK(descent_engine.size() == loaded.world.avatars.size());
+    } else {
+      for (auto& answerer : answerers) {
+        answerer->ForEachEngine([&](CcdEngine* engine) { backend.Attach(engine); });
+      }
+    }
+    std::vector<gpu::DeviceDescent::Pair> descent_pairs;
+    std::vector<size_t> descent_slot;  // The record (in the chunk) of each descent pair.
+    std::vector<PairClears> clears;
+    std::vector<const PairClears*> clears_of;
     std::vector<std::pair<world::AvatarIndex, size_t>> all;
     for (int a = 0; a < static_cast<int>(loaded.world.avatars.size()); ++a) {
       for (size_t r = 0; r < loaded.world.avatars[a].records.size(); ++r) {
@@ -72,10 +94,26 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     for (size_t begin = 0; begin < all.size(); begin += chunk) {
       const size_t end = std::min(all.size(), begin + chunk);
       lines.assign(end - begin, std::string());
+      clears_of.assign(end - begin, nullptr);
+      if (descent != nullptr) {
+        descent_pairs.clear();
+        descent_slot.clear();
+        for (size_t i = begin; i < end; ++i) {
+          const world::AvatarEntity& A = loaded.world.avatars[all[i].first];
+          const PairOutcome& rec = A.records[all[i].second];
+          if (!rec.valid) continue;
+          descent_pairs.push_back({descent_engine[static_cast<size_t>(all[i].first)], &rec.pose0,
+                                   &rec.pose1, A.motion});
+          descent_slot.push_back(i - begin);
+        }
+        (void)descent->Run(descent_pairs, options.query, &clears);  // Failed: clears nothing.
+        for (size_t j = 0; j < descent_slot.size(); ++j) clears_of[descent_slot[j]] = &clears[j];
+      }
       pool.Run((end - begin + kRun - 1) / kRun, [&](size_t run, int worker) {
         for (size_t i = begin + run * kRun; i < std::min(end, begin + (run + 1) * kRun); ++i) {
           const auto start = std::chrono::steady_clock::now();
-          lines[i - begin] = answerers[worker]->RecordJson(all[i].first, all[i].second);
+          lines[i - begin] =
+              answerers[worker]->RecordJson(all[i].first, all[i].second, clears_of[i - begin]);
           record_us[i] =
               std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start)
                   .count();
@@ -108,7 +146,15 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} records", records);
-    if (backend.gpu()) spdlog::info("GPU: {}", backend.DispatchSummary());
+    if (descent != nullptr) {
+      const gpu::DescentStats d = descent->stats();
+      spdlog::info(
+          "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
+          "pairs over budget",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+    } else if (backend.gpu()) {
+      spdlog::info("GPU: {}", backend.DispatchSummary());
+    }
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());

@@ -22,6 +22,12 @@ struct WorldCommandOptions {
   /// time per record) instead of the records.
   bool bench = false;
   int threads = DefaultThreadCount();  // --threads: workers answering the records.
+  /// --device-descent: with the GPU chosen, the environment parts of each
+  /// chunk of records have their free intervals cleared on the GPU
+  /// (core/gpu/device_descent.h) and the CPU engines answer them skipping
+  /// those, instead of the per-pair round trips; the parts between entities
+  /// stay on the CPU. The same records.
+  bool device_descent = false;
 };
 
 /// Runs the command. Returns 0 when the inputs could be read, 2 with a

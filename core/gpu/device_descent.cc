@@ -90,7 +90,7 @@ struct DeviceDescent::State {
     uint32_t masks_offset;
     size_t masks_size;
   };
-  std::vector<EngineEntry> engines;
+  std::vector<EngineEntry> engines;  // A removed one: engine null, masks freed.
   std::unique_ptr<internal::DescentDispatch> dispatch;
   DescentStats stats;
   bool failed = false;
@@ -119,7 +119,7 @@ DeviceDescent::~DeviceDescent() {
   try {
     env_->context().Run([s, dispatch] {
       for (const State::EngineEntry& e : s->engines) {
-        dispatch->RemoveMasks(e.masks_offset, e.masks_size);
+        if (e.engine != nullptr) dispatch->RemoveMasks(e.masks_offset, e.masks_size);
       }
       s->dispatch.reset();
     });
@@ -134,6 +134,7 @@ int DeviceDescent::AddEngine(const CcdEngine& engine) {
   }
   std::lock_guard<std::mutex> lock(mutex_);
   State& s = *state_;
+  FreeRetiredLocked();
   const int num_links = engine.skeleton().num_links();
   const int mask_words = std::max(1, (env_->num_objects() + 31) / 32);
   std::vector<uint32_t> masks(static_cast<size_t>(std::max(1, num_links)) * mask_words, 0u);
@@ -145,8 +146,45 @@ int DeviceDescent::AddEngine(const CcdEngine& engine) {
   internal::CullDispatch& dispatch = *env_->buffers().dispatch;
   uint32_t offset = 0;
   env_->context().Run([&] { offset = dispatch.AddMasks(masks); });
+  // A removed engine's slot is taken again (a daemon's clients come and go).
+  for (size_t i = 0; i < s.engines.size(); ++i) {
+    if (s.engines[i].engine == nullptr) {
+      s.engines[i] = {&engine, offset, masks.size()};
+      return static_cast<int>(i);
+    }
+  }
   s.engines.push_back({&engine, offset, masks.size()});
   return static_cast<int>(s.engines.size()) - 1;
+}
+
+void DeviceDescent::RemoveEngine(int index) {
+  std::lock_guard<std::mutex> lock(retired_mutex_);
+  retired_.push_back(index);
+}
+
+void DeviceDescent::FreeRetiredLocked() {
+  std::vector<int> retired;
+  {
+    std::lock_guard<std::mutex> lock(retired_mutex_);
+    retired.swap(retired_);
+  }
+  if (retired.empty()) return;
+  State& s = *state_;
+  internal::CullDispatch& dispatch = *env_->buffers().dispatch;
+  for (int index : retired) {
+    SWEPTCCD_CHECK(index >= 0 && index < static_cast<int>(s.engines.size()) &&
+                   s.engines[index].engine != nullptr);
+    s.engines[index].engine = nullptr;
+  }
+  try {
+    env_->context().Run([&] {
+      for (int index : retired) {
+        dispatch.RemoveMasks(s.engines[index].masks_offset, s.engines[index].masks_size);
+      }
+    });
+  } catch (const GpuError&) {
+    // A lost context took its buffers with it; the slots are free all the same.
+  }
 }
 
 DescentStats DeviceDescent::stats() const {
@@ -158,6 +196,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
                         std::vector<PairClears>* clears) {
   std::lock_guard<std::mutex> lock(mutex_);
   State& s = *state_;
+  FreeRetiredLocked();
   const int levels = options_.levels;
   clears->resize(pairs.size());
   for (size_t i = 0; i < pairs.size(); ++i) {
@@ -184,8 +223,8 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
     const State::EngineEntry& e = s.engines[pairs[i].engine];
     const Skeleton& skeleton = e.engine->skeleton();
     SWEPTCCD_CHECK(pairs[i].pose1->utime > pairs[i].pose0->utime);
-    motions[i] =
-        std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1, options.motion);
+    motions[i] = std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1,
+                                              pairs[i].motion.value_or(options.motion));
     const PairMotion& motion = *motions[i];
     const double tolerance =
         sweptccd::internal::SweptBounds::Tolerance(e.engine->environment(), motion);

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "core/avatar/pose.h"
@@ -61,14 +62,23 @@ class DeviceDescent {
   /// outlive this object. Throws GpuError (a GPU failure, or an engine on
   /// another environment).
   int AddEngine(const CcdEngine& engine);
+  /// Forgets engine `index` (its engine may then be destroyed): no Run may
+  /// name it any more. Never waits for the GPU or a batch (its filter's
+  /// masks are freed by the next AddEngine or Run); its index may be handed
+  /// out again by AddEngine. Thread-safe.
+  void RemoveEngine(int index);
 
   struct Pair {
     int engine = 0;
     const Pose* pose0 = nullptr;
     const Pose* pose1 = nullptr;
+    /// The pair's motion model when it is not `options.motion` (the shared
+    /// world: each avatar moves by its own model).
+    std::optional<MotionModel> motion;
   };
   /// Sets (*clears)[i] to what the device cleared of pairs[i] (poses valid,
-  /// pose1 later; `options` as the queries will use them). Returns false when
+  /// pose1 later; `options` as the queries will use them, the motion model
+  /// pairs[i].motion when set). Returns false when
   /// the GPU failed (logged once; every clears[i] is then empty, and from
   /// then on Run clears nothing: the CPU answers alone). Thread-safe (one
   /// batch at a time).
@@ -85,6 +95,12 @@ class DeviceDescent {
   DescentOptions options_;
   std::unique_ptr<State> state_;
   mutable std::mutex mutex_;
+  // Engines removed, their masks not yet freed (RemoveEngine never takes
+  // mutex_, which a batch holds); under retired_mutex_.
+  std::mutex retired_mutex_;
+  std::vector<int> retired_;
+  // Under mutex_: frees the retired engines' masks.
+  void FreeRetiredLocked();
 };
 
 }  // namespace sweptccd::gpu

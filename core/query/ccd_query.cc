@@ -83,6 +83,16 @@ QueryResult CcdEngine::Query(const Pose& pose0, const Pose& pose1, const QueryOp
   return run.Run();
 }
 
+QueryResult CcdEngine::Query(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
+                             const QueryOptions& options, const PairClears* clears) const {
+  SWEPTCCD_CHECK(pose1.utime > pose0.utime);
+  SWEPTCCD_CHECK(ValidateQueryOptions(options).empty());
+  SWEPTCCD_CHECK(motion.model() == options.motion && motion.num_links() == skeleton_.num_links());
+  SWEPTCCD_CHECK(clears == nullptr || clears->num_links() == skeleton_.num_links());
+  internal::QueryRun run(*this, pose0, pose1, options, &motion, clears);
+  return run.Run();
+}
+
 bool CcdEngine::TouchesAt(const PairMotion& motion, LinkIndex link, double s, double slack) const {
   return internal::EnvironmentTarget(skeleton_, env_, filter_).TouchesAt(motion, link, s, slack);
 }

@@ -144,6 +144,10 @@ class CcdEngine {
   /// as Query above.
   QueryResult Query(const Pose& pose0, const Pose& pose1, const QueryOptions& options,
                     const PairClears* clears) const;
+  /// Both: the pair's motion given, and the intervals `clears` holds skipped
+  /// (the shared world's environment parts through the device descent).
+  QueryResult Query(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
+                    const QueryOptions& options, const PairClears* clears) const;
 
   /// Exact separation of `link` at s (distance to the nearest unfiltered
   /// triangle minus the radius), searching only within `search_radius` of the

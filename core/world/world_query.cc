@@ -260,16 +260,17 @@ Aabb WorldAnswerer::PairBox(AvatarIndex a, size_t r) const {
   return AvatarMotionBox(w_.world.avatars[a].skeleton, motion);
 }
 
-QueryResult WorldAnswerer::AnswerEnvironment(AvatarIndex a, size_t r) const {
+QueryResult WorldAnswerer::AnswerEnvironment(AvatarIndex a, size_t r,
+                                             const PairClears* clears) const {
   if (w_.env.num_objects() == 0) return QueryResult();  // `free`.
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   QueryOptions options = options_;
   options.motion = A.motion;  // Each avatar moves by its own model.
-  return engines_[a]->Query(RecordMotion(a, r), rec.pose0, rec.pose1, options);
+  return engines_[a]->Query(RecordMotion(a, r), rec.pose0, rec.pose1, options, clears);
 }
 
-std::string WorldAnswerer::RecordJson(AvatarIndex a, size_t r) const {
+std::string WorldAnswerer::RecordJson(AvatarIndex a, size_t r, const PairClears* clears) const {
   const AvatarEntity& A = w_.world.avatars[a];
   const PairOutcome& rec = A.records[r];
   ojson j;
@@ -280,7 +281,7 @@ std::string WorldAnswerer::RecordJson(AvatarIndex a, size_t r) const {
     return j.dump(-1, ' ', false, ojson::error_handler_t::replace);
   }
   const auto start = std::chrono::steady_clock::now();
-  const QueryResult env_result = AnswerEnvironment(a, r);
+  const QueryResult env_result = AnswerEnvironment(a, r, clears);
   const int64_t u0 = rec.pose0.utime, u1 = rec.pose1.utime;
   ojson others = ojson::array();
   auto add = [&](const std::string& id, bool is_object, const std::optional<Entry>& e) {

@@ -26,11 +26,14 @@ class WorldAnswerer {
   void ForEachEngine(const std::function<void(CcdEngine*)>& f);
 
   /// The static-environment answer of avatar a's valid record r (SPEC 8:
-  /// `free` when the world has no environment), on the attached backend.
-  QueryResult AnswerEnvironment(AvatarIndex a, size_t r) const;
+  /// `free` when the world has no environment), on the attached backend,
+  /// skipping the intervals `clears` holds (the device descent, docs/GPU.md:
+  /// the same answer; nullptr: none).
+  QueryResult AnswerEnvironment(AvatarIndex a, size_t r, const PairClears* clears = nullptr) const;
 
-  /// The JSON record (one line, no newline) of record `r` of avatar `a`.
-  std::string RecordJson(AvatarIndex a, size_t r) const;
+  /// The JSON record (one line, no newline) of record `r` of avatar `a`;
+  /// `clears` as for AnswerEnvironment.
+  std::string RecordJson(AvatarIndex a, size_t r, const PairClears* clears = nullptr) const;
 
   /// One entry of a record's `others`: its window (utimes) and answer.
   struct Entry {

@@ -187,14 +187,30 @@ std::unique_ptr<gpu::Backend> MakeBackend(const ServiceConfig& config, const Env
   return backend;
 }
 
-ServiceOptions OptionsFor(const ServiceConfig& config, gpu::Backend* backend) {
+ServiceOptions OptionsFor(const ServiceConfig& config, const Environment& env,
+                          gpu::Backend* backend) {
   ServiceOptions options;
   options.num_workers = config.workers;
   options.query = config.query;
   options.backend = backend->name();
   options.backend_state = [backend] { return backend->State(); };
   options.renderer = backend->renderer();
-  options.prepare_engine = [backend](CcdEngine* engine) { backend->Attach(engine); };
+  // The device descent (docs/SERVICE.md): the GPU clears each gathered
+  // batch's free intervals and the CPU engines answer (no culler attached);
+  // a descent that cannot be made leaves the GPU backend as it was.
+  if (config.device_descent && backend->gpu()) {
+    options.device_descent = backend->MakeDescent(env, gpu::DescentOptions());
+  } else if (config.device_descent) {
+    spdlog::warn("device_descent is ignored: the backend is the CPU");
+  }
+  options.descent_max_batch = config.descent_max_batch;
+  options.descent_gather_us = config.descent_gather_us;
+  if (options.device_descent != nullptr) {
+    spdlog::info("device descent on: batches of up to {} pairs, gather window {} us",
+                 config.descent_max_batch, config.descent_gather_us);
+  } else {
+    options.prepare_engine = [backend](CcdEngine* engine) { backend->Attach(engine); };
+  }
   options.security = config.security.mode;
   options.max_utime_jump_us = static_cast<int64_t>(config.security.max_utime_jump_s * 1e6);
   options.max_pose_rate_hz = config.max_pose_rate_hz;
@@ -507,7 +523,8 @@ struct Daemon::Impl {
 
   ServiceConfig config;
   RoomName room;  // config.ops.room, then the Agones label (service/ops/room_name.h).
-  std::unique_ptr<gpu::Backend> backend;  // Outlives the service (its engines use it).
+  std::unique_ptr<gpu::Backend> backend;        // Outlives the service (its engines use it).
+  std::shared_ptr<gpu::DeviceDescent> descent;  // The service's; null when off.
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<LcmTransport> transport;     // Outlives the service (its publisher).
   std::unique_ptr<FanoutPublisher> publisher;  // LCM, then the door: the service's.
@@ -567,7 +584,8 @@ Daemon::Impl::Impl(const ServiceConfig& c) : config(c), room(c.ops.room) {
   const WireLimits door_limits = security.limits;
   transport = std::make_unique<LcmTransport>(lcm.get(), config.channels, std::move(security));
   publisher = std::make_unique<FanoutPublisher>(transport.get());
-  ServiceOptions service_options = OptionsFor(config, backend.get());
+  ServiceOptions service_options = OptionsFor(config, *env, backend.get());
+  descent = service_options.device_descent;
   std::vector<ws::SceneObject> scene_objects;
   for (const TrackedObjectConfig& o : service_options.objects) {
     scene_objects.push_back({o.object_id, o.mesh});
@@ -760,8 +778,15 @@ void Daemon::Stop() {
     impl_->publisher->SetSecond(nullptr);
   }
   // The GPU's dispatches over the run (tools/service_bench/backends.sh).
-  if (impl_->backend && impl_->backend->gpu())
+  if (impl_->descent != nullptr) {
+    const gpu::DescentStats d = impl_->descent->stats();
+    spdlog::info(
+        "GPU device descent: {} batches, {} pairs, {} dispatches, {} intervals tested, {} "
+        "cleared, {} pairs over budget",
+        d.batches, d.pairs, d.dispatches, d.items, d.cleared, d.over_budget);
+  } else if (impl_->backend && impl_->backend->gpu()) {
     spdlog::info("GPU: {}", impl_->backend->DispatchSummary());
+  }
   spdlog::info("stopped");
 }
 

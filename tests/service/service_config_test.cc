@@ -208,6 +208,34 @@ TEST(ServiceConfigTest, MaxMeshBytesAndMaxLinks) {
             std::string::npos);
 }
 
+// The device descent's settings (docs/SERVICE.md "The device descent"):
+// off by default, read when given, refused out of their ranges.
+TEST(ServiceConfigTest, DeviceDescentSettings) {
+  const std::string base = "environment: [room.ply]\nclients: [{id: a, skeleton: a.json}]\n";
+  ServiceConfig c = ParseServiceConfig(base, "cfg.yaml", "/base");
+  EXPECT_FALSE(c.device_descent);
+  EXPECT_EQ(c.descent_max_batch, 16);
+  EXPECT_EQ(c.descent_gather_us, 0);
+  c = ParseServiceConfig(
+      base + "device_descent: true\ndescent_max_batch: 64\ndescent_gather_us: 2000\n", "cfg.yaml",
+      "/base");
+  EXPECT_TRUE(c.device_descent);
+  EXPECT_EQ(c.descent_max_batch, 64);
+  EXPECT_EQ(c.descent_gather_us, 2000);
+  EXPECT_NE(RefusalOf(base + "descent_max_batch: 0\n")
+                .find("descent_max_batch must be 1 to 4096 pairs, got 0"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "descent_max_batch: 4097\n").find("descent_max_batch"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "descent_gather_us: -1\n")
+                .find("descent_gather_us must be 0 to 100000 us, got -1"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "descent_gather_us: 100001\n").find("descent_gather_us"),
+            std::string::npos);
+  EXPECT_NE(RefusalOf(base + "device_descent: sometimes\n").find("cfg.yaml: device_descent"),
+            std::string::npos);
+}
+
 // The shared world: tracked objects (id, mesh, key) and the switch.
 // The shared world's filters (SPEC 8 "Filters") of a configured client:
 // parsed as written (resolved against the skeletons when the daemon loads);

@@ -50,7 +50,10 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
                         "--max-pose-rate",
                         "500",
                         "--max-object-pose-rate",
-                        "60"};
+                        "60",
+                        "--device-descent",
+                        "--descent-gather-us",
+                        "0"};
   app.parse(static_cast<int>(std::size(argv)), argv);
   ServiceConfig config;
   config.environment = {"room.ply"};
@@ -75,6 +78,9 @@ TEST(ServiceFlagsTest, ParsedFlagsOverrideOnlyWhatIsGiven) {
   EXPECT_EQ(config.log_level, "info");
   EXPECT_EQ(config.max_pose_rate_hz, 500);
   EXPECT_EQ(config.max_object_pose_rate_hz, 60);
+  EXPECT_TRUE(config.device_descent);
+  EXPECT_EQ(config.descent_max_batch, 16);    // Not given: kept.
+  EXPECT_EQ(config.descent_gather_us, 0);     // 0 is a value, not "not given".
   EXPECT_EQ(config.security.mode, "signed");  // The default: not given.
   EXPECT_EQ(config.security.room_key, "room.key");
   EXPECT_EQ(config.security.client_keys.at("a"), "a.key");

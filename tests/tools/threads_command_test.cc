@@ -188,5 +188,47 @@ TEST_F(ThreadsCommandTest, QueryDeviceDescentGivesTheCpuRecords) {
             WithoutTiming(Query(env, {"--backend", "cpu", "--threads", "1", "--per-link"})));
 }
 
+// Issue 30: `world --device-descent` (the environment parts of each chunk
+// of records cleared on the GPU, llvmpipe here, in one batch; the CPU
+// answers the rest and every part between entities) gives the CPU's records.
+TEST_F(ThreadsCommandTest, WorldDeviceDescentGivesTheCpuRecords) {
+  // 9 avatars 1.5 m apart: the outer ones stand in the furniture (environment
+  // contacts), the others do not (free environment parts).
+  const RunResult gen = Run({"world-bench", "--out", Path("w"), "--avatars", "9", "--objects", "2",
+                             "--seconds", "1", "--spacing", "1.5", "--generate-only"});
+  ASSERT_TRUE(gen.exited && gen.code == 0) << gen.Describe();
+  const std::string world = Path("w/world.json");
+  const RunResult c = Run({"world", "--world", world, "--backend", "cpu", "--threads", "1"});
+  ASSERT_TRUE(c.exited && c.code == 0) << c.Describe();
+  const std::vector<std::string> cpu = WithoutTiming(c.out);
+  // The environment part of a record is its top-level "result" (the
+  // entities' come after, in "others").
+  int env_contacts = 0, env_free = 0;
+  for (const std::string& line : cpu) {
+    const size_t others = line.find("\"others\"");
+    const std::string head = line.substr(0, others);
+    env_contacts += head.find("\"result\":\"contact\"") != std::string::npos;
+    env_free += head.find("\"result\":\"free\"") != std::string::npos;
+  }
+  EXPECT_GE(env_contacts, 50);
+  EXPECT_GE(env_free, 50);
+  for (const char* threads : {"1", "3"}) {
+    const RunResult d = Run({"world", "--world", world, "--backend", "gpu", "--device-descent",
+                             "--threads", threads, "--log-level", "info"});
+    ASSERT_TRUE(d.exited && d.code == 0) << d.Describe();
+    EXPECT_TRUE(std::regex_search(
+        d.err, std::regex("GPU device descent: [1-9][0-9]* batches, [1-9][0-9]* dispatches, "
+                          "[1-9][0-9]* intervals tested, [1-9][0-9]* cleared")))
+        << d.err;
+    EXPECT_EQ(WithoutTiming(d.out), cpu) << "--threads " << threads;
+  }
+  const RunResult cl = Run({"world", "--world", world, "--backend", "cpu", "--per-link"});
+  const RunResult dl =
+      Run({"world", "--world", world, "--backend", "gpu", "--device-descent", "--per-link"});
+  ASSERT_TRUE(cl.exited && cl.code == 0) << cl.Describe();
+  ASSERT_TRUE(dl.exited && dl.code == 0) << dl.Describe();
+  EXPECT_EQ(WithoutTiming(dl.out), WithoutTiming(cl.out));
+}
+
 }  // namespace
 }  // namespace sweptccd

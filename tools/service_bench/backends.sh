@@ -9,12 +9,17 @@
 # (median, p99, max), and the pairs merged by latest-wins, per backend; with
 # SHARED=true the shared world is on and its part (avatar against avatar,
 # from the covering sample) has its own row. Last, the answers of the pairs
-# both runs answered, compared pair by pair: "differ" must be 0.
+# both runs answered, compared pair by pair, each backend against the
+# first: "differ" must be 0.
 #   bash tools/service_bench/backends.sh [BUILD_DIR] [SECONDS]   (default build 10)
 # CLIENTS (64), RATE (120), WORKERS (default the number of cores), SHARED
 # (false), SCENE (breakfast+dragon_1.1M; any `sweptccd bench --scene` name),
-# BACKENDS ("cpu gpu"), REQUIRE_HARDWARE=1 (GPU host: refuse llvmpipe),
-# PHASES (burst|spread, latency_bench --phases). The issue's sizes: 64 x 120
+# BACKENDS ("cpu gpu"; "gpu-descent": the GPU backend with device_descent
+# on, docs/SERVICE.md "The device descent", batches of DESCENT_MAX_BATCH
+# (16) pairs, gather window DESCENT_GATHER_US (0) us), REQUIRE_HARDWARE=1
+# (GPU host: refuse llvmpipe),
+# PHASES (burst|spread, latency_bench --phases), WORK (the work folder,
+# default BUILD_DIR/service_bench_backends). The issue's sizes: 64 x 120
 # Hz, shared off; 32 clients, shared on (RATE=90 as shared_world.sh).
 # Each row is printed when its run ends, so a run cut short by `timeout`
 # still leaves the rows done. "merged" is the daemon's own count (its last
@@ -32,7 +37,7 @@ rate=${RATE:-120}
 workers=${WORKERS:-$(nproc)}
 shared=${SHARED:-false}
 scene=${SCENE:-breakfast+dragon_1.1M}
-work=$(cd "$build" && pwd)/service_bench_backends
+work=${WORK:-$(cd "$build" && pwd)/service_bench_backends}
 rm -rf "$work"
 mkdir -p "$work"
 setup_loopback_multicast
@@ -63,7 +68,12 @@ for backend in ${BACKENDS:-cpu gpu}; do
     echo "lcm_url: \"$url\""
     echo "environment: [$work/scene.ply]"
     echo "workers: $workers"
-    echo "backend: $backend"
+    echo "backend: ${backend%-descent}"
+    if [ "$backend" = gpu-descent ]; then
+      echo "device_descent: true"
+      echo "descent_max_batch: ${DESCENT_MAX_BATCH:-16}"
+      echo "descent_gather_us: ${DESCENT_GATHER_US:-0}"
+    fi
     if [ "${REQUIRE_HARDWARE:-}" = 1 ]; then echo "require_hardware: true"; fi
     echo "log_level: info"
     echo "shared_world: $shared"
@@ -103,6 +113,10 @@ for backend in ${BACKENDS:-cpu gpu}; do
   # The row says the backend the daemon ran on: a GPU it could not open
   # (require_hardware on llvmpipe, no driver) leaves it on the CPU.
   ran=$(grep -o 'backend [a-z]*' "$work/daemon_$backend.log" | head -1 | cut -d' ' -f2)
+  if [ "$backend" = gpu-descent ] && [ "$ran" = gpu ] &&
+    grep -q 'device descent on' "$work/daemon_$backend.log"; then
+    ran=gpu-descent
+  fi
   label=$backend
   if [ "$ran" != "$backend" ]; then label="$backend requested, ran ${ran:-?}"; fi
   # Non-shared rows: | clients | Hz | sent | events | median | p99 | max |;
@@ -132,9 +146,13 @@ for n in "${notes[@]}"; do echo "$n"; done
 # client, seq0 and seq1: latest-wins merges different pairs under different
 # timing): result, flags and the certified bracket must be equal.
 set -- ${BACKENDS:-cpu gpu}
-if [ $# -ge 2 ] && [ -s "$work/answers_$1.txt" ] && [ -s "$work/answers_$2.txt" ]; then
-  awk -v a="$1" -v b="$2" 'NR == FNR { k = $1 " " $2 " " $3; v[k] = $0; next }
-    { k = $1 " " $2 " " $3; if (k in v) { ++common; if (v[k] != $0) ++differ } }
-    END { printf "answers %s against %s: %d pairs answered by both, differ %d (must be 0)\n",
-          b, a, common, differ }' "$work/answers_$1.txt" "$work/answers_$2.txt"
-fi
+first=$1
+shift
+for other in "$@"; do
+  if [ -s "$work/answers_$first.txt" ] && [ -s "$work/answers_$other.txt" ]; then
+    awk -v a="$first" -v b="$other" 'NR == FNR { k = $1 " " $2 " " $3; v[k] = $0; next }
+      { k = $1 " " $2 " " $3; if (k in v) { ++common; if (v[k] != $0) ++differ } }
+      END { printf "answers %s against %s: %d pairs answered by both, differ %d (must be 0)\n",
+            b, a, common, differ }' "$work/answers_$first.txt" "$work/answers_$other.txt"
+  fi
+done

@@ -185,7 +185,7 @@ DescentStats CompareRecords(const Environment& env, const CcdEngine& engine,
   DeviceDescent descent(gpu_env, env, descent_options);
   const int e = descent.AddEngine(engine);
   std::vector<DeviceDescent::Pair> batch;
-  for (const auto& [p0, p1] : pairs) batch.push_back({e, &p0, &p1});
+  for (const auto& [p0, p1] : pairs) batch.push_back({e, &p0, &p1, {}});
   std::vector<PairClears> clears;
   EXPECT_TRUE(descent.Run(batch, options, &clears));
   EXPECT_EQ(clears.size(), pairs.size());
@@ -322,7 +322,7 @@ TEST(DeviceDescentTest, CapsulesWithinTheRoundingGrowthOfATriangleAreNeverCleare
       DeviceDescent descent(gpu_env, env, DescentOptions());
       const int e = descent.AddEngine(engine);
       std::vector<PairClears> clears;
-      ASSERT_TRUE(descent.Run({{e, &p0, &p1}}, QueryOptions(), &clears));
+      ASSERT_TRUE(descent.Run({{e, &p0, &p1, {}}}, QueryOptions(), &clears));
       const int64_t count = clears[0].count();
       // Within 2^-17 of the radius (the float vertices moved it by less at
       // these scales, or it is touching): the device's radius is larger.
