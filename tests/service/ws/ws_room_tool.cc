@@ -78,6 +78,28 @@ std::optional<MacKey> KeyArg(const std::string& path) {
   return LoadKeyFile(path);
 }
 
+// Whether event `e` answers exactly the pair (seq1 - 1, seq1) and equals
+// `sweptccd query`'s record for it (expected[seq1 - 1]): the result, and for
+// a contact the bracket, initially_colliding and the first witness's link
+// and triangle. A record that does not read as expected is a mismatch (an
+// exception here would be lost inside the client's callback).
+bool AnswersRecord(const contact_event_t& e, const std::vector<std::string>& expected) {
+  const size_t k = static_cast<size_t>(e.seq1 - 1);
+  if (!(e.seq0 == e.seq1 - 1 && e.seq1 >= 1 && k < expected.size())) return false;
+  try {
+    const nlohmann::json want = nlohmann::json::parse(expected[k]);
+    const int w = want["result"] == "contact" ? 1 : want["result"] == "free" ? 0 : 2;
+    if (e.result != w) return false;
+    if (w != 1) return true;
+    return e.s_lo == want["s_lo"].get<double>() && e.s_hi == want["s_hi"].get<double>() &&
+           e.initially_colliding == want["initially_colliding"].get<bool>() &&
+           !e.contacts.empty() && e.contacts[0].link == want["contacts"][0]["link"].get<int>() &&
+           e.contacts[0].triangle == want["contacts"][0]["triangle"].get<int64_t>();
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
 WsLiveClient::Options Base(uint16_t port, const std::string& id, const std::optional<MacKey>& key,
                            const Skeleton& skeleton) {
   WsLiveClient::Options o;
@@ -210,17 +232,7 @@ int Configured(uint16_t port, const std::string& id, const std::optional<MacKey>
   client.OnContact([&](const contact_event_t& e) {
     std::lock_guard<std::mutex> lock(mutex);
     ++answered[e.seq1];
-    const size_t k = static_cast<size_t>(e.seq1 - 1);
-    bool same = e.seq0 == e.seq1 - 1 && e.seq1 >= 1 && k < expected.size();
-    if (same) {
-      const nlohmann::json want = nlohmann::json::parse(expected[k]);
-      const int w = want["result"] == "contact" ? 1 : want["result"] == "free" ? 0 : 2;
-      same = e.result == w &&
-             (w != 1 ||
-              (e.s_lo == want["s_lo"].get<double>() && e.s_hi == want["s_hi"].get<double>() &&
-               e.initially_colliding == want["initially_colliding"].get<bool>()));
-    }
-    if (!same) ++mismatches;
+    if (!AnswersRecord(e, expected)) ++mismatches;
     if (e.result == 1) ++contacts;
     cv.notify_all();
   });
@@ -346,24 +358,7 @@ int Joints(uint16_t port, const MacKey& key, const std::vector<std::string>& fra
   client.OnContact([&](const contact_event_t& e) {
     std::lock_guard<std::mutex> lock(mutex);
     ++answered[e.seq1];
-    const size_t k = static_cast<size_t>(e.seq1 - 1);
-    bool same = e.seq0 == e.seq1 - 1 && e.seq1 >= 1 && k < expected.size();
-    try {  // A record that does not read as expected is a mismatch, not a lost callback.
-      if (same) {
-        const nlohmann::json want = nlohmann::json::parse(expected[k]);
-        const int w = want["result"] == "contact" ? 1 : want["result"] == "free" ? 0 : 2;
-        same =
-            e.result == w &&
-            (w != 1 ||
-             (e.s_lo == want["s_lo"].get<double>() && e.s_hi == want["s_hi"].get<double>() &&
-              e.initially_colliding == want["initially_colliding"].get<bool>() &&
-              !e.contacts.empty() && e.contacts[0].link == want["contacts"][0]["link"].get<int>() &&
-              e.contacts[0].triangle == want["contacts"][0]["triangle"].get<int64_t>()));
-      }
-    } catch (const std::exception&) {
-      same = false;
-    }
-    if (!same) ++mismatches;
+    if (!AnswersRecord(e, expected)) ++mismatches;
     if (e.result == 1) ++contacts;
     cv.notify_all();
   });
