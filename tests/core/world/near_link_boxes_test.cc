@@ -258,6 +258,74 @@ void ExpectSameAnswer(const OtherAnswer& x, const OtherAnswer& y, const std::str
   ASSERT_LE(x.intervals, y.intervals) << at;
 }
 
+// Two avatars near `centre` ("a" and "b", random skeletons or twisting
+// chains) from u0; B sampled at other times (two pieces) in some worlds.
+World TwoAvatarsNear(Rng& rng, const Vector3d& centre, int64_t u0) {
+  World w;
+  w.avatars.resize(2);
+  w.rules.assign(2, {});
+  for (int e = 0; e < 2; ++e) {
+    const Vector3d at = centre + (e == 0 ? Vector3d::Zero() : Vector3d(rng.Box(0.35)));
+    const Scene sc = rng.P(0.6) ? TwistScene(rng, at) : RandomScene(rng, at);
+    AvatarEntity& A = w.avatars[e];
+    A.id = e == 0 ? "a" : "b";
+    A.skeleton = sc.skeleton;
+    A.motion = sc.model;
+    A.used = {sc.p0, sc.p1};
+    if (e == 1 && rng.P(0.4)) {  // B sampled at other times: two pieces.
+      A.used[0].utime = u0 - 4'000;
+      A.used[1].utime = u0 + 5'000;
+      Pose p2 = sc.p1;
+      p2.utime = u0 + 16'000;
+      for (LinkPose& l : p2.links) l.p += rng.Box(0.01);
+      A.used.push_back(p2);
+    }
+  }
+  return w;
+}
+
+// A's answer against B (avatars 0 and 1 of `w`) over [u0, u1], with drawn
+// options (mode, delta): with near boxes (*x: A's given or not, B's given as
+// WorldAnswerer gives them or made by the target as the daemon's are) and
+// without them (*y: link boxes kept).
+void AnswerWithAndWithoutNearBoxes(const World& w, int64_t u0, int64_t u1, Rng& rng, OtherAnswer* x,
+                                   OtherAnswer* y) {
+  EntityQueryOptions opt;
+  opt.per_link = rng.P(0.5);
+  opt.delta_m = rng.P(0.5) ? 1e-3 : rng.U(1e-4, 2e-2);
+  const double margin = NearMargin(opt.delta_m);
+  const AvatarEntity& A = w.avatars[0];
+  const AvatarEntity& B = w.avatars[1];
+  const PairMotion motion_a(A.skeleton, A.used[0], A.used[1], A.motion);
+  MotionMemo memo_near(motion_a), memo_plain(motion_a), memo_boxes(motion_a);
+  const std::vector<Aabb> boxes_a = LinkSweepBoxes(A.skeleton, motion_a, 0.0);
+  const std::vector<Aabb> near_a = NearLinkBoxes(A.skeleton, &memo_boxes, margin);
+  std::vector<std::vector<Aabb>> boxes_b, near_b;
+  for (size_t k = 0; k + 1 < B.used.size(); ++k) {
+    const PairMotion m(B.skeleton, B.used[k], B.used[k + 1], B.motion);
+    MotionMemo memo(m);
+    boxes_b.push_back(LinkSweepBoxes(B.skeleton, m, 0.0));
+    near_b.push_back(NearLinkBoxes(B.skeleton, &memo, margin));
+  }
+  const AvatarWindow window_b = WindowOfAvatar(w, AvatarIndex(1));
+  // B's near boxes given (as WorldAnswerer gives them), or made by the
+  // target (as the daemon's are): the same boxes.
+  IntervalMotions with_near(window_b, 4, boxes_b, near_b, margin), without(window_b, 4, boxes_b);
+  const auto target_near = MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1,
+                                            rng.P(0.5) ? &with_near : &without);
+  const auto target_held =
+      MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1, &without);
+  const WithoutNearBoxes target_plain(*target_held);
+  std::vector<int64_t> times;
+  for (const Pose& p : B.used) times.push_back(p.utime);
+  const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
+  const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
+  ASSERT_FALSE(pieces.empty());
+  *x = AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt, &boxes_a,
+                   rng.P(0.5) ? &near_a : nullptr);
+  *y = AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, target_plain, opt, &boxes_a);
+}
+
 // The descent with near boxes on both sides against the same descent
 // without them (link boxes kept): the same answer, bit for bit, for two
 // avatars near each other (random skeletons and twisting chains, windows
@@ -266,63 +334,11 @@ TEST(NearLinkBoxes, LeaveEveryAnswerUnchanged) {
   int contacts = 0, spared = 0, answers = 0;
   for (int seed = 0; seed < 600; ++seed) {
     Rng rng(47000 + seed);
-    World w;
-    w.avatars.resize(2);
-    w.rules.assign(2, {});
-    const Vector3d centre = rng.Box(1.0);
     const int64_t u0 = 1'000'000, u1 = 1'011'111;
-    for (int e = 0; e < 2; ++e) {
-      const Vector3d at = centre + (e == 0 ? Vector3d::Zero() : Vector3d(rng.Box(0.35)));
-      const Scene sc = rng.P(0.6) ? TwistScene(rng, at) : RandomScene(rng, at);
-      AvatarEntity& A = w.avatars[e];
-      A.id = e == 0 ? "a" : "b";
-      A.skeleton = sc.skeleton;
-      A.motion = sc.model;
-      A.used = {sc.p0, sc.p1};
-      if (e == 1 && rng.P(0.4)) {  // B sampled at other times: two pieces.
-        A.used[0].utime = u0 - 4'000;
-        A.used[1].utime = u0 + 5'000;
-        Pose p2 = sc.p1;
-        p2.utime = u0 + 16'000;
-        for (LinkPose& l : p2.links) l.p += rng.Box(0.01);
-        A.used.push_back(p2);
-      }
-    }
-    EntityQueryOptions opt;
-    opt.per_link = rng.P(0.5);
-    opt.delta_m = rng.P(0.5) ? 1e-3 : rng.U(1e-4, 2e-2);
-    const double margin = NearMargin(opt.delta_m);
-    const AvatarEntity& A = w.avatars[0];
-    const AvatarEntity& B = w.avatars[1];
-    const PairMotion motion_a(A.skeleton, A.used[0], A.used[1], A.motion);
-    MotionMemo memo_near(motion_a), memo_plain(motion_a), memo_boxes(motion_a);
-    const std::vector<Aabb> boxes_a = LinkSweepBoxes(A.skeleton, motion_a, 0.0);
-    const std::vector<Aabb> near_a = NearLinkBoxes(A.skeleton, &memo_boxes, margin);
-    std::vector<std::vector<Aabb>> boxes_b, near_b;
-    for (size_t k = 0; k + 1 < B.used.size(); ++k) {
-      const PairMotion m(B.skeleton, B.used[k], B.used[k + 1], B.motion);
-      MotionMemo memo(m);
-      boxes_b.push_back(LinkSweepBoxes(B.skeleton, m, 0.0));
-      near_b.push_back(NearLinkBoxes(B.skeleton, &memo, margin));
-    }
-    const AvatarWindow window_b = WindowOfAvatar(w, AvatarIndex(1));
-    // B's near boxes given (as WorldAnswerer gives them), or made by the
-    // target (as the daemon's are): the same boxes.
-    IntervalMotions with_near(window_b, 4, boxes_b, near_b, margin), without(window_b, 4, boxes_b);
-    const auto target_near = MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1,
-                                              rng.P(0.5) ? &with_near : &without);
-    const auto target_held =
-        MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1, &without);
-    const WithoutNearBoxes target_plain(*target_held);
-    std::vector<int64_t> times;
-    for (const Pose& p : B.used) times.push_back(p.utime);
-    const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
-    const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
-    ASSERT_FALSE(pieces.empty());
-    const OtherAnswer x = AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt,
-                                      &boxes_a, rng.P(0.5) ? &near_a : nullptr);
-    const OtherAnswer y =
-        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, target_plain, opt, &boxes_a);
+    World w = TwoAvatarsNear(rng, rng.Box(1.0), u0);
+    OtherAnswer x, y;
+    AnswerWithAndWithoutNearBoxes(w, u0, u1, rng, &x, &y);
+    if (HasFatalFailure()) return;
     const std::string at = "seed " + std::to_string(seed);
     ExpectSameAnswer(x, y, at);
     if (HasFatalFailure()) return;
@@ -345,29 +361,10 @@ TEST(NearLinkBoxes, FilteredAndFarAnswersUnchanged) {
   int contacts = 0, spared = 0, answers = 0, ruled = 0;
   for (int seed = 0; seed < 300; ++seed) {
     Rng rng(33300 + seed);
-    World w;
-    w.avatars.resize(2);
-    w.rules.assign(2, {});
     const double shift_m = seed % 6 == 5 ? 1e6 : seed % 3 == 1 ? 1e3 : 0.0;
     const Vector3d centre = Vector3d(shift_m, -0.5 * shift_m, 0.3 * shift_m) + rng.Box(1.0);
     const int64_t u0 = 1'000'000, u1 = 1'011'111;
-    for (int e = 0; e < 2; ++e) {
-      const Vector3d at = centre + (e == 0 ? Vector3d::Zero() : Vector3d(rng.Box(0.35)));
-      const Scene sc = rng.P(0.6) ? TwistScene(rng, at) : RandomScene(rng, at);
-      AvatarEntity& A = w.avatars[e];
-      A.id = e == 0 ? "a" : "b";
-      A.skeleton = sc.skeleton;
-      A.motion = sc.model;
-      A.used = {sc.p0, sc.p1};
-      if (e == 1 && rng.P(0.4)) {  // B sampled at other times: two pieces.
-        A.used[0].utime = u0 - 4'000;
-        A.used[1].utime = u0 + 5'000;
-        Pose p2 = sc.p1;
-        p2.utime = u0 + 16'000;
-        for (LinkPose& l : p2.links) l.p += rng.Box(0.01);
-        A.used.push_back(p2);
-      }
-    }
+    World w = TwoAvatarsNear(rng, centre, u0);
     for (int e = 0; e < 2; ++e) {
       const int rules = rng.P(0.7) ? 1 + rng.I(4) : 0;
       for (int k = 0; k < rules; ++k) {
@@ -381,39 +378,9 @@ TEST(NearLinkBoxes, FilteredAndFarAnswersUnchanged) {
         ++ruled;
       }
     }
-    EntityQueryOptions opt;
-    opt.per_link = rng.P(0.5);
-    opt.delta_m = rng.P(0.5) ? 1e-3 : rng.U(1e-4, 2e-2);
-    const double margin = NearMargin(opt.delta_m);
-    const AvatarEntity& A = w.avatars[0];
-    const AvatarEntity& B = w.avatars[1];
-    const PairMotion motion_a(A.skeleton, A.used[0], A.used[1], A.motion);
-    MotionMemo memo_near(motion_a), memo_plain(motion_a), memo_boxes(motion_a);
-    const std::vector<Aabb> boxes_a = LinkSweepBoxes(A.skeleton, motion_a, 0.0);
-    const std::vector<Aabb> near_a = NearLinkBoxes(A.skeleton, &memo_boxes, margin);
-    std::vector<std::vector<Aabb>> boxes_b, near_b;
-    for (size_t k = 0; k + 1 < B.used.size(); ++k) {
-      const PairMotion m(B.skeleton, B.used[k], B.used[k + 1], B.motion);
-      MotionMemo memo(m);
-      boxes_b.push_back(LinkSweepBoxes(B.skeleton, m, 0.0));
-      near_b.push_back(NearLinkBoxes(B.skeleton, &memo, margin));
-    }
-    const AvatarWindow window_b = WindowOfAvatar(w, AvatarIndex(1));
-    IntervalMotions with_near(window_b, 4, boxes_b, near_b, margin), without(window_b, 4, boxes_b);
-    const auto target_near = MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1,
-                                              rng.P(0.5) ? &with_near : &without);
-    const auto target_held =
-        MakeAvatarTarget(WindowOfAvatar(w, AvatarIndex(0)).who, window_b, -1, &without);
-    const WithoutNearBoxes target_plain(*target_held);
-    std::vector<int64_t> times;
-    for (const Pose& p : B.used) times.push_back(p.utime);
-    const int64_t t_from = std::max(u0, times.front()), t_to = std::min(u1, times.back());
-    const std::vector<Piece> pieces = SplitWindow(u0, t_from, t_to, times);
-    ASSERT_FALSE(pieces.empty());
-    const OtherAnswer x = AnswerOther(A.skeleton, &memo_near, u0, u1, pieces, *target_near, opt,
-                                      &boxes_a, rng.P(0.5) ? &near_a : nullptr);
-    const OtherAnswer y =
-        AnswerOther(A.skeleton, &memo_plain, u0, u1, pieces, target_plain, opt, &boxes_a);
+    OtherAnswer x, y;
+    AnswerWithAndWithoutNearBoxes(w, u0, u1, rng, &x, &y);
+    if (HasFatalFailure()) return;
     ExpectSameAnswer(x, y, "seed " + std::to_string(seed) + " shift " + std::to_string(shift_m));
     if (HasFatalFailure()) return;
     ++answers;
