@@ -46,6 +46,7 @@
 #include "tests/common/random.h"
 #include "tests/common/temp_dir_test.h"
 #include "tests/common/twin_motion.h"
+#include "tests/common/without_near_boxes.h"
 #include "tools/world_bench_command.h"
 #include "tools/world_bench_hands.h"
 
@@ -779,38 +780,6 @@ void ExpectSameBracket(const OtherBracket& x, const OtherBracket& y) {
   EXPECT_TRUE(SameBits(x.witness.normal, y.witness.normal));
   EXPECT_TRUE(SameBits(x.witness.separation, y.witness.separation));
 }
-
-// A target as `t` with its link boxes but without near boxes
-// (near_link_boxes.h; tested in near_link_boxes_test): the link boxes alone.
-class WithoutNearBoxes : public OtherTarget {
- public:
-  explicit WithoutNearBoxes(const OtherTarget& t) : t_(t) {}
-  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
-    t_.RootCandidatesInto(link_a, out);
-  }
-  Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
-    return t_.PieceBox(p, tau0, tau1);
-  }
-  bool PieceBoxMeets(const Piece& p, double tau0, double tau1, const Aabb& box) const override {
-    return t_.PieceBoxMeets(p, tau0, tau1, box);
-  }
-  void Cull(const Piece& p, double tau0, double tau1, const Vector3d& a, const Vector3d& b,
-            double radius_a, double growth_a, std::vector<int>* cands) const override {
-    t_.Cull(p, tau0, tau1, a, b, radius_a, growth_a, cands);
-  }
-  bool Nearest(const Piece& p, double tau, LinkIndex link_a, const Vector3d& a, const Vector3d& b,
-               double radius_a, const std::vector<int>& cands, double search,
-               OtherContact* out) const override {
-    return t_.Nearest(p, tau, link_a, a, b, radius_a, cands, search, out);
-  }
-  double tolerance() const override { return t_.tolerance(); }
-  bool LinkBoxes(const Piece& p, std::vector<Aabb>* boxes) const override {
-    return t_.LinkBoxes(p, boxes);
-  }
-
- private:
-  const OtherTarget& t_;
-};
 
 // The link-level broad phase never changes an answer: random avatar pairs
 // (close, so that both contacts and free answers occur), answered with and

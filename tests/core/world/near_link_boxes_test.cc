@@ -30,6 +30,7 @@
 #include "core/world/object_target.h"
 #include "tests/common/random.h"
 #include "tests/common/twin_motion.h"
+#include "tests/common/without_near_boxes.h"
 
 namespace sweptccd::world {
 namespace {
@@ -214,37 +215,6 @@ bool SameBracket(const OtherBracket& x, const OtherBracket& y) {
          x.initially_colliding == y.initially_colliding && x.undecided == y.undecided &&
          x.has_witness == y.has_witness && (!x.has_witness || SameContact(x.witness, y.witness));
 }
-
-// A target as `t`, without near boxes: the descent as it was before them.
-class WithoutNearBoxes : public OtherTarget {
- public:
-  explicit WithoutNearBoxes(const OtherTarget& t) : t_(t) {}
-  void RootCandidatesInto(LinkIndex link_a, std::vector<int>* out) const override {
-    t_.RootCandidatesInto(link_a, out);
-  }
-  Aabb PieceBox(const Piece& p, double tau0, double tau1) const override {
-    return t_.PieceBox(p, tau0, tau1);
-  }
-  bool PieceBoxMeets(const Piece& p, double tau0, double tau1, const Aabb& box) const override {
-    return t_.PieceBoxMeets(p, tau0, tau1, box);
-  }
-  void Cull(const Piece& p, double tau0, double tau1, const Vector3d& a, const Vector3d& b,
-            double radius_a, double growth_a, std::vector<int>* cands) const override {
-    t_.Cull(p, tau0, tau1, a, b, radius_a, growth_a, cands);
-  }
-  bool Nearest(const Piece& p, double tau, LinkIndex link_a, const Vector3d& a, const Vector3d& b,
-               double radius_a, const std::vector<int>& cands, double search,
-               OtherContact* out) const override {
-    return t_.Nearest(p, tau, link_a, a, b, radius_a, cands, search, out);
-  }
-  double tolerance() const override { return t_.tolerance(); }
-  bool LinkBoxes(const Piece& p, std::vector<Aabb>* boxes) const override {
-    return t_.LinkBoxes(p, boxes);
-  }
-
- private:
-  const OtherTarget& t_;
-};
 
 void ExpectSameAnswer(const OtherAnswer& x, const OtherAnswer& y, const std::string& at) {
   ASSERT_EQ(x.contact, y.contact) << at;
