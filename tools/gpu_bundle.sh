@@ -121,6 +121,27 @@ part daemon_32_shared
 CLIENTS=32 RATE=90 WORKERS=$(nproc) SHARED=true REQUIRE_HARDWARE=1 timeout "$(cap 100)" \
   bash tools/service_bench/backends.sh "$bundle" 10 > "$results/daemon_32_shared.txt" 2>&1
 echo "exit $?" >> "$results/daemon_32_shared.txt"
+# The shared world offline (issue 30): 32 avatars and 4 objects in the
+# breakfast room (`world-bench --generate-only`), `sweptccd world` on the CPU
+# with 1 and every thread, the GPU, and the GPU with the device descent;
+# wall time of each and its records against the CPU's on one thread.
+part world_32
+{
+  w=/tmp/gpu_bundle_world
+  "$B/sweptccd" world-bench --data "$root/data" --out "$w" --avatars 32 --generate-only
+  for run in "cpu 1" "cpu $(nproc)" "gpu $(nproc)" "gpu $(nproc) --device-descent"; do
+    set -- $run
+    t0=$(date +%s%N)
+    timeout "$(cap 30)" "$B/sweptccd" world --world "$w/world.json" --backend "$1" --threads "$2" \
+      ${3:-} --require-hardware --log-level info 2> /tmp/gpu_bundle_world_log |
+      sed -E 's/"elapsed_us":[^,]*,//; s/"stats":\{[^}]*\},//' > "/tmp/gpu_bundle_world_$1_$2${3:-}"
+    t1=$(date +%s%N)
+    grep -E 'backend|device descent' /tmp/gpu_bundle_world_log | head -3
+    echo "world --backend $1 --threads $2 ${3:-}: $(((t1 - t0) / 1000000)) ms wall," \
+      "records $(wc -l < "/tmp/gpu_bundle_world_$1_$2${3:-}"), differing from cpu 1:" \
+      "$(diff /tmp/gpu_bundle_world_cpu_1 "/tmp/gpu_bundle_world_$1_$2${3:-}" | grep -c '^>')"
+  done
+} > "$results/world_32.txt" 2>&1
 # One round trip (issue 30): read-back against persistent mapped buffers and
 # a fence, 1 to 4,096 capsules, a small scene and the 0.9 M-triangle dragon.
 part roundtrip
