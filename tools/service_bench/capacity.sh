@@ -78,7 +78,7 @@ run_rooms() {
       sleep 0.1
     done
     if grep -q '\] ready:' "$work/daemon_$i.log"; then
-      ready+=("$(echo "$(date +%s.%N) - $t0" | bc | xargs printf '%.2f')")
+      ready+=("$(awk -v a="$(date +%s.%N)" -v b="$t0" 'BEGIN { printf "%.2f", a - b }')")
     else
       ready+=(none)
     fi
