@@ -84,7 +84,8 @@ cap() {
 part() { echo "== $1 at $((SECONDS - start)) s" >> "$results/times.txt"; }
 # PARTS (default: all, in this order) names the parts to run, e.g.
 # PARTS="sweep capacity_gpu" for a second, shorter visit; SWEEP_ARGS adds
-# options to the sweep's `bench` (e.g. "--scene morse_apartment").
+# options to the sweep's `bench` (e.g. "--scene morse_apartment"); GPU_TESTS
+# names the suites of the part `tests` (default: all six).
 want() { [ -z "${PARTS:-}" ] || [[ " $PARTS " == *" $1 "* ]]; }
 {
   date -u
@@ -96,8 +97,8 @@ want() { [ -z "${PARTS:-}" ] || [[ " $PARTS " == *" $1 "* ]]; }
 if want tests; then
   part tests
   t_cap=$(cap 150)
-  for t in gl_context_test gpu_culler_test backend_calibration_test device_descent_test \
-    ccd_random_gpu_test real_data_gpu_test; do
+  for t in ${GPU_TESTS:-gl_context_test gpu_culler_test backend_calibration_test \
+    device_descent_test ccd_random_gpu_test real_data_gpu_test}; do
     (
       s=$SECONDS
       timeout "$t_cap" "$B/$t" --gtest_brief=1 > "/tmp/gpu_bundle_$t.log" 2>&1
