@@ -34,7 +34,7 @@ build=${1:-build}
 out=${2:-.gpu}
 rm -rf "$out"
 mkdir -p "$out/bin" "$out/lib"
-tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test device_descent_test"
+tests="gl_context_test gpu_culler_test backend_calibration_test ccd_random_gpu_test real_data_gpu_test device_descent_test world_environment_gpu_test"
 for b in sweptccd sweptccd-service sweptccd_latency_bench sweptccd_ws_latency \
   sweptccd_gpu_roundtrip_bench $tests; do
   strip -o "$out/bin/$b" "$build/bin/$b"
@@ -85,7 +85,7 @@ part() { echo "== $1 at $((SECONDS - start)) s" >> "$results/times.txt"; }
 # PARTS (default: all, in this order) names the parts to run, e.g.
 # PARTS="sweep capacity_gpu" for a second, shorter visit; SWEEP_ARGS adds
 # options to the sweep's `bench` (e.g. "--scene morse_apartment"); GPU_TESTS
-# names the suites of the part `tests` (default: all six).
+# names the suites of the part `tests` (default: all seven).
 want() { [ -z "${PARTS:-}" ] || [[ " $PARTS " == *" $1 "* ]]; }
 {
   date -u
@@ -98,7 +98,7 @@ if want tests; then
   part tests
   t_cap=$(cap 150)
   for t in ${GPU_TESTS:-gl_context_test gpu_culler_test backend_calibration_test \
-    device_descent_test ccd_random_gpu_test real_data_gpu_test}; do
+    device_descent_test ccd_random_gpu_test real_data_gpu_test world_environment_gpu_test}; do
     (
       s=$SECONDS
       timeout "$t_cap" "$B/$t" --gtest_brief=1 > "/tmp/gpu_bundle_$t.log" 2>&1
