@@ -47,6 +47,10 @@ int DotSign(const double a[4], const double b[4]);
 /// First order: (speed + angular * extent) * (s1 - s0) / 2 + slack.
 double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
                         double s1);
+/// FirstOrderGrowth(speed, angular, extent, slack, 0, 1), bit for bit (the
+/// same steps, its half width a constant): the whole pair's growth, which
+/// PairMotion::PairGrowthUpper computes for every link of a query.
+double FirstOrderGrowthOverPair(double speed, double angular, double extent, double slack);
 /// Second order: chord / 2 + (s1 - s0)^2 / 4 * (accel + (angular_accel +
 /// angular^2) * extent) + 4 slack.
 double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
