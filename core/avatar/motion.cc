@@ -273,13 +273,18 @@ double HalfAngleUpper(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) 
 // FirstOrderGrowth(speed, angular, extent, slack, 0, 1), bit for bit: the
 // same steps, with its half width Up(Up(1 - 0) * 0.5) a constant (PairMotion::
 // PairGrowthUpper runs for every link of every quiet query; issue 31).
-double FirstOrderGrowthOverPair(double speed, double angular, double extent, double slack) {
+[[gnu::always_inline]] inline double FirstOrderGrowthOverPairInline(double speed, double angular,
+                                                                    double extent, double slack) {
   // Up(1) = 1 + 2^-52; times 0.5 exactly 2^-1 + 2^-53; one step up.
   constexpr double kHalfWidth = 0x1.0000000000002p-1;
   const double speed_all = Up(speed + Up(angular * extent));
   const double growth = Up(Up(speed_all * kHalfWidth) + slack);
   if (Finite(growth)) return growth;
   return FirstOrderGrowth(speed, angular, extent, slack, 0.0, 1.0);  // The interval fallback.
+}
+
+double FirstOrderGrowthOverPair(double speed, double angular, double extent, double slack) {
+  return FirstOrderGrowthOverPairInline(speed, angular, extent, slack);
 }
 
 }  // namespace internal
@@ -446,15 +451,21 @@ void PairMotion::CompleteMotion(LinkIndex link) {
   FinishMotion(&m);
 }
 
-double PairMotion::PairGrowthUpper(LinkIndex link) const {
-  const LinkMotion& m = links_[link];
-  const double g = internal::FirstOrderGrowthOverPair(m.bounds.speed, m.bounds.angular, m.extent,
-                                                      rounding_slack_);
+[[gnu::always_inline]] inline double PairMotion::GrowthUpper(const LinkMotion& m) const {
+  const double g = internal::FirstOrderGrowthOverPairInline(m.bounds.speed, m.bounds.angular,
+                                                            m.extent, rounding_slack_);
   if (all_ready_ || m.motion_ready) return g;  // SweepRadius(link, 0, 1).
   // An upper bound's growth: the same monotone steps as the exact one's;
   // past 1e300 (an overflow on the way) infinite rather than the interval
   // fallback's, which need not exceed the exact bound's rounded steps.
   return g <= 1e300 ? g : std::numeric_limits<double>::infinity();
+}
+
+double PairMotion::PairGrowthUpper(LinkIndex link) const { return GrowthUpper(links_[link]); }
+
+void PairMotion::PairGrowthUppers(std::vector<double>* out) const {
+  out->resize(links_.size());
+  for (size_t i = 0; i < links_.size(); ++i) (*out)[i] = GrowthUpper(links_[i]);
 }
 
 // One link's share of Build's PosesAtInto at 0, 0.5 and 1 and of its

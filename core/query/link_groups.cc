@@ -80,11 +80,10 @@ void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const Pair
   SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
   const std::vector<LinkIndex>& order = groups.preorder();
   reach->assign(order.size(), 0.0);
-  growth->resize(order.size());
+  motion.PairGrowthUppers(growth);                            // Needs no complete motion.
   for (auto it = order.rbegin(); it != order.rend(); ++it) {  // Children first.
     const LinkIndex j = *it;
-    const double g = motion.PairGrowthUpper(j);  // Needs no complete motion.
-    (*growth)[j] = g;
+    const double g = (*growth)[j];
     const double own = skeleton.extent(j) + skeleton.link(j).radius + g;
     double& r = (*reach)[j];
     r = std::max(r, own);

@@ -117,7 +117,8 @@ void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last
   }
   const uint32_t half = first + node.count / 2;
   node.left = static_cast<uint32_t>(link_nodes_.size());  // Children side by side.
-  link_nodes_.resize(node.left + 2);
+  link_nodes_.emplace_back();  // Within the reserved 2n: no reallocation.
+  link_nodes_.emplace_back();
   BuildLinkTree(node.left, first, half, index);
   BuildLinkTree(node.left + 1, half, last, index);
   // The union of its links' boxes, from its children's (min and max are

@@ -443,6 +443,7 @@ LooseHolding CheckLoose(uint64_t seed, int cases, double shrink) {
     std::vector<double> reach, growth;
     internal::SubtreeReach(groups, rig.skeleton, motion, &reach, &growth);
     for (LinkIndex l(0); l < n; ++l) {
+      EXPECT_EQ(growth[l], motion.PairGrowthUpper(l)) << "link " << l;  // PairGrowthUppers.
       const LinkCapsule given = bounds.LooseOver(l, p0, p1, growth[l]);
       EXPECT_TRUE(given.a == loose[l].a && given.b == loose[l].b && given.radius == loose[l].radius)
           << "link " << l;
