@@ -47,6 +47,10 @@ int DotSign(const double a[4], const double b[4]);
 /// First order: (speed + angular * extent) * (s1 - s0) / 2 + slack.
 double FirstOrderGrowth(double speed, double angular, double extent, double slack, double s0,
                         double s1);
+/// FirstOrderGrowth(speed, angular, extent, slack, 0, 1), bit for bit (the
+/// same steps, its half width a constant): the whole pair's growth, which
+/// PairMotion::PairGrowthUpper computes for every link of a query.
+double FirstOrderGrowthOverPair(double speed, double angular, double extent, double slack);
 /// Second order: chord / 2 + (s1 - s0)^2 / 4 * (accel + (angular_accel +
 /// angular^2) * extent) + 4 slack.
 double SecondOrderGrowth(double chord, double accel, double angular_accel, double angular,
@@ -145,6 +149,9 @@ class PairMotion {
   /// link's motion is complete; before, the same first-order growth of the
   /// link's upper bounds (infinite past 1e300). Never needs the motion.
   double PairGrowthUpper(LinkIndex link) const;
+  /// PairGrowthUpper of every link, by link index, into *out (resized): the
+  /// same bits, in one loop (SubtreeReach reads them all, pair after pair).
+  void PairGrowthUppers(std::vector<double>* out) const;
   /// Gives the arrays back for another motion; this motion is left empty.
   /// Not const: no other thread may be reading this motion.
   void Release(Storage* storage);
@@ -270,6 +277,8 @@ class PairMotion {
     // bounds.speed and bounds.angular are upper bounds of the exact ones.
     bool motion_ready = true;
   };
+  // PairGrowthUpper of the link moving by m.
+  double GrowthUpper(const LinkMotion& m) const;
   // The rest of a link's motion from its offsets, own speed, lever and
   // rotations (Build's loops, per link): its motion parent's must be done.
   void FinishMotion(LinkMotion* m);

@@ -51,12 +51,14 @@ LinkGroups::LinkGroups(const Skeleton& skeleton) {
 }
 
 namespace {
-double Norm(const Eigen::Vector3d& v) { return NormUpper(v.x(), v.y(), v.z()); }
+[[gnu::always_inline]] inline double Norm(const Eigen::Vector3d& v) {
+  return NormUpper(v.x(), v.y(), v.z());
+}
 // Upper end of max |u(t) - v(t)| over t in [0, 1] for u, v interpolated
 // linearly between their ends (u0, u1) and (v0, v1): u - v is too, so its
 // norm peaks at an end.
-double Apart(const Eigen::Vector3d& u0, const Eigen::Vector3d& u1, const Eigen::Vector3d& v0,
-             const Eigen::Vector3d& v1) {
+[[gnu::always_inline]] inline double Apart(const Eigen::Vector3d& u0, const Eigen::Vector3d& u1,
+                                           const Eigen::Vector3d& v0, const Eigen::Vector3d& v1) {
   return std::max(Norm(u0 - v0), Norm(u1 - v1));
 }
 // From child c's origin, the farthest point of its parent d's whole-pair
@@ -78,11 +80,10 @@ void SubtreeReach(const LinkGroups& groups, const Skeleton& skeleton, const Pair
   SWEPTCCD_CHECK(motion.model() == MotionModel::kArticulated);
   const std::vector<LinkIndex>& order = groups.preorder();
   reach->assign(order.size(), 0.0);
-  growth->resize(order.size());
+  motion.PairGrowthUppers(growth);                            // Needs no complete motion.
   for (auto it = order.rbegin(); it != order.rend(); ++it) {  // Children first.
     const LinkIndex j = *it;
-    const double g = motion.PairGrowthUpper(j);  // Needs no complete motion.
-    (*growth)[j] = g;
+    const double g = (*growth)[j];
     const double own = skeleton.extent(j) + skeleton.link(j).radius + g;
     double& r = (*reach)[j];
     r = std::max(r, own);

@@ -122,7 +122,6 @@ QueryResult QueryRun::Run() {
 // composes a pose or finishes a motion; a cleared group's links never are.
 void QueryRun::ClearGroups() {
   const Skeleton& skeleton = target_.skeleton();
-  bool have_reach = false;
   for (const LinkIndex l : groups_.preorder()) {
     const int parent = skeleton.link(l).parent;
     if (parent >= 0 && group_cleared_[parent] != 0) {
@@ -130,7 +129,7 @@ void QueryRun::ClearGroups() {
       continue;
     }
     if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= options_.link_group_min_size &&
-        TryGroup(l, &have_reach)) {
+        TryGroup(l)) {
       group_cleared_[l] = kGroup;
       ++stats_.groups_cleared;
     }
@@ -144,7 +143,10 @@ void QueryRun::ClearGroups() {
 // inside), so it is cleared as a group's links are. Then the ends of the
 // links left are composed (with their ancestors'), parents first.
 void QueryRun::CullLoose() {
-  const RootCandidates::LoosePoses poses{&pose0_, &pose1_};
+  // SubtreeReach's growth when a group test computed it: the same bits as
+  // PairGrowthUpper (no link's motion is finished before this pass).
+  const RootCandidates::LoosePoses poses{&pose0_, &pose1_,
+                                         have_reach_ ? &buffers_->growth : nullptr};
   RootCandidates loose(target_, bounds_, &pool_, &buffers_->loose_roots, &group_cleared_, &poses);
   loose.FindOpen();
   for (LinkIndex l(0); l < num_links_; ++l) {
@@ -174,12 +176,12 @@ void QueryRun::EnsureEnds(LinkIndex link) {
   for (auto it = chain_.rbegin(); it != chain_.rend(); ++it) motion.CompleteEnds(*it);
 }
 
-bool QueryRun::TryGroup(LinkIndex l, bool* have_reach) {
+bool QueryRun::TryGroup(LinkIndex l) {
   const PairMotion& motion = *own_motion_;
   const Skeleton& skeleton = target_.skeleton();
-  if (!*have_reach) {
+  if (!have_reach_) {
     SubtreeReach(groups_, skeleton, motion, &buffers_->reach, &buffers_->growth);
-    *have_reach = true;
+    have_reach_ = true;
   }
   // A group reaching past twice the largest ball tested is not centred
   // (its ball would hardly be narrow enough): skipped.
@@ -225,7 +227,7 @@ bool QueryRun::GroupBallClear(LinkIndex root, LinkCapsule ball) {
 void QueryRun::CloseTouchingAtStart(LinkIndex begin, LinkIndex end) {
   const double w = slicer_.FirstNarrowWidth();
   for (LinkIndex l = begin; l < end; ++l) {
-    if (target_.IgnoresAll(l) || !roots_->Open(l)) continue;
+    if (!roots_->Open(l) || target_.IgnoresAll(l)) continue;
     AtStart& at_start = touches_at_start_[l];
     if (at_start.touches < 0) {
       at_start.touches = target_.TouchesAt(motion_, l, 0.0, 0.0, &at_start.touching) ? 1 : 0;

@@ -73,8 +73,9 @@ class QueryRun {
   // does not ignore within `ball`.
   bool GroupBallClear(LinkIndex root, LinkCapsule ball);
   // The group rooted at `l`: its ball, centred by BallCentre, tested when
-  // narrow enough (SubtreeReach computed on first use). Whether it cleared.
-  bool TryGroup(LinkIndex l, bool* have_reach);
+  // narrow enough (SubtreeReach computed on first use: have_reach_).
+  // Whether it cleared.
+  bool TryGroup(LinkIndex l);
   // Composes the ends of `link` and of its ancestors not composed yet
   // (cleared by their loose capsules), parents first.
   void EnsureEnds(LinkIndex link);
@@ -115,6 +116,9 @@ class QueryRun {
   // nothing: ClearGroups), kLooseCapsule (its loose capsule did: CullLoose).
   static constexpr char kGroup = 1, kLooseCapsule = 2;
   std::vector<char> group_cleared_;
+  // SubtreeReach ran (TryGroup): buffers_->reach and growth hold this
+  // pair's (CullLoose reads the growth).
+  bool have_reach_ = false;
   std::vector<LinkIndex> chain_;  // EnsureEnds's.
   // Whether the link touches at s = 0, once asked during the traversal (-1
   // not asked, 0 no, 1 yes), and where yes, the triangle TouchesAt found

@@ -24,16 +24,20 @@ RootCandidates::RootCandidates(const EnvironmentTarget& target, const SweptBound
   const int n = target.skeleton().num_links();
   links_.resize(n);
   for (LinkIndex l(0); l < n; ++l) {
-    LinkRoot& root = links_[l];  // Every field: the array may hold an earlier query's.
-    if (GroupCleared(l)) {       // Never open; its poses are not composed.
-      root = LinkRoot();
-      root.box = Aabb::Empty();
+    LinkRoot& root = links_[l];  // The array may hold an earlier query's.
+    if (GroupCleared(l)) {
+      // Never open, and nothing reads its capsule or box (FindOpen and
+      // FindOpenOne skip it): left as the array holds them. Its poses are
+      // not composed.
+      root.open = false;
       continue;
     }
     if (loose == nullptr) {
       root.capsule = bounds.Over(l, 0, 1);
     } else {
-      root.capsule = bounds.LooseOver(l, *loose->pose0, *loose->pose1);
+      root.capsule = loose->growth != nullptr
+                         ? bounds.LooseOver(l, *loose->pose0, *loose->pose1, (*loose->growth)[l])
+                         : bounds.LooseOver(l, *loose->pose0, *loose->pose1);
     }
     root.box = Aabb::OfCapsule(root.capsule.a, root.capsule.b, root.capsule.radius);
     root.open = false;
@@ -58,7 +62,7 @@ void RootCandidates::FindOpen(LinkIndex first, TouchCheck touches, void* context
     for (int i : depth_first_) {
       const LinkIndex l(i);
       if (Dropped(l)) continue;
-      if (l >= first && !target_.Ignores(l, o) && !links_[l].open && !GroupCleared(l)) {
+      if (l >= first && !GroupCleared(l) && !links_[l].open && !target_.Ignores(l, o)) {
         link_order_.push_back(l);
       }
     }
@@ -105,18 +109,23 @@ void RootCandidates::BuildLinkTree(uint32_t index, uint32_t first, uint32_t last
   node.count = last - first;
   node.parent = parent;
   node.waiting = node.count;
-  node.box = Aabb::Empty();
-  for (uint32_t i = first; i < last; ++i) node.box.Grow(links_[link_order_[i]].box);
   if (node.count == 1) {
+    node.box = Aabb::Empty();  // Grown, as before (a NaN coordinate is left out).
+    node.box.Grow(links_[link_order_[first]].box);
     link_nodes_[index] = node;
     return;
   }
   const uint32_t half = first + node.count / 2;
   node.left = static_cast<uint32_t>(link_nodes_.size());  // Children side by side.
-  link_nodes_[index] = node;
-  link_nodes_.resize(node.left + 2);
+  link_nodes_.emplace_back();  // Within the reserved 2n: no reallocation.
+  link_nodes_.emplace_back();
   BuildLinkTree(node.left, first, half, index);
   BuildLinkTree(node.left + 1, half, last, index);
+  // The union of its links' boxes, from its children's (min and max are
+  // exact: the same bits as growing it link by link).
+  node.box = link_nodes_[node.left].box;
+  node.box.Grow(link_nodes_[node.left + 1].box);
+  link_nodes_[index] = node;
 }
 
 void RootCandidates::FindDual(uint32_t link_node, ObjectIndex object, uint32_t env_node) {

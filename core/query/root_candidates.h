@@ -30,9 +30,12 @@ class RootCandidates {
   /// whose SweptBounds::LooseOver capsules (each holding the link's
   /// whole-pair capsule) are tested instead; a link they leave closed is
   /// not open for the pair, and none of its poses is asked for.
+  /// `growth` (null: computed): by link, PairMotion::PairGrowthUpper
+  /// (SubtreeReach's copy), which the loose capsules read.
   struct LoosePoses {
     const Pose* pose0;
     const Pose* pose1;
+    const std::vector<double>* growth = nullptr;
   };
   RootCandidates(const EnvironmentTarget& target, const SweptBounds& bounds, CandidatePool* pool,
                  Buffers* buffers = nullptr, const std::vector<char>* group_cleared = nullptr,

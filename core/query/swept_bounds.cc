@@ -29,7 +29,8 @@ LinkCapsule SweptBounds::Over(LinkIndex link, double s0, double s1) const {
   return c;
 }
 
-LinkCapsule SweptBounds::LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1) const {
+LinkCapsule SweptBounds::LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1,
+                                   double growth) const {
   const Link& l = skeleton_.link(link);
   const LinkPose& x0 = pose0.links[link];
   const LinkPose& x1 = pose1.links[link];
@@ -40,8 +41,8 @@ LinkCapsule SweptBounds::LooseOver(LinkIndex link, const Pose& pose0, const Pose
   c.b = 0.5 * ((x0.p + r0 * l.b_L) + (x1.p + r1 * l.b_L));
   // Products by 2, 4 and 0.5 are exact (short of subnormals, which BoxPad
   // covers, as it covers the sums' rounding).
-  c.radius = l.radius + 2 * motion_.PairGrowthUpper(link) + tolerance_m_ +
-             4 * motion_.rounding_slack() + BoxPad(motion_.coordinate_scale());
+  c.radius = l.radius + 2 * growth + tolerance_m_ + 4 * motion_.rounding_slack() +
+             BoxPad(motion_.coordinate_scale());
   // A bound that is not finite meets everything (a NaN would meet nothing).
   if (!(c.radius <= std::numeric_limits<double>::max())) {
     c.radius = std::numeric_limits<double>::infinity();

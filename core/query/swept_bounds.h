@@ -50,7 +50,13 @@ class SweptBounds {
   /// 2 g over [0, 1] (SPEC 3; first order), so its place at s = 0.5 is
   /// within g of the midpoint of its two ends. docs/DESIGN.md, "Loose
   /// capsules".
-  LinkCapsule LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1) const;
+  LinkCapsule LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1) const {
+    return LooseOver(link, pose0, pose1, motion_.PairGrowthUpper(link));
+  }
+  /// As above with g given: `growth` must be motion().PairGrowthUpper(link)
+  /// (e.g. SubtreeReach's copy, computed before; the same bits while the
+  /// link's motion is not finished in between).
+  LinkCapsule LooseOver(LinkIndex link, const Pose& pose0, const Pose& pose1, double growth) const;
   double tolerance_m() const { return tolerance_m_; }
   const PairMotion& motion() const { return motion_; }
 

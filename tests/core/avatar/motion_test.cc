@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <sstream>
@@ -20,6 +21,7 @@
 #include "core/avatar/pose.h"
 #include "core/avatar/skeleton.h"
 #include "core/geometry/interval.h"
+#include "tests/common/test_scale.h"
 #include "tests/common/twin_motion.h"
 
 namespace sweptccd {
@@ -861,6 +863,39 @@ TEST(MotionTest, GrowthUpperEndsMatchIntervalExpressionsBitForBit) {
               Bits(second))
         << k;
   }
+}
+
+// The whole pair's first-order growth (FirstOrderGrowthOverPair, which
+// PairMotion::PairGrowthUpper reads for every link of a query) against its
+// two twins, bit for bit: FirstOrderGrowth over [0, 1] and the interval
+// expression it replaced, on random non-negative bounds of every magnitude
+// (zeros, subnormals, and values whose products overflow, so the interval
+// fallback answers too).
+TEST(MotionTest, WholePairGrowthMatchesFirstOrderGrowthBitForBit) {
+  std::mt19937_64 g(0x9a1f);
+  std::uniform_real_distribution<double> u01(0, 1);
+  auto value = [&]() {
+    const double r = u01(g);
+    if (r < 0.1) return 0.0;
+    if (r < 0.15) return std::ldexp(u01(g), -1060);  // Subnormal.
+    if (r < 0.5) return 10 * u01(g);
+    if (r < 0.6) return std::numeric_limits<double>::max() * u01(g);
+    return std::pow(10.0, -300 + 600 * u01(g)) * u01(g);
+  };
+  const int n = std::max(1000, static_cast<int>(1'000'000 * testing::TestScale()));
+  int overflowed = 0;
+  for (int k = 0; k < n; ++k) {
+    const double speed = value(), angular = value(), extent = value(), slack = value();
+    const double pair = internal::FirstOrderGrowthOverPair(speed, angular, extent, slack);
+    const Interval speed_all = Interval(speed) + Interval(angular) * Interval(extent);
+    const double twin =
+        (speed_all * ((Interval(1.0) - Interval(0.0)) * Interval(0.5)) + Interval(slack)).hi();
+    ASSERT_EQ(Bits(pair), Bits(internal::FirstOrderGrowth(speed, angular, extent, slack, 0, 1)))
+        << k;
+    ASSERT_EQ(Bits(pair), Bits(twin)) << k;
+    overflowed += pair > std::numeric_limits<double>::max() ? 1 : 0;
+  }
+  EXPECT_GT(overflowed, n / 100);  // The fallback was reached.
 }
 
 // The link bounds from upper ends alone give the interval arithmetic's bits

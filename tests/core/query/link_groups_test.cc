@@ -438,6 +438,16 @@ LooseHolding CheckLoose(uint64_t seed, int cases, double shrink) {
     std::vector<LinkCapsule> loose;
     for (LinkIndex l(0); l < n; ++l) loose.push_back(bounds.LooseOver(l, p0, p1));
     const LinkGroups groups(rig.skeleton);
+    // QueryRun::CullLoose hands LooseOver SubtreeReach's growth: the same
+    // capsule, bit for bit (nothing finished in between).
+    std::vector<double> reach, growth;
+    internal::SubtreeReach(groups, rig.skeleton, motion, &reach, &growth);
+    for (LinkIndex l(0); l < n; ++l) {
+      EXPECT_EQ(growth[l], motion.PairGrowthUpper(l)) << "link " << l;  // PairGrowthUppers.
+      const LinkCapsule given = bounds.LooseOver(l, p0, p1, growth[l]);
+      EXPECT_TRUE(given.a == loose[l].a && given.b == loose[l].b && given.radius == loose[l].radius)
+          << "link " << l;
+    }
     for (LinkIndex l : groups.preorder()) motion.CompleteEnds(l);
     const RefMotion ref{rig.skeleton, p0, p1};
     std::vector<std::vector<LinkPose>> samples;
