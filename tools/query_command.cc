@@ -140,8 +140,8 @@ int RunQueryCommand(const QueryCommandOptions& options) {
       const gpu::DescentStats d = descent->stats();
       spdlog::info(
           "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
-          "pairs over budget",
-          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+          "pairs over budget; {}",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
     } else if (backend.gpu()) {
       spdlog::info("GPU: {}", backend.DispatchSummary());
     }

@@ -150,8 +150,8 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       const gpu::DescentStats d = descent->stats();
       spdlog::info(
           "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
-          "pairs over budget",
-          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+          "pairs over budget; {}",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
     } else if (backend.gpu()) {
       spdlog::info("GPU: {}", backend.DispatchSummary());
     }

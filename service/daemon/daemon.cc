@@ -782,8 +782,8 @@ void Daemon::Stop() {
     const gpu::DescentStats d = impl_->descent->stats();
     spdlog::info(
         "GPU device descent: {} batches, {} pairs, {} dispatches, {} intervals tested, {} "
-        "cleared, {} pairs over budget",
-        d.batches, d.pairs, d.dispatches, d.items, d.cleared, d.over_budget);
+        "cleared, {} pairs over budget; {}",
+        d.batches, d.pairs, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
   } else if (impl_->backend && impl_->backend->gpu()) {
     spdlog::info("GPU: {}", impl_->backend->DispatchSummary());
   }
