@@ -56,7 +56,9 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
   // workers, skipping them.
   std::unique_ptr<gpu::DeviceDescent> descent;
   std::vector<int> descent_engine;
-  if (with_gpu) descent = gpu->MakeDescent(env, gpu::DescentOptions());
+  gpu::DescentOptions descent_options;
+  descent_options.host_threads = options.threads;  // The same workers' count.
+  if (with_gpu) descent = gpu->MakeDescent(env, descent_options);
   if (descent != nullptr) {
     for (const auto& engine : cpu_engines) descent_engine.push_back(descent->AddEngine(*engine));
   }

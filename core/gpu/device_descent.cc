@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 
 #include "core/avatar/motion.h"
@@ -13,6 +14,7 @@
 #include "core/gpu/descent_dispatch.h"
 #include "core/gpu/gpu_environment_buffers.h"
 #include "core/query/swept_bounds.h"
+#include "core/worker_pool.h"
 
 namespace sweptccd::gpu {
 
@@ -22,6 +24,21 @@ using Clock = std::chrono::steady_clock;
 
 double MicrosSince(Clock::time_point start) {
   return std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+}
+
+// Calls work(i) once for every i in [0, n): on the pool's workers, in
+// contiguous chunks (a few per worker), when there is a pool; else here.
+// Each i writes its own outputs only, so the results are the same either way.
+void ForEach(WorkerPool* pool, size_t n, const std::function<void(size_t)>& work) {
+  if (pool == nullptr || n < 2) {
+    for (size_t i = 0; i < n; ++i) work(i);
+    return;
+  }
+  const size_t chunks = std::min(n, static_cast<size_t>(pool->size()) * 8);
+  pool->Run(chunks, [&](size_t c, int) {
+    const size_t end = n * (c + 1) / chunks;
+    for (size_t i = n * c / chunks; i < end; ++i) work(i);
+  });
 }
 
 using internal::DescentItem;
@@ -113,6 +130,8 @@ DeviceDescent::DeviceDescent(std::shared_ptr<const GpuEnvironment> environment,
   options_.levels = std::clamp(options_.levels, 1, PairClears::kMaxLevels);
   options_.pair_budget = std::max(0, options_.pair_budget);
   options_.queue_capacity = std::max(2, options_.queue_capacity);
+  options_.host_threads = std::clamp(options_.host_threads, 1, 1024);
+  if (options_.host_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.host_threads);
   const GpuEnvironment::Buffers& b = env_->buffers();
   State& s = *state_;
   env_->context().Run([&] {
@@ -251,7 +270,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   std::vector<std::unique_ptr<PairMotion>> motions(pairs.size());
   std::vector<LinkPrep> prep(first_link.back());
   Clock::time_point phase = Clock::now();
-  for (size_t i = 0; i < pairs.size(); ++i) {
+  ForEach(pool_.get(), pairs.size(), [&](size_t i) {
     const State::EngineEntry& e = s.engines[pairs[i].engine];
     const Skeleton& skeleton = e.engine->skeleton();
     motions[i] = std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1,
@@ -265,7 +284,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       p.ok = Radii(motion, skeleton.link(l).radius, tolerance, l, levels, p.rad) &&
              GridPoint(motion, l, 0.5, &p.centre);
     }
-  }
+  });
   timing.host_us += MicrosSince(phase);
 
   // The tracks, in the pairs' order and each pair's links' order.
@@ -331,8 +350,8 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       // (grid_ok[t] = 0: a float cannot hold one; the track is not sent).
       std::vector<uint8_t> grid_ok(tracks.size(), 0);
       phase = Clock::now();
-      for (size_t t = 0; t < tracks.size(); ++t) {
-        if (cleared[t] & 1u) continue;
+      ForEach(pool_.get(), tracks.size(), [&](size_t t) {
+        if (cleared[t] & 1u) return;
         const PairMotion& motion = *motions[owners[t].pair];
         bool ok = true;
         for (uint32_t j = 0; j < per_track && ok; ++j) {
@@ -341,7 +360,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
                          &grid[t * per_track + j]);
         }
         grid_ok[t] = ok ? 1 : 0;
-      }
+      });
       timing.host_us += MicrosSince(phase);
       std::vector<uint32_t> open_links(pairs.size(), 0u);
       for (size_t t = 0; t < tracks.size(); ++t) {

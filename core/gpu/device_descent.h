@@ -22,6 +22,10 @@
 #include "core/query/ccd_query.h"
 #include "core/query/pair_clears.h"
 
+namespace sweptccd {
+class WorkerPool;
+}  // namespace sweptccd
+
 namespace sweptccd::gpu {
 
 struct DescentOptions {
@@ -34,6 +38,12 @@ struct DescentOptions {
   int pair_budget = 256;
   /// Work items one level's queue holds (all pairs); past it alike.
   int queue_capacity = 1 << 18;
+  /// Threads of Run's host preparation (the pairs' motions, the tracks'
+  /// grid points: independent, computed in parallel, assembled in order, so
+  /// the tracks, grid and items sent are the same for any count); 1: the
+  /// calling thread alone. The callers pass their worker count (--threads,
+  /// the daemon's workers).
+  int host_threads = 1;
 };
 
 /// Counts over every batch so far.
@@ -106,6 +116,9 @@ class DeviceDescent {
   uint64_t content_id_;
   DescentOptions options_;
   std::unique_ptr<State> state_;
+  // The host preparation's workers (null: one thread); used under mutex_
+  // only, one batch at a time.
+  std::unique_ptr<WorkerPool> pool_;
   mutable std::mutex mutex_;
   // Engines removed, their masks not yet freed (RemoveEngine never takes
   // mutex_, which a batch holds); under retired_mutex_.
