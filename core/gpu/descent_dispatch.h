@@ -52,6 +52,7 @@ struct DescentLevels {
   int stop_depth = 0;        // Nodes at depths below this are tested, deeper never.
   uint32_t pair_budget = 0;  // Items a pair may append (counted from `pushed`).
   uint32_t capacity = 0;     // Items one level's queue holds (even).
+  uint32_t max_steps = 0;    // The search's step cap (1 to kMaxSearchSteps; clamped).
 };
 
 class DescentDispatch {
@@ -78,7 +79,7 @@ class DescentDispatch {
   GLuint program_ = 0;
   // Tracks, grid, two queues, counters, cleared words.
   GLuint buffers_[6] = {0, 0, 0, 0, 0, 0};
-  GLint loc_[8] = {-1, -1, -1, -1, -1, -1, -1, -1};
+  GLint loc_[9] = {-1, -1, -1, -1, -1, -1, -1, -1, -1};
 };
 
 }  // namespace sweptccd::gpu::internal

@@ -11,6 +11,7 @@
 
 #include "core/avatar/motion.h"
 #include "core/errors.h"
+#include "core/gpu/cull_dispatch.h"
 #include "core/gpu/descent_dispatch.h"
 #include "core/gpu/gpu_environment_buffers.h"
 #include "core/query/swept_bounds.h"
@@ -131,6 +132,8 @@ DeviceDescent::DeviceDescent(std::shared_ptr<const GpuEnvironment> environment,
   options_.pair_budget = std::max(0, options_.pair_budget);
   options_.queue_capacity = std::max(2, options_.queue_capacity);
   options_.host_threads = std::clamp(options_.host_threads, 1, 1024);
+  options_.max_steps =
+      std::clamp(options_.max_steps, 1, static_cast<int>(internal::kMaxSearchSteps));
   if (options_.host_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.host_threads);
   const GpuEnvironment::Buffers& b = env_->buffers();
   State& s = *state_;
@@ -330,6 +333,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   run.grid_levels = levels;
   run.pair_budget = static_cast<uint32_t>(options_.pair_budget);
   run.capacity = static_cast<uint32_t>(options_.queue_capacity);
+  run.max_steps = static_cast<uint32_t>(options_.max_steps);
   internal::CullDispatch& cull = *env_->buffers().dispatch;
   try {
     // The whole pair first (the link culling step), for every link.

@@ -38,6 +38,13 @@ struct DescentOptions {
   int pair_budget = 256;
   /// Work items one level's queue holds (all pairs); past it alike.
   int queue_capacity = 1 << 18;
+  /// Steps one interval's search may take on the device (objects, BVH
+  /// nodes, triangles; 1 to 16,384, the culler's cap): past it the interval
+  /// "may touch" (never cleared), its halves are tested, and the CPU decides
+  /// what stays open. Smaller than the culler's: an interval whose search is
+  /// that long is near the geometry, and one long invocation holds up its
+  /// whole level's dispatch.
+  int max_steps = 2048;
   /// Threads of Run's host preparation (the pairs' motions, the tracks'
   /// grid points: independent, computed in parallel, assembled in order, so
   /// the tracks, grid and items sent are the same for any count); 1: the

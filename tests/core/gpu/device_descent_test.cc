@@ -317,6 +317,36 @@ TEST(DeviceDescentTest, HostThreadsGiveTheSameClears) {
   }
 }
 
+// The descent's step cap (DescentOptions::max_steps): a search past it
+// answers "may touch", its node's halves are tested and the CPU decides the
+// rest. With a cap of one step no search can end, so nothing is cleared;
+// with a small cap some are; either way nothing the CPU would not clear and
+// the records are the CPU backend's.
+TEST(DeviceDescentTest, ATinyStepCapClearsOnlyWhatTheCpuClears) {
+  RandomScene scene = MakeRandomScene(35, Vector3d(0, 0.3, 0), 50);
+  const CcdEngine engine(scene.skeleton, scene.env);
+  DescentOptions one_step;
+  one_step.max_steps = 1;
+  TwinCounts twin;
+  DescentStats stats =
+      CompareRecords(scene.env, engine, scene.pairs, QueryOptions(), one_step, "cap 1", &twin);
+  EXPECT_EQ(twin.misses, 0);
+  EXPECT_EQ(stats.cleared, 0);
+  EXPECT_GT(stats.items, stats.tracks);  // Every whole pair "may touch": halves tested.
+  DescentOptions few_steps;
+  few_steps.max_steps = 24;
+  twin = TwinCounts();
+  const DescentStats few =
+      CompareRecords(scene.env, engine, scene.pairs, QueryOptions(), few_steps, "cap 24", &twin);
+  EXPECT_EQ(twin.misses, 0);
+  EXPECT_GT(few.cleared, 0);
+  const DescentStats full = CompareRecords(scene.env, engine, scene.pairs, QueryOptions(),
+                                           DescentOptions(), "default cap");
+  std::printf("cleared with a cap of 1, 24 and %d steps: %lld, %lld, %lld\n",
+              DescentOptions().max_steps, static_cast<long long>(stats.cleared),
+              static_cast<long long>(few.cleared), static_cast<long long>(full.cleared));
+}
+
 // A still link (its growth is the rounding slack alone) with a small
 // triangle in the plane tangent to the CPU's capsule of the whole pair, at
 // the capsule's distance (touching) or a little farther but within the
