@@ -117,12 +117,11 @@ DescentDispatch::~DescentDispatch() {
   glDeleteProgram(program_);
 }
 
-int DescentDispatch::Run(const std::vector<DescentTrack>& tracks,
-                         const std::vector<DescentPoint>& grid,
-                         const std::vector<DescentItem>& items, const DescentLevels& levels,
-                         GLuint masks, uint32_t mask_words, std::vector<uint32_t>* pushed,
-                         std::vector<uint32_t>* flags, std::vector<uint32_t>* cleared,
-                         int64_t* tested) {
+int DescentDispatch::Run(const std::vector<DescentTrack>& tracks, const DescentPoint* grid,
+                         size_t grid_size, const std::vector<DescentItem>& items,
+                         const DescentLevels& levels, GLuint masks, uint32_t mask_words,
+                         std::vector<uint32_t>* pushed, std::vector<uint32_t>* flags,
+                         std::vector<uint32_t>* cleared, int64_t* tested) {
   if (items.empty() || tracks.empty()) return 0;
   const size_t num_pairs = pushed->size();
   const uint32_t capacity = std::max<uint32_t>(2, levels.capacity & ~1u);
@@ -132,7 +131,7 @@ int DescentDispatch::Run(const std::vector<DescentTrack>& tracks,
   GLuint& counters_buf = buffers_[4];
   GLuint& cleared_buf = buffers_[5];
   Fill(tracks_buf, tracks.data(), tracks.size() * sizeof(DescentTrack));
-  Fill(grid_buf, grid.data(), grid.size() * sizeof(DescentPoint));
+  Fill(grid_buf, grid, grid_size * sizeof(DescentPoint));
   const size_t queue_items = std::max<size_t>(items.size(), capacity);
   Fill(queue[0], nullptr, queue_items * sizeof(DescentItem));
   glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0,

@@ -64,12 +64,13 @@ class DescentDispatch {
   DescentDispatch& operator=(const DescentDispatch&) = delete;
 
   /// Runs the levels from `items` (any depths below stop_depth) until the
-  /// queue is empty or stop_depth is reached. `pushed[p]` (in: items pair p
+  /// queue is empty or stop_depth is reached; `grid`: grid_size points
+  /// (2^grid_levels + 1 per track, from the track's meta[3]). `pushed[p]` (in: items pair p
   /// already holds; out: after the run) and `flags[p]` (out, ORed) per pair;
   /// `cleared[t]` (out, ORed) per track: bit 2^depth - 1 + k. `masks` and
   /// `mask_words`: the filters' mask buffer (CullDispatch). Returns the
   /// dispatches made; adds the items tested to *tested. Throws GpuError.
-  int Run(const std::vector<DescentTrack>& tracks, const std::vector<DescentPoint>& grid,
+  int Run(const std::vector<DescentTrack>& tracks, const DescentPoint* grid, size_t grid_size,
           const std::vector<DescentItem>& items, const DescentLevels& levels, GLuint masks,
           uint32_t mask_words, std::vector<uint32_t>* pushed, std::vector<uint32_t>* flags,
           std::vector<uint32_t>* cleared, int64_t* tested);

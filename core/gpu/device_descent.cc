@@ -28,19 +28,29 @@ double MicrosSince(Clock::time_point start) {
 }
 
 // Calls work(i) once for every i in [0, n): on the pool's workers, in
-// contiguous chunks (a few per worker), when there is a pool; else here.
-// Each i writes its own outputs only, so the results are the same either way.
-void ForEach(WorkerPool* pool, size_t n, const std::function<void(size_t)>& work) {
-  if (pool == nullptr || n < 2) {
+// contiguous chunks (a few per worker, at least `min_chunk` items each, so
+// that waking the workers costs less than the chunk), when there is a pool
+// and at least two such chunks; else here. Each i writes its own outputs
+// only, so the results are the same either way.
+void ForEach(WorkerPool* pool, size_t n, size_t min_chunk,
+             const std::function<void(size_t)>& work) {
+  const size_t chunks =
+      pool == nullptr ? 0 : std::min(n / min_chunk, static_cast<size_t>(pool->size()) * 8);
+  if (chunks < 2) {
     for (size_t i = 0; i < n; ++i) work(i);
     return;
   }
-  const size_t chunks = std::min(n, static_cast<size_t>(pool->size()) * 8);
   pool->Run(chunks, [&](size_t c, int) {
     const size_t end = n * (c + 1) / chunks;
     for (size_t i = n * c / chunks; i < end; ++i) work(i);
   });
 }
+
+// The fewest items a worker takes at once: the whole preparation of a pair
+// of 20 links took 25-30 us on one thread of the development machine
+// (docs/GPU.md, "Where the device descent's time goes"), so a chunk of 8
+// pairs or 64 tracks is some 100 us, well above waking the workers.
+constexpr size_t kPairsPerChunk = 8, kTracksPerChunk = 64;
 
 using internal::DescentItem;
 using internal::DescentPoint;
@@ -273,7 +283,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   std::vector<std::unique_ptr<PairMotion>> motions(pairs.size());
   std::vector<LinkPrep> prep(first_link.back());
   Clock::time_point phase = Clock::now();
-  ForEach(pool_.get(), pairs.size(), [&](size_t i) {
+  ForEach(pool_.get(), pairs.size(), kPairsPerChunk, [&](size_t i) {
     const State::EngineEntry& e = s.engines[pairs[i].engine];
     const Skeleton& skeleton = e.engine->skeleton();
     motions[i] = std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1,
@@ -321,11 +331,19 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       items.push_back({index, 0u});
     }
   }
-  std::vector<DescentPoint> grid(tracks.size() * per_track);
-  for (size_t t = 0; t < tracks.size(); ++t) {
-    grid[t * per_track + mid] =
-        prep[first_link[owners[t].pair] + static_cast<size_t>(owners[t].link.value())].centre;
-  }
+  // The grid: zeros but each track's middle point (the other points of the
+  // tracks left open are written below), track by track on the workers: the
+  // first touch of 33 points of 32 bytes per track (86 MB for 4,096 pairs of
+  // 20 links) is spread over them, not zeroed on this thread.
+  std::unique_ptr<DescentPoint[]> grid(new DescentPoint[tracks.size() * per_track]);
+  phase = Clock::now();
+  ForEach(pool_.get(), tracks.size(), kTracksPerChunk, [&](size_t t) {
+    DescentPoint* g = grid.get() + t * per_track;
+    std::fill(g, g + per_track, DescentPoint{});
+    g[mid] = prep[first_link[owners[t].pair] + static_cast<size_t>(owners[t].link.value())].centre;
+  });
+  timing.host_us += MicrosSince(phase);
+  const size_t grid_size = tracks.size() * per_track;
   s.stats.tracks += static_cast<int64_t>(tracks.size());
   std::vector<uint32_t> cleared(tracks.size(), 0u), pushed(pairs.size(), 0u),
       flags(pairs.size(), 0u);
@@ -342,7 +360,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
     int64_t tested = 0;
     phase = Clock::now();
     env_->context().Run([&] {
-      dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
+      dispatches += s.dispatch->Run(tracks, grid.get(), grid_size, items, run, cull.masks_buffer(),
                                     cull.mask_words(), &pushed, &flags, &cleared, &tested);
     });
     timing.device_us += MicrosSince(phase);
@@ -354,7 +372,7 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       // (grid_ok[t] = 0: a float cannot hold one; the track is not sent).
       std::vector<uint8_t> grid_ok(tracks.size(), 0);
       phase = Clock::now();
-      ForEach(pool_.get(), tracks.size(), [&](size_t t) {
+      ForEach(pool_.get(), tracks.size(), kTracksPerChunk, [&](size_t t) {
         if (cleared[t] & 1u) return;
         const PairMotion& motion = *motions[owners[t].pair];
         bool ok = true;
@@ -390,8 +408,9 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       if (!items.empty()) {
         phase = Clock::now();
         env_->context().Run([&] {
-          dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
-                                        cull.mask_words(), &pushed, &flags, &cleared, &tested);
+          dispatches +=
+              s.dispatch->Run(tracks, grid.get(), grid_size, items, run, cull.masks_buffer(),
+                              cull.mask_words(), &pushed, &flags, &cleared, &tested);
         });
         timing.device_us += MicrosSince(phase);
       }

@@ -65,7 +65,8 @@ struct DescentStats {
   int64_t over_budget = 0;  // Pairs cut short by their budget or the queue's capacity.
   // Where Run's time went (wall clock, microseconds, summed over the batches;
   // from the batch's lock taken to its return): the host's preparation (the
-  // pairs' motions, the tracks' growth constants and grid points), the
+  // pairs' motions, the tracks' growth constants, the grid written and its
+  // points computed), the
   // device's part (every context().Run: uploads, dispatches, waits,
   // read-backs), and the rest (the clears reset, the items and tracks
   // assembled, the cleared words handed back).
