@@ -263,12 +263,12 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   std::vector<size_t> first_link(pairs.size() + 1, 0);  // Per pair: its first link's slot.
   for (size_t i = 0; i < pairs.size(); ++i) {
     SWEPTCCD_CHECK(pairs[i].engine >= 0 && pairs[i].engine < static_cast<int>(s.engines.size()));
-    SWEPTCCD_CHECK(pairs[i].pose1->utime > pairs[i].pose0->utime);
     const int num_links = s.engines[pairs[i].engine].engine->skeleton().num_links();
     (*clears)[i].Reset(num_links, levels);
     first_link[i + 1] = first_link[i] + static_cast<size_t>(num_links);
   }
   if (s.failed || pairs.empty()) return !s.failed;
+  for (const Pair& pair : pairs) SWEPTCCD_CHECK(pair.pose1->utime > pair.pose0->utime);
   ++s.stats.batches;
   s.stats.pairs += static_cast<int64_t>(pairs.size());
 
