@@ -56,7 +56,9 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
   // workers, skipping them.
   std::unique_ptr<gpu::DeviceDescent> descent;
   std::vector<int> descent_engine;
-  if (with_gpu) descent = gpu->MakeDescent(env, gpu::DescentOptions());
+  gpu::DescentOptions descent_options;
+  descent_options.host_threads = options.threads;  // The same workers' count.
+  if (with_gpu) descent = gpu->MakeDescent(env, descent_options);
   if (descent != nullptr) {
     for (const auto& engine : cpu_engines) descent_engine.push_back(descent->AddEngine(*engine));
   }
@@ -147,6 +149,12 @@ std::vector<SweepRow> RunSweep(const std::string& scene, const Environment& env,
         row.capsules = descent_after.items - descent_before.items;
         row.cleared = descent_after.cleared - descent_before.cleared;
         row.over_budget = descent_after.over_budget - descent_before.over_budget;
+        const double n = static_cast<double>(batches);
+        row.descent_host_us = (descent_after.host_us - descent_before.host_us) / n;
+        row.descent_device_us = (descent_after.device_us - descent_before.device_us) / n;
+        row.descent_other_us = (descent_after.other_us - descent_before.other_us) / n;
+        row.descent_queries_us = std::max(0.0, 1e6 * seconds[m] / n - row.descent_host_us -
+                                                   row.descent_device_us - row.descent_other_us);
       }
       rows.push_back(row);
     }
@@ -159,9 +167,10 @@ std::string FormatSweep(const std::vector<SweepRow>& rows, bool markdown) {
   char line[512];
   const char* head =
       "| scene | batch | method | pairs | pairs/s | batch median us | batch p99 us | batch max us "
-      "| dispatches | capsules/dispatch | requests/dispatch | differ |\n";
+      "| dispatches | capsules/dispatch | requests/dispatch | differ "
+      "| descent mean us: host / device / rest / queries |\n";
   out += head;
-  if (markdown) out += "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  if (markdown) out += "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const SweepRow& r : rows) {
     const bool gpu = r.method.rfind("gpu", 0) == 0;
     char dispatch[128] = "";
@@ -173,11 +182,16 @@ std::string FormatSweep(const std::vector<SweepRow>& rows, bool markdown) {
     } else {
       std::snprintf(dispatch, sizeof(dispatch), "- | - | -");
     }
+    char times[128] = "-";
+    if (r.method.find("descent") != std::string::npos) {
+      std::snprintf(times, sizeof(times), "%.1f / %.1f / %.1f / %.1f", r.descent_host_us,
+                    r.descent_device_us, r.descent_other_us, r.descent_queries_us);
+    }
     std::snprintf(line, sizeof(line),
-                  "| %s | %d | %s | %lld | %.0f | %.1f | %.1f | %.1f | %s | %lld |\n",
+                  "| %s | %d | %s | %lld | %.0f | %.1f | %.1f | %.1f | %s | %lld | %s |\n",
                   r.scene.c_str(), r.batch, r.method.c_str(), static_cast<long long>(r.pairs),
                   r.pairs_per_s, r.batch_us.median, r.batch_us.p99, r.batch_us.max, dispatch,
-                  static_cast<long long>(r.differ));
+                  static_cast<long long>(r.differ), times);
     out += line;
   }
   return out;

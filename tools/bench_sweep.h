@@ -10,7 +10,9 @@
 // second at saturation (the batch's pairs over the batch's wall time, summed
 // over the batches) and the batch's latency (median, p99, max); for the GPU,
 // its dispatches and capsules per dispatch, and the pairs whose answer
-// differs from the CPU's (must be 0).
+// differs from the CPU's (must be 0); for the device descent, where its
+// mean batch's time went (host preparation / device / rest of Run / CPU
+// queries).
 
 #include <string>
 #include <vector>
@@ -50,6 +52,10 @@ struct SweepRow {
   // it left to the CPU past their budget.
   int64_t dispatches = 0, requests = 0, capsules = 0, differ = -1;
   int64_t cleared = 0, over_budget = 0;
+  // The device descent only: the mean batch's time in DeviceDescent::Run's
+  // host preparation, device part and rest (DescentStats), and in the CPU
+  // queries after it (the batch's wall time less Run's), microseconds.
+  double descent_host_us = 0, descent_device_us = 0, descent_other_us = 0, descent_queries_us = 0;
 };
 
 /// Runs the sweep on one scene; `gpu` null: the CPU methods only.

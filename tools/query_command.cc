@@ -60,7 +60,9 @@ int RunQueryCommand(const QueryCommandOptions& options) {
     // engine (no culler: what the device left is decided by the CPU).
     std::unique_ptr<gpu::DeviceDescent> descent;
     if (options.device_descent && backend.gpu()) {
-      descent = backend.MakeDescent(env, gpu::DescentOptions());
+      gpu::DescentOptions descent_options;
+      descent_options.host_threads = options.threads;
+      descent = backend.MakeDescent(env, descent_options);
     }
     int descent_engine = 0;
     if (descent != nullptr) {
@@ -140,8 +142,8 @@ int RunQueryCommand(const QueryCommandOptions& options) {
       const gpu::DescentStats d = descent->stats();
       spdlog::info(
           "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
-          "pairs over budget",
-          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+          "pairs over budget; {}",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
     } else if (backend.gpu()) {
       spdlog::info("GPU: {}", backend.DispatchSummary());
     }

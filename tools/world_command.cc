@@ -60,7 +60,9 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     // decided by the CPU). Not with an empty environment (every part free).
     std::unique_ptr<gpu::DeviceDescent> descent;
     if (options.device_descent && backend.gpu() && loaded.env.num_objects() > 0) {
-      descent = backend.MakeDescent(loaded.env, gpu::DescentOptions());
+      gpu::DescentOptions descent_options;
+      descent_options.host_threads = options.threads;
+      descent = backend.MakeDescent(loaded.env, descent_options);
     }
     // The descent's engine of each avatar: answerers[0]'s (every answerer's
     // engine of an avatar has the same skeleton, filter and environment).
@@ -150,8 +152,8 @@ int RunWorldCommand(const WorldCommandOptions& options) {
       const gpu::DescentStats d = descent->stats();
       spdlog::info(
           "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
-          "pairs over budget",
-          d.batches, d.dispatches, d.items, d.cleared, d.over_budget);
+          "pairs over budget; {}",
+          d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
     } else if (backend.gpu()) {
       spdlog::info("GPU: {}", backend.DispatchSummary());
     }

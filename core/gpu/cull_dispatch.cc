@@ -147,19 +147,22 @@ bool BoxesOverlap(vec3 lo0, vec3 hi0, vec3 lo1, vec3 hi1) {
 }
 
 // The whole search is one loop, each iteration one step: the next object,
-// one BVH node, or one triangle of the leaf in hand. Past kMaxSteps steps
-// the invocation gives up and answers "may touch" (the CPU decides). A
+// one BVH node, or one triangle of the leaf in hand. Past u_max_steps steps
+// (set by the host: kCullMaxSteps for the culler, DescentOptions::max_steps
+// for the device descent, never above kMaxSearchSteps, cull_dispatch.h) the
+// invocation gives up and answers "may touch" (the CPU decides). A
 // driver may end long loops on its own: Mesa's llvmpipe ends a shader's
 // loops, silently, once their iterations reach 65535
 // (LP_MAX_TGSI_LOOP_ITERATIONS, one count for all loops, kept per group of
 // invocations run together in SIMD lanes), which left a traversal
 // unfinished and its capsule "cleared" (misses on the Stanford bunny,
 // GpuCullerTest.LongTraversalsAreNeverCleared). With one loop, a group runs
-// it as often as its busiest invocation, at most kMaxSteps + 2 times, far
+// it as often as its busiest invocation, at most u_max_steps + 2 times, far
 // below that limit; and only a search that reached its end writes kCleared,
-// so an unfinished one can only answer "may touch".
+// so an unfinished one can only answer "may touch" (a cap left unset reads
+// 0: nothing is cleared).
 // The cap also bounds one capsule's time on a real GPU.
-const uint kMaxSteps = 16384u;
+uniform uint u_max_steps;
 
 // kCleared when every unfiltered triangle is certified farther than r from
 // segment a-b (lo, hi: a box holding the capsule; link and mask_base: whose
@@ -173,7 +176,7 @@ uint Search(vec3 a, vec3 b, float r, vec3 lo, vec3 hi, uint link, uint mask_base
   uvec4 obj = uvec4(0u);          // The current object: node offset, slot offset, nodes.
   uint leaf = 0u, leaf_end = 0u;  // Slots left of the leaf in hand, [leaf, leaf_end).
   for (uint steps = 0u; hit == 0u; ++steps) {
-    if (steps >= kMaxSteps) { hit = 1u; break; }
+    if (steps >= u_max_steps) { hit = 1u; break; }
     if (leaf < leaf_end) {  // A triangle of the leaf in hand.
       uint t = 9u * (obj.y + leaf);
       ++leaf;
@@ -298,6 +301,7 @@ CullDispatch::CullDispatch(const EnvironmentBuffers& env, Transfer transfer)
   loc_num_capsules_ = glGetUniformLocation(program_, "u_num_capsules");
   loc_num_objects_ = glGetUniformLocation(program_, "u_num_objects");
   loc_mask_words_ = glGetUniformLocation(program_, "u_mask_words");
+  loc_max_steps_ = glGetUniformLocation(program_, "u_max_steps");
   glGenBuffers(1, &masks_buffer_);
   CheckGl("creating the swept-volume test");
 }
@@ -415,6 +419,7 @@ void CullDispatch::Run(const GpuCapsule* capsules, size_t n, uint32_t* answers) 
   glUniform1ui(loc_num_capsules_, static_cast<GLuint>(n));
   glUniform1ui(loc_num_objects_, env_.num_objects);
   glUniform1ui(loc_mask_words_, mask_words_);
+  glUniform1ui(loc_max_steps_, kCullMaxSteps);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, env_.nodes);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, env_.tris);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, env_.objects);

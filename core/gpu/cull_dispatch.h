@@ -39,6 +39,13 @@ static_assert(sizeof(GpuCapsule) == 80, "std430 layout of Capsule");
 /// any other value means "may touch".
 constexpr uint32_t kClearedAnswer = 0xC1EA4EDu;
 
+/// The search's step cap (u_max_steps of SearchGlsl): past it an invocation
+/// answers "may touch". kMaxSearchSteps: the most a host may set, far below
+/// llvmpipe's 65,535 loop iterations per group of invocations (cull_dispatch.cc,
+/// "The whole search is one loop"); kCullMaxSteps: the culler's.
+constexpr uint32_t kMaxSearchSteps = 16384;
+constexpr uint32_t kCullMaxSteps = 16384;
+
 using gpu::Transfer;
 
 /// The environment's buffers the shader reads.
@@ -49,7 +56,8 @@ struct EnvironmentBuffers {
 
 /// The compute shaders' first lines (#version, the work group size), and
 /// the swept-volume search they share: bindings 0-3 (nodes, triangles,
-/// objects, masks), uniforms u_num_objects and u_mask_words, and
+/// objects, masks), uniforms u_num_objects, u_mask_words and u_max_steps
+/// (the step cap, 1 to kMaxSearchSteps), and
 /// `uint Search(vec3 a, vec3 b, float r, vec3 lo, vec3 hi, uint link, uint
 /// mask_base)`, kCleared (0xC1EA4ED) only for a capsule proved clear.
 std::string ShaderHead();
@@ -91,7 +99,7 @@ class CullDispatch {
   EnvironmentBuffers env_;
   Transfer transfer_;
   GLuint program_ = 0;
-  GLint loc_num_capsules_ = -1, loc_num_objects_ = -1, loc_mask_words_ = -1;
+  GLint loc_num_capsules_ = -1, loc_num_objects_ = -1, loc_mask_words_ = -1, loc_max_steps_ = -1;
   uint32_t mask_words_ = 1;
   // The mask tables of every filter, host copy of the buffer.
   GLuint masks_buffer_ = 0;

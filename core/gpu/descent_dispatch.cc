@@ -22,7 +22,9 @@ namespace {
 // The box: lo = (m - r) - (|m| + r) 2^-18 errs by at most 3 2^-23 (|m| + r)
 // towards m, less than the 2^-18 (|m| + r) taken off (r >= 1e-20, checked by
 // the host, so that product cannot underflow); hi alike. Then the search of
-// today's culler (SearchGlsl), unchanged.
+// today's culler (SearchGlsl), unchanged, with the descent's own step cap
+// (DescentOptions::max_steps; past it the node "may touch" and its halves
+// are tested).
 constexpr char kDescentMain[] = R"GLSL(
 struct Track { uvec4 meta; vec4 rad; };
 layout(std430, binding = 4) readonly buffer Tracks { Track tracks[]; };
@@ -102,9 +104,10 @@ void Fill(GLuint buffer, const void* data, size_t bytes) {
 DescentDispatch::DescentDispatch(GLuint nodes, GLuint tris, GLuint objects, GLuint num_objects)
     : nodes_(nodes), tris_(tris), objects_(objects), num_objects_(num_objects) {
   program_ = CompileProgram((ShaderHead() + SearchGlsl() + kDescentMain).c_str());
-  const char* names[8] = {"u_num_objects", "u_mask_words", "u_num_items",   "u_num_tracks",
-                          "u_grid_levels", "u_stop_depth", "u_pair_budget", "u_capacity"};
-  for (int i = 0; i < 8; ++i) loc_[i] = glGetUniformLocation(program_, names[i]);
+  const char* names[9] = {"u_num_objects", "u_mask_words",  "u_num_items",
+                          "u_num_tracks",  "u_grid_levels", "u_stop_depth",
+                          "u_pair_budget", "u_capacity",    "u_max_steps"};
+  for (int i = 0; i < 9; ++i) loc_[i] = glGetUniformLocation(program_, names[i]);
   glGenBuffers(6, buffers_);
   CheckGl("creating the device descent");
 }
@@ -114,12 +117,11 @@ DescentDispatch::~DescentDispatch() {
   glDeleteProgram(program_);
 }
 
-int DescentDispatch::Run(const std::vector<DescentTrack>& tracks,
-                         const std::vector<DescentPoint>& grid,
-                         const std::vector<DescentItem>& items, const DescentLevels& levels,
-                         GLuint masks, uint32_t mask_words, std::vector<uint32_t>* pushed,
-                         std::vector<uint32_t>* flags, std::vector<uint32_t>* cleared,
-                         int64_t* tested) {
+int DescentDispatch::Run(const std::vector<DescentTrack>& tracks, const DescentPoint* grid,
+                         size_t grid_size, const std::vector<DescentItem>& items,
+                         const DescentLevels& levels, GLuint masks, uint32_t mask_words,
+                         std::vector<uint32_t>* pushed, std::vector<uint32_t>* flags,
+                         std::vector<uint32_t>* cleared, int64_t* tested) {
   if (items.empty() || tracks.empty()) return 0;
   const size_t num_pairs = pushed->size();
   const uint32_t capacity = std::max<uint32_t>(2, levels.capacity & ~1u);
@@ -129,7 +131,7 @@ int DescentDispatch::Run(const std::vector<DescentTrack>& tracks,
   GLuint& counters_buf = buffers_[4];
   GLuint& cleared_buf = buffers_[5];
   Fill(tracks_buf, tracks.data(), tracks.size() * sizeof(DescentTrack));
-  Fill(grid_buf, grid.data(), grid.size() * sizeof(DescentPoint));
+  Fill(grid_buf, grid, grid_size * sizeof(DescentPoint));
   const size_t queue_items = std::max<size_t>(items.size(), capacity);
   Fill(queue[0], nullptr, queue_items * sizeof(DescentItem));
   glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0,
@@ -149,6 +151,7 @@ int DescentDispatch::Run(const std::vector<DescentTrack>& tracks,
   glUniform1ui(loc_[5], static_cast<GLuint>(levels.stop_depth));
   glUniform1ui(loc_[6], levels.pair_budget);
   glUniform1ui(loc_[7], capacity);
+  glUniform1ui(loc_[8], std::clamp<uint32_t>(levels.max_steps, 1, kMaxSearchSteps));
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, nodes_);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, tris_);
   glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 2, objects_);

@@ -52,6 +52,7 @@ struct DescentLevels {
   int stop_depth = 0;        // Nodes at depths below this are tested, deeper never.
   uint32_t pair_budget = 0;  // Items a pair may append (counted from `pushed`).
   uint32_t capacity = 0;     // Items one level's queue holds (even).
+  uint32_t max_steps = 0;    // The search's step cap (1 to kMaxSearchSteps; clamped).
 };
 
 class DescentDispatch {
@@ -63,12 +64,13 @@ class DescentDispatch {
   DescentDispatch& operator=(const DescentDispatch&) = delete;
 
   /// Runs the levels from `items` (any depths below stop_depth) until the
-  /// queue is empty or stop_depth is reached. `pushed[p]` (in: items pair p
+  /// queue is empty or stop_depth is reached; `grid`: grid_size points
+  /// (2^grid_levels + 1 per track, from the track's meta[3]). `pushed[p]` (in: items pair p
   /// already holds; out: after the run) and `flags[p]` (out, ORed) per pair;
   /// `cleared[t]` (out, ORed) per track: bit 2^depth - 1 + k. `masks` and
   /// `mask_words`: the filters' mask buffer (CullDispatch). Returns the
   /// dispatches made; adds the items tested to *tested. Throws GpuError.
-  int Run(const std::vector<DescentTrack>& tracks, const std::vector<DescentPoint>& grid,
+  int Run(const std::vector<DescentTrack>& tracks, const DescentPoint* grid, size_t grid_size,
           const std::vector<DescentItem>& items, const DescentLevels& levels, GLuint masks,
           uint32_t mask_words, std::vector<uint32_t>* pushed, std::vector<uint32_t>* flags,
           std::vector<uint32_t>* cleared, int64_t* tested);
@@ -78,7 +80,7 @@ class DescentDispatch {
   GLuint program_ = 0;
   // Tracks, grid, two queues, counters, cleared words.
   GLuint buffers_[6] = {0, 0, 0, 0, 0, 0};
-  GLint loc_[8] = {-1, -1, -1, -1, -1, -1, -1, -1};
+  GLint loc_[9] = {-1, -1, -1, -1, -1, -1, -1, -1, -1};
 };
 
 }  // namespace sweptccd::gpu::internal

@@ -3,18 +3,54 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <functional>
 #include <limits>
 
 #include "core/avatar/motion.h"
 #include "core/errors.h"
+#include "core/gpu/cull_dispatch.h"
 #include "core/gpu/descent_dispatch.h"
 #include "core/gpu/gpu_environment_buffers.h"
 #include "core/query/swept_bounds.h"
+#include "core/worker_pool.h"
 
 namespace sweptccd::gpu {
 
 namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MicrosSince(Clock::time_point start) {
+  return std::chrono::duration<double, std::micro>(Clock::now() - start).count();
+}
+
+// Calls work(i) once for every i in [0, n): on the pool's workers, in
+// contiguous chunks (a few per worker, at least `min_chunk` items each, so
+// that waking the workers costs less than the chunk), when there is a pool
+// and at least two such chunks; else here. Each i writes its own outputs
+// only, so the results are the same either way.
+void ForEach(WorkerPool* pool, size_t n, size_t min_chunk,
+             const std::function<void(size_t)>& work) {
+  const size_t chunks =
+      pool == nullptr ? 0 : std::min(n / min_chunk, static_cast<size_t>(pool->size()) * 8);
+  if (chunks < 2) {
+    for (size_t i = 0; i < n; ++i) work(i);
+    return;
+  }
+  pool->Run(chunks, [&](size_t c, int) {
+    const size_t end = n * (c + 1) / chunks;
+    for (size_t i = n * c / chunks; i < end; ++i) work(i);
+  });
+}
+
+// The fewest items a worker takes at once: the whole preparation of a pair
+// of 20 links took 25-30 us on one thread of the development machine
+// (docs/GPU.md, "Where the device descent's time goes"), so a chunk of 8
+// pairs or 64 tracks is some 100 us, well above waking the workers.
+constexpr size_t kPairsPerChunk = 8, kTracksPerChunk = 64;
 
 using internal::DescentItem;
 using internal::DescentPoint;
@@ -105,6 +141,10 @@ DeviceDescent::DeviceDescent(std::shared_ptr<const GpuEnvironment> environment,
   options_.levels = std::clamp(options_.levels, 1, PairClears::kMaxLevels);
   options_.pair_budget = std::max(0, options_.pair_budget);
   options_.queue_capacity = std::max(2, options_.queue_capacity);
+  options_.host_threads = std::clamp(options_.host_threads, 1, 1024);
+  options_.max_steps =
+      std::clamp(options_.max_steps, 1, static_cast<int>(internal::kMaxSearchSteps));
+  if (options_.host_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.host_threads);
   const GpuEnvironment::Buffers& b = env_->buffers();
   State& s = *state_;
   env_->context().Run([&] {
@@ -187,6 +227,14 @@ void DeviceDescent::FreeRetiredLocked() {
   }
 }
 
+std::string DescentTimes(const DescentStats& stats) {
+  char line[160];
+  std::snprintf(line, sizeof(line),
+                "in Run: host preparation %.1f ms, device %.1f ms, rest %.1f ms",
+                stats.host_us / 1000, stats.device_us / 1000, stats.other_us / 1000);
+  return line;
+}
+
 DescentStats DeviceDescent::stats() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return state_->stats;
@@ -196,19 +244,63 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
                         std::vector<PairClears>* clears) {
   std::lock_guard<std::mutex> lock(mutex_);
   State& s = *state_;
+  // Where the time goes (DescentStats::host_us, device_us, other_us),
+  // counted at every return.
+  struct Timing {
+    DescentStats* stats;
+    Clock::time_point start = Clock::now();
+    double host_us = 0, device_us = 0;
+    ~Timing() {
+      const double total = MicrosSince(start);
+      stats->host_us += host_us;
+      stats->device_us += device_us;
+      stats->other_us += std::max(0.0, total - host_us - device_us);
+    }
+  } timing{&s.stats};
   FreeRetiredLocked();
   const int levels = options_.levels;
   clears->resize(pairs.size());
+  std::vector<size_t> first_link(pairs.size() + 1, 0);  // Per pair: its first link's slot.
   for (size_t i = 0; i < pairs.size(); ++i) {
     SWEPTCCD_CHECK(pairs[i].engine >= 0 && pairs[i].engine < static_cast<int>(s.engines.size()));
-    (*clears)[i].Reset(s.engines[pairs[i].engine].engine->skeleton().num_links(), levels);
+    const int num_links = s.engines[pairs[i].engine].engine->skeleton().num_links();
+    (*clears)[i].Reset(num_links, levels);
+    first_link[i + 1] = first_link[i] + static_cast<size_t>(num_links);
   }
   if (s.failed || pairs.empty()) return !s.failed;
+  for (const Pair& pair : pairs) SWEPTCCD_CHECK(pair.pose1->utime > pair.pose0->utime);
   ++s.stats.batches;
   s.stats.pairs += static_cast<int64_t>(pairs.size());
 
-  // The pairs' motions, as their queries will build them.
+  // The host's preparation, pair by pair (independent): the pairs' motions,
+  // as their queries will build them, and each link's growth constants and
+  // grid point at the middle (false: a float cannot hold them).
+  struct LinkPrep {
+    float rad[4];
+    DescentPoint centre;
+    bool ok;
+  };
   std::vector<std::unique_ptr<PairMotion>> motions(pairs.size());
+  std::vector<LinkPrep> prep(first_link.back());
+  Clock::time_point phase = Clock::now();
+  ForEach(pool_.get(), pairs.size(), kPairsPerChunk, [&](size_t i) {
+    const State::EngineEntry& e = s.engines[pairs[i].engine];
+    const Skeleton& skeleton = e.engine->skeleton();
+    motions[i] = std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1,
+                                              pairs[i].motion.value_or(options.motion));
+    const PairMotion& motion = *motions[i];
+    const double tolerance =
+        sweptccd::internal::SweptBounds::Tolerance(e.engine->environment(), motion);
+    for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
+      LinkPrep& p = prep[first_link[i] + static_cast<size_t>(l.value())];
+      p = LinkPrep{};
+      p.ok = Radii(motion, skeleton.link(l).radius, tolerance, l, levels, p.rad) &&
+             GridPoint(motion, l, 0.5, &p.centre);
+    }
+  });
+  timing.host_us += MicrosSince(phase);
+
+  // The tracks, in the pairs' order and each pair's links' order.
   struct TrackOf {
     uint32_t pair;
     LinkIndex link;
@@ -217,40 +309,41 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   std::vector<DescentTrack> tracks;
   const size_t per_track = (size_t{1} << levels) + 1;
   const uint32_t mid = 1u << (levels - 1);
-  std::vector<DescentPoint> grid;
   std::vector<DescentItem> items;
   for (size_t i = 0; i < pairs.size(); ++i) {
     const State::EngineEntry& e = s.engines[pairs[i].engine];
-    const Skeleton& skeleton = e.engine->skeleton();
-    SWEPTCCD_CHECK(pairs[i].pose1->utime > pairs[i].pose0->utime);
-    motions[i] = std::make_unique<PairMotion>(skeleton, *pairs[i].pose0, *pairs[i].pose1,
-                                              pairs[i].motion.value_or(options.motion));
-    const PairMotion& motion = *motions[i];
-    const double tolerance =
-        sweptccd::internal::SweptBounds::Tolerance(e.engine->environment(), motion);
-    for (LinkIndex l(0); l < skeleton.num_links(); ++l) {
-      DescentTrack t{};
-      if (!Radii(motion, skeleton.link(l).radius, tolerance, l, levels, t.rad)) {
-        ++s.stats.refused;
-        continue;
-      }
-      DescentPoint centre{};
-      if (!GridPoint(motion, l, 0.5, &centre)) {
+    for (size_t slot = first_link[i]; slot < first_link[i + 1]; ++slot) {
+      const LinkPrep& p = prep[slot];
+      if (!p.ok) {
         ++s.stats.refused;
         continue;
       }
       const auto index = static_cast<uint32_t>(tracks.size());
+      const LinkIndex l(static_cast<int>(slot - first_link[i]));
+      DescentTrack t{};
+      std::copy(p.rad, p.rad + 4, t.rad);
       t.meta[0] = static_cast<uint32_t>(l.value());
       t.meta[1] = e.masks_offset;
       t.meta[2] = static_cast<uint32_t>(i);
       t.meta[3] = static_cast<uint32_t>(index * per_track);
       tracks.push_back(t);
       owners.push_back({static_cast<uint32_t>(i), l});
-      grid.resize(tracks.size() * per_track);
-      grid[index * per_track + mid] = centre;
       items.push_back({index, 0u});
     }
   }
+  // The grid: zeros but each track's middle point (the other points of the
+  // tracks left open are written below), track by track on the workers: the
+  // first touch of 33 points of 32 bytes per track (86 MB for 4,096 pairs of
+  // 20 links) is spread over them, not zeroed on this thread.
+  std::unique_ptr<DescentPoint[]> grid(new DescentPoint[tracks.size() * per_track]);
+  phase = Clock::now();
+  ForEach(pool_.get(), tracks.size(), kTracksPerChunk, [&](size_t t) {
+    DescentPoint* g = grid.get() + t * per_track;
+    std::fill(g, g + per_track, DescentPoint{});
+    g[mid] = prep[first_link[owners[t].pair] + static_cast<size_t>(owners[t].link.value())].centre;
+  });
+  timing.host_us += MicrosSince(phase);
+  const size_t grid_size = tracks.size() * per_track;
   s.stats.tracks += static_cast<int64_t>(tracks.size());
   std::vector<uint32_t> cleared(tracks.size(), 0u), pushed(pairs.size(), 0u),
       flags(pairs.size(), 0u);
@@ -258,24 +351,29 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
   run.grid_levels = levels;
   run.pair_budget = static_cast<uint32_t>(options_.pair_budget);
   run.capacity = static_cast<uint32_t>(options_.queue_capacity);
+  run.max_steps = static_cast<uint32_t>(options_.max_steps);
   internal::CullDispatch& cull = *env_->buffers().dispatch;
   try {
     // The whole pair first (the link culling step), for every link.
     run.stop_depth = 1;
     int dispatches = 0;
     int64_t tested = 0;
+    phase = Clock::now();
     env_->context().Run([&] {
-      dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
+      dispatches += s.dispatch->Run(tracks, grid.get(), grid_size, items, run, cull.masks_buffer(),
                                     cull.mask_words(), &pushed, &flags, &cleared, &tested);
     });
+    timing.device_us += MicrosSince(phase);
     // The open links' trees: their grids (only for them), then the levels
     // below, appended on the device.
     items.clear();
     if (levels > 1) {
-      std::vector<uint32_t> open_links(pairs.size(), 0u);
+      // Track by track (independent): the grid points but the middle one
+      // (grid_ok[t] = 0: a float cannot hold one; the track is not sent).
       std::vector<uint8_t> grid_ok(tracks.size(), 0);
-      for (size_t t = 0; t < tracks.size(); ++t) {
-        if (cleared[t] & 1u) continue;
+      phase = Clock::now();
+      ForEach(pool_.get(), tracks.size(), kTracksPerChunk, [&](size_t t) {
+        if (cleared[t] & 1u) return;
         const PairMotion& motion = *motions[owners[t].pair];
         bool ok = true;
         for (uint32_t j = 0; j < per_track && ok; ++j) {
@@ -283,11 +381,16 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
           ok = GridPoint(motion, owners[t].link, std::ldexp(static_cast<double>(j), -levels),
                          &grid[t * per_track + j]);
         }
-        if (!ok) {
+        grid_ok[t] = ok ? 1 : 0;
+      });
+      timing.host_us += MicrosSince(phase);
+      std::vector<uint32_t> open_links(pairs.size(), 0u);
+      for (size_t t = 0; t < tracks.size(); ++t) {
+        if (cleared[t] & 1u) continue;
+        if (grid_ok[t] == 0) {
           ++s.stats.refused;
           continue;
         }
-        grid_ok[t] = 1;
         ++open_links[owners[t].pair];
       }
       for (size_t t = 0; t < tracks.size(); ++t) {
@@ -303,15 +406,19 @@ bool DeviceDescent::Run(const std::vector<Pair>& pairs, const QueryOptions& opti
       }
       run.stop_depth = levels;
       if (!items.empty()) {
+        phase = Clock::now();
         env_->context().Run([&] {
-          dispatches += s.dispatch->Run(tracks, grid, items, run, cull.masks_buffer(),
-                                        cull.mask_words(), &pushed, &flags, &cleared, &tested);
+          dispatches +=
+              s.dispatch->Run(tracks, grid.get(), grid_size, items, run, cull.masks_buffer(),
+                              cull.mask_words(), &pushed, &flags, &cleared, &tested);
         });
+        timing.device_us += MicrosSince(phase);
       }
     }
     s.stats.dispatches += dispatches;
     s.stats.items += tested;
   } catch (const GpuError& e) {
+    timing.device_us += MicrosSince(phase);
     s.failed = true;
     spdlog::error("GPU device descent failed, queries continue on the CPU: {}", e.what());
     for (size_t i = 0; i < pairs.size(); ++i) {

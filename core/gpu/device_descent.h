@@ -14,12 +14,17 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "core/avatar/pose.h"
 #include "core/gpu/gpu_culler.h"
 #include "core/query/ccd_query.h"
 #include "core/query/pair_clears.h"
+
+namespace sweptccd {
+class WorkerPool;
+}  // namespace sweptccd
 
 namespace sweptccd::gpu {
 
@@ -33,6 +38,19 @@ struct DescentOptions {
   int pair_budget = 256;
   /// Work items one level's queue holds (all pairs); past it alike.
   int queue_capacity = 1 << 18;
+  /// Steps one interval's search may take on the device (objects, BVH
+  /// nodes, triangles; 1 to 16,384, the culler's cap): past it the interval
+  /// "may touch" (never cleared), its halves are tested, and the CPU decides
+  /// what stays open. Smaller than the culler's: an interval whose search is
+  /// that long is near the geometry, and one long invocation holds up its
+  /// whole level's dispatch.
+  int max_steps = 2048;
+  /// Threads of Run's host preparation (the pairs' motions, the tracks'
+  /// grid points: independent, computed in parallel, assembled in order, so
+  /// the tracks, grid and items sent are the same for any count); 1: the
+  /// calling thread alone. The callers pass their worker count (--threads,
+  /// the daemon's workers).
+  int host_threads = 1;
 };
 
 /// Counts over every batch so far.
@@ -45,7 +63,19 @@ struct DescentStats {
   int64_t items = 0;        // Intervals tested on the device.
   int64_t cleared = 0;      // Intervals cleared on the device.
   int64_t over_budget = 0;  // Pairs cut short by their budget or the queue's capacity.
+  // Where Run's time went (wall clock, microseconds, summed over the batches;
+  // from the batch's lock taken to its return): the host's preparation (the
+  // pairs' motions, the tracks' growth constants, the grid written and its
+  // points computed), the
+  // device's part (every context().Run: uploads, dispatches, waits,
+  // read-backs), and the rest (the clears reset, the items and tracks
+  // assembled, the cleared words handed back).
+  double host_us = 0, device_us = 0, other_us = 0;
 };
+
+/// Where Run's time went, for the logs: "in Run: host preparation X ms,
+/// device Y ms, rest Z ms" (DescentStats::host_us, device_us, other_us).
+std::string DescentTimes(const DescentStats& stats);
 
 class DeviceDescent {
  public:
@@ -94,6 +124,9 @@ class DeviceDescent {
   uint64_t content_id_;
   DescentOptions options_;
   std::unique_ptr<State> state_;
+  // The host preparation's workers (null: one thread); used under mutex_
+  // only, one batch at a time.
+  std::unique_ptr<WorkerPool> pool_;
   mutable std::mutex mutex_;
   // Engines removed, their masks not yet freed (RemoveEngine never takes
   // mutex_, which a batch holds); under retired_mutex_.

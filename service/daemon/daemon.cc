@@ -199,7 +199,9 @@ ServiceOptions OptionsFor(const ServiceConfig& config, const Environment& env,
   // batch's free intervals and the CPU engines answer (no culler attached);
   // a descent that cannot be made leaves the GPU backend as it was.
   if (config.device_descent && backend->gpu()) {
-    options.device_descent = backend->MakeDescent(env, gpu::DescentOptions());
+    gpu::DescentOptions descent_options;
+    descent_options.host_threads = config.workers;  // Its preparation on as many threads.
+    options.device_descent = backend->MakeDescent(env, descent_options);
   } else if (config.device_descent) {
     spdlog::warn("device_descent is ignored: the backend is the CPU");
   }
@@ -782,8 +784,8 @@ void Daemon::Stop() {
     const gpu::DescentStats d = impl_->descent->stats();
     spdlog::info(
         "GPU device descent: {} batches, {} pairs, {} dispatches, {} intervals tested, {} "
-        "cleared, {} pairs over budget",
-        d.batches, d.pairs, d.dispatches, d.items, d.cleared, d.over_budget);
+        "cleared, {} pairs over budget; {}",
+        d.batches, d.pairs, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
   } else if (impl_->backend && impl_->backend->gpu()) {
     spdlog::info("GPU: {}", impl_->backend->DispatchSummary());
   }

@@ -152,7 +152,8 @@ TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
       "\\| morse_apartment \\| ([0-9]+) \\| (cpu, 1 thread|cpu, all threads|gpu, all "
       "threads|gpu descent, all threads) "
       "\\| ([0-9]+) \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| [0-9.]+ \\| ([-0-9]+) \\| "
-      "([-0-9.]+) \\| ([-0-9.]+) \\| ([0-9]+) \\|");
+      "([-0-9.]+) \\| ([-0-9.]+) \\| ([0-9]+) \\| (-|[0-9.]+ / [0-9.]+ / [0-9.]+ / [0-9.]+) "
+      "\\|");
   while (std::getline(in, line)) {
     std::smatch m;
     if (!std::regex_match(line, m, row)) continue;
@@ -166,6 +167,8 @@ TEST_F(BenchCommandTest, SweepPrintsEveryMethodAndBatchSize) {
     } else {
       EXPECT_EQ(m[4], "-") << line;
     }
+    // Where the descent's time went: its rows only.
+    EXPECT_EQ(m[8] == "-", m[2] != "gpu descent, all threads") << line;
   }
   EXPECT_EQ(rows.size(), 12u) << r.out;
   for (const auto& [key, n] : rows) EXPECT_EQ(n, 1) << key;

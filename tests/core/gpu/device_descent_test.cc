@@ -275,6 +275,78 @@ TEST(DeviceDescentTest, PairsOverBudgetAreFinishedByTheCpuIdentically) {
   EXPECT_EQ(stats.dispatches, 1);
 }
 
+// The host's preparation on several threads (DescentOptions::host_threads)
+// sends the same tracks, grid and items as on one: with budgets no pair
+// reaches (so no item is dropped in the atomics' order), every pair's
+// cleared intervals are the same bits, and the counts the same.
+TEST(DeviceDescentTest, HostThreadsGiveTheSameClears) {
+  RandomScene scene = MakeRandomScene(34, Vector3d(0.1, -0.2, 0), 90);
+  const CcdEngine engine(scene.skeleton, scene.env);
+  auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), scene.env);
+  std::vector<PairClears> clears[2];
+  DescentStats stats[2];
+  for (int run = 0; run < 2; ++run) {
+    DescentOptions options;
+    options.pair_budget = 1 << 20;
+    options.host_threads = run == 0 ? 1 : 3;
+    DeviceDescent descent(gpu_env, scene.env, options);
+    const int e = descent.AddEngine(engine);
+    std::vector<DeviceDescent::Pair> batch;
+    for (const auto& [p0, p1] : scene.pairs) batch.push_back({e, &p0, &p1, {}});
+    ASSERT_TRUE(descent.Run(batch, QueryOptions(), &clears[run]));
+    stats[run] = descent.stats();
+  }
+  EXPECT_EQ(stats[0].over_budget, 0);
+  EXPECT_GT(stats[0].cleared, 0);
+  EXPECT_EQ(stats[1].tracks, stats[0].tracks);
+  EXPECT_EQ(stats[1].items, stats[0].items);
+  EXPECT_EQ(stats[1].cleared, stats[0].cleared);
+  EXPECT_EQ(stats[1].dispatches, stats[0].dispatches);
+  ASSERT_EQ(clears[1].size(), clears[0].size());
+  for (size_t i = 0; i < clears[0].size(); ++i) {
+    for (LinkIndex l(0); l < scene.skeleton.num_links(); ++l) {
+      for (int d = 0; d < clears[0][i].levels(); ++d) {
+        for (uint32_t k = 0; k < (1u << d); ++k) {
+          const double s0 = std::ldexp(static_cast<double>(k), -d);
+          const double s1 = std::ldexp(static_cast<double>(k + 1), -d);
+          EXPECT_EQ(clears[1][i].Cleared(l, d, s0, s1), clears[0][i].Cleared(l, d, s0, s1))
+              << "pair " << i << " link " << l << " depth " << d << " k " << k;
+        }
+      }
+    }
+  }
+}
+
+// The descent's step cap (DescentOptions::max_steps): a search past it
+// answers "may touch", its node's halves are tested and the CPU decides the
+// rest. With a cap of one step no search can end, so nothing is cleared;
+// with a small cap some are; either way nothing the CPU would not clear and
+// the records are the CPU backend's.
+TEST(DeviceDescentTest, ATinyStepCapClearsOnlyWhatTheCpuClears) {
+  RandomScene scene = MakeRandomScene(35, Vector3d(0, 0.3, 0), 50);
+  const CcdEngine engine(scene.skeleton, scene.env);
+  DescentOptions one_step;
+  one_step.max_steps = 1;
+  TwinCounts twin;
+  DescentStats stats =
+      CompareRecords(scene.env, engine, scene.pairs, QueryOptions(), one_step, "cap 1", &twin);
+  EXPECT_EQ(twin.misses, 0);
+  EXPECT_EQ(stats.cleared, 0);
+  EXPECT_GT(stats.items, stats.tracks);  // Every whole pair "may touch": halves tested.
+  DescentOptions few_steps;
+  few_steps.max_steps = 24;
+  twin = TwinCounts();
+  const DescentStats few =
+      CompareRecords(scene.env, engine, scene.pairs, QueryOptions(), few_steps, "cap 24", &twin);
+  EXPECT_EQ(twin.misses, 0);
+  EXPECT_GT(few.cleared, 0);
+  const DescentStats full = CompareRecords(scene.env, engine, scene.pairs, QueryOptions(),
+                                           DescentOptions(), "default cap");
+  std::printf("cleared with a cap of 1, 24 and %d steps: %lld, %lld, %lld\n",
+              DescentOptions().max_steps, static_cast<long long>(stats.cleared),
+              static_cast<long long>(few.cleared), static_cast<long long>(full.cleared));
+}
+
 // A still link (its growth is the rounding slack alone) with a small
 // triangle in the plane tangent to the CPU's capsule of the whole pair, at
 // the capsule's distance (touching) or a little farther but within the
