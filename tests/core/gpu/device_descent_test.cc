@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -315,6 +316,95 @@ TEST(DeviceDescentTest, HostThreadsGiveTheSameClears) {
       }
     }
   }
+}
+
+// One batch mixing engines of different link counts and filters (the
+// daemon's clients, `sweptccd world`'s avatars) and both motion models, its
+// preparation on one thread and on three: the pairs' slots of the
+// preparation (first_link) differ from pair to pair, the pool's chunks
+// split them anywhere, and each track must carry its own engine's filter.
+// The same clears on both, and every interval cleared is clear for the CPU's
+// capsule under that pair's engine's filter (the brute-force twin).
+TEST(DeviceDescentTest, MixedEnginesBatchOnThreadsClearsOnlyWhatTheCpuClears) {
+  Rng rng(36);
+  const Vector3d centre(0.1, 0, 0.2);
+  Environment env;
+  env.AddMesh(Soup(rng, centre, 300, 1.5), "soup a");
+  env.AddMesh(Soup(rng, centre + Vector3d(0.5, 0, 0), 100, 1.0), "soup b");
+  const Skeleton chains[3] = {Chain(4), Chain(7), Chain(1)};
+  // Engine 1 ignores soup a on every link but its first, engine 2 soup b:
+  // a track given another engine's masks clears intervals its own filter
+  // does not.
+  CollisionFilter f0(4, 2), f1(7, 2), f2(1, 2);
+  for (LinkIndex l(1); l < 7; ++l) f1.Ignore(l, ObjectIndex(0));
+  f2.Ignore(LinkIndex(0), ObjectIndex(1));
+  const CcdEngine engines[3] = {CcdEngine(chains[0], env, f0), CcdEngine(chains[1], env, f1),
+                                CcdEngine(chains[2], env, f2)};
+  struct MixedPair {
+    int engine;
+    Pose p0, p1;
+    std::optional<MotionModel> motion;
+  };
+  std::vector<MixedPair> pairs;
+  for (int i = 0; i < 96; ++i) {
+    MixedPair p;
+    p.engine = rng.I(3);
+    p.p0 = ChainPose(rng, chains[p.engine], centre + rng.Box(1.0), 1000000);
+    p.p1 = Moved(rng, p.p0, rng.P(0.5) ? 0.02 : 0.3, rng.P(0.5) ? 0.05 : 0.8, 1033333);
+    if (rng.P(0.3)) p.motion = MotionModel::kIndependent;
+    pairs.push_back(std::move(p));
+  }
+  auto gpu_env = std::make_shared<const GpuEnvironment>(SharedContext(), env);
+  std::vector<PairClears> clears[2];
+  DescentStats stats[2];
+  for (int run = 0; run < 2; ++run) {
+    DescentOptions options;
+    options.pair_budget = 1 << 20;  // No item dropped in the atomics' order.
+    options.host_threads = run == 0 ? 1 : 3;
+    DeviceDescent descent(gpu_env, env, options);
+    int slot[3];
+    for (int e = 0; e < 3; ++e) slot[e] = descent.AddEngine(engines[e]);
+    std::vector<DeviceDescent::Pair> batch;
+    for (const MixedPair& p : pairs) batch.push_back({slot[p.engine], &p.p0, &p.p1, p.motion});
+    ASSERT_TRUE(descent.Run(batch, QueryOptions(), &clears[run]));
+    stats[run] = descent.stats();
+  }
+  EXPECT_EQ(stats[0].over_budget, 0);
+  EXPECT_GT(stats[0].cleared, 0);
+  EXPECT_EQ(stats[1].tracks, stats[0].tracks);
+  EXPECT_EQ(stats[1].items, stats[0].items);
+  EXPECT_EQ(stats[1].cleared, stats[0].cleared);
+  ASSERT_EQ(clears[1].size(), pairs.size());
+  TwinCounts twin;
+  int64_t per_engine_cleared[3] = {0, 0, 0};
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    const MixedPair& p = pairs[i];
+    const CcdEngine& engine = engines[p.engine];
+    for (LinkIndex l(0); l < engine.skeleton().num_links(); ++l) {
+      for (int d = 0; d < clears[0][i].levels(); ++d) {
+        for (uint32_t k = 0; k < (1u << d); ++k) {
+          const double s0 = std::ldexp(static_cast<double>(k), -d);
+          const double s1 = std::ldexp(static_cast<double>(k + 1), -d);
+          EXPECT_EQ(clears[1][i].Cleared(l, d, s0, s1), clears[0][i].Cleared(l, d, s0, s1))
+              << "pair " << i << " link " << l << " depth " << d << " k " << k;
+        }
+      }
+    }
+    per_engine_cleared[p.engine] += clears[1][i].count();
+    QueryOptions options;
+    options.motion = p.motion.value_or(options.motion);
+    CheckTwin(engine, p.p0, p.p1, options, clears[1][i], /*all=*/true, &twin);
+    const QueryResult cpu = engine.Query(p.p0, p.p1, options);
+    const QueryResult dev = engine.Query(p.p0, p.p1, options, &clears[1][i]);
+    EXPECT_EQ(testing::RecordDifference(cpu, dev), "") << "pair " << i;
+  }
+  EXPECT_EQ(twin.misses, 0);
+  for (int e = 0; e < 3; ++e) EXPECT_GT(per_engine_cleared[e], 0) << "engine " << e;
+  std::printf("mixed batch: %lld tracks, %lld cleared (%lld, %lld, %lld by engine)\n",
+              static_cast<long long>(stats[1].tracks), static_cast<long long>(stats[1].cleared),
+              static_cast<long long>(per_engine_cleared[0]),
+              static_cast<long long>(per_engine_cleared[1]),
+              static_cast<long long>(per_engine_cleared[2]));
 }
 
 // The descent's step cap (DescentOptions::max_steps): a search past it
