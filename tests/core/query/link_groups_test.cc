@@ -35,8 +35,10 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "core/avatar/joint_frame.h"
@@ -726,6 +728,65 @@ TEST(LinkGroups, QueriesWithAndWithoutGroupsAgree) {
   EXPECT_GT(contacts, cases / 4);
   EXPECT_GT(undecided, 0);
   EXPECT_GT(per_link, 0);
+}
+
+// Review 34: a query's answer and work do not depend on what its thread
+// answered before. Each query keeps its arrays in the thread's spare buffers
+// (QueryBuffers: the loose capsules' roots, SubtreeReach's reach and growth,
+// the motion's arrays); CullLoose reads SubtreeReach's growth only when this
+// query's group phase computed it. Each case is answered first alone on a
+// fresh thread (empty spare buffers), then on this thread right after a
+// query of another rig (85 links, still, every group tried: its growth is
+// tiny), with every group tried, the default groups, or none large enough
+// (no group test: the loose capsules compute their own growth). The records
+// and every work count must be the same.
+TEST(LinkGroups, AnswersDoNotDependOnTheThreadsEarlierQueries) {
+  const Environment env = Room();
+  const JointSkeleton body = JointSkeleton::Build(FindJointSet("meta-full-body"), {});
+  Rng rng(34034);
+  const int cases = std::max(12, static_cast<int>(120 * testing::TestScale()));
+  int no_group_tried_loose = 0, contacts = 0;
+  for (int c = 0; c < cases; ++c) {
+    // The query before: a still 85-link rig, every group tried.
+    const Rig before_rig = RandomRig(rng, 85, 12);
+    const auto [b0, b1] =
+        RandomPair(rng, before_rig, Vec3(rng.U(-3, 3), rng.U(-3, 3), 2.5), rng.U(0, 1.0), 0.0, 0.0);
+    const CcdEngine before_engine(before_rig.skeleton, env);
+    QueryOptions before_options;
+    before_options.link_groups_min_links = 0;
+    before_options.link_group_min_size = 0;
+    // The case: near the table's edge, the rod or the floor, moving fast.
+    const Rig rig = c % 3 != 2 ? RigOf(rng, body.skeleton()) : RandomRig(rng, 16 + rng.I(65), 12);
+    const Vec3 place(rng.U(-0.9, 0.9), rng.U(0.2, 1.0), rng.U(0.6, 1.3));
+    const auto [p0, p1] =
+        RandomPair(rng, rig, place, rng.U(0.2, 1.2), rng.U(0.2, 1.5), rng.U(0.05, 0.4));
+    const CcdEngine engine(rig.skeleton, env);
+    QueryOptions options;
+    options.link_groups_min_links = 0;
+    options.link_group_min_size = c % 3 == 0 ? 0 : c % 3 == 1 ? 1000 : 8;
+    options.per_link = rng.P(0.3);
+    QueryResult alone;
+    std::thread([&] { alone = engine.Query(p0, p1, options); }).join();
+    (void)before_engine.Query(b0, b1, before_options);
+    const QueryResult after = engine.Query(p0, p1, options);
+    ASSERT_TRUE(SameAnswer(after, alone)) << "case " << c;
+    const QueryStats& x = after.stats;
+    const QueryStats& y = alone.stats;
+    EXPECT_EQ(x.groups_cleared, y.groups_cleared) << "case " << c;
+    EXPECT_EQ(x.loose_cleared, y.loose_cleared) << "case " << c;
+    EXPECT_EQ(x.links_culled, y.links_culled) << "case " << c;
+    EXPECT_EQ(x.links_tested, y.links_tested) << "case " << c;
+    EXPECT_EQ(x.intervals, y.intervals) << "case " << c;
+    EXPECT_EQ(x.triangle_tests, y.triangle_tests) << "case " << c;
+    no_group_tried_loose += options.link_group_min_size == 1000 && y.loose_cleared > 0;
+    contacts += alone.contact;
+  }
+  std::printf("%d cases: %d without a group test whose loose capsules cleared links, %d contacts\n",
+              cases, no_group_tried_loose, contacts);
+  // The comparison means something: loose capsules cleared links in queries
+  // that tried no group, and contacts occur.
+  EXPECT_GT(no_group_tried_loose, cases / 6);
+  EXPECT_GT(contacts, cases / 6);
 }
 
 // Review 33 (issue 31, adversarial): group balls and loose capsules with
