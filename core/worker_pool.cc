@@ -12,10 +12,17 @@ int DefaultThreadCount() {
 WorkerPool::WorkerPool(int threads) {
   if (threads < 1) throw std::invalid_argument("WorkerPool needs at least one thread");
   threads_.reserve(static_cast<size_t>(threads - 1));
-  for (int w = 1; w < threads; ++w) threads_.emplace_back([this, w] { Serve(w); });
+  try {
+    for (int w = 1; w < threads; ++w) threads_.emplace_back([this, w] { Serve(w); });
+  } catch (...) {  // A thread that could not start (std::system_error): none left running.
+    Stop();
+    throw;
+  }
 }
 
-WorkerPool::~WorkerPool() {
+WorkerPool::~WorkerPool() { Stop(); }
+
+void WorkerPool::Stop() {
   {
     std::lock_guard<std::mutex> lock(mutex_);
     stop_ = true;

@@ -23,7 +23,9 @@ int DefaultThreadCount();
 class WorkerPool {
  public:
   /// `threads` >= 1 workers: the calling thread of Run and threads - 1
-  /// started here. Throws std::invalid_argument for threads < 1.
+  /// started here. Throws std::invalid_argument for threads < 1, and
+  /// std::system_error when a thread cannot start (those started are joined
+  /// first).
   explicit WorkerPool(int threads);
   /// Joins the workers (Run must not be running).
   ~WorkerPool();
@@ -42,6 +44,7 @@ class WorkerPool {
  private:
   void Serve(int worker);
   void Work(int worker);
+  void Stop();  // Ends and joins the started threads.
 
   std::vector<std::thread> threads_;
   std::mutex mutex_;

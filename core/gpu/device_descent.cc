@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <system_error>
 
 #include "core/avatar/motion.h"
 #include "core/errors.h"
@@ -144,7 +145,17 @@ DeviceDescent::DeviceDescent(std::shared_ptr<const GpuEnvironment> environment,
   options_.host_threads = std::clamp(options_.host_threads, 1, 1024);
   options_.max_steps =
       std::clamp(options_.max_steps, 1, static_cast<int>(internal::kMaxSearchSteps));
-  if (options_.host_threads > 1) pool_ = std::make_unique<WorkerPool>(options_.host_threads);
+  if (options_.host_threads > 1) {
+    try {
+      pool_ = std::make_unique<WorkerPool>(options_.host_threads);
+    } catch (const std::system_error& e) {  // No threads to be had (a task limit, say).
+      spdlog::warn(
+          "GPU device descent: {} preparation threads could not start ({}); it prepares "
+          "on the calling thread",
+          options_.host_threads - 1, e.what());
+      options_.host_threads = 1;
+    }
+  }
   const GpuEnvironment::Buffers& b = env_->buffers();
   State& s = *state_;
   env_->context().Run([&] {

@@ -31,6 +31,7 @@
 #include "core/gpu/backend.h"
 #include "core/scene/collision_filter.h"
 #include "core/scene/environment.h"
+#include "core/worker_pool.h"
 #include "msgs/text.h"
 #include "service/collision_service.h"
 #include "service/fanout_publisher.h"
@@ -200,7 +201,9 @@ ServiceOptions OptionsFor(const ServiceConfig& config, const Environment& env,
   // a descent that cannot be made leaves the GPU backend as it was.
   if (config.device_descent && backend->gpu()) {
     gpu::DescentOptions descent_options;
-    descent_options.host_threads = config.workers;  // Its preparation on as many threads.
+    // Its preparation on as many threads as workers, no more than the cores
+    // (each thread is started once, for the daemon's life).
+    descent_options.host_threads = std::min(config.workers, DefaultThreadCount());
     options.device_descent = backend->MakeDescent(env, descent_options);
   } else if (config.device_descent) {
     spdlog::warn("device_descent is ignored: the backend is the CPU");
