@@ -128,30 +128,7 @@ for scene in "${scenes[@]}"; do
   done
 done
 
-python3 - "$work" <<'PY'
-import glob, json, os, sys
-work = sys.argv[1]
-total = differing = contact = 0
-for old in sorted(glob.glob(os.path.join(work, "*.old.jsonl"))):
-    new = old[: -len(".old.jsonl")] + ".new.jsonl"
-    a = [json.loads(l) for l in open(old) if l.strip()]
-    b = [json.loads(l) for l in open(new) if l.strip()] if os.path.exists(new) else []
-    if len(a) != len(b):
-        print(f"{os.path.basename(old)}: {len(a)} records before, {len(b)} after")
-        differing += abs(len(a) - len(b))
-    for x, y in zip(a, b):
-        for r in (x, y):
-            r.pop("elapsed_us", None)
-            r.pop("stats", None)
-        total += 1
-        contact += x.get("result") == "contact"
-        if x != y:
-            differing += 1
-            if differing <= 5:
-                print(f"{os.path.basename(old)} pair {x.get('pair')}: differs\n  old {x}\n  new {y}")
-print(f"records compared: {total} (contact: {contact}), differing: {differing}")
-sys.exit(1 if differing else 0)
-PY
+python3 "$(dirname "$0")/compare_record_files.py" "$work/*.old.jsonl" "records"
 status=$?
 echo "query runs: $runs per binary; files in $work"
 exit $status

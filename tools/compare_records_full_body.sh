@@ -69,29 +69,6 @@ for scene in $scenes; do
 done
 
 status=0
-python3 - "$out" <<'PY' || status=$?
-import glob, json, os, sys
-total = differing = contact = undecided = 0
-for old in sorted(glob.glob(os.path.join(sys.argv[1], "*", "*.old.jsonl"))):
-    new = old[: -len(".old.jsonl")] + ".new.jsonl"
-    a = [json.loads(l) for l in open(old) if l.strip()]
-    b = [json.loads(l) for l in open(new) if l.strip()] if os.path.exists(new) else []
-    if len(a) != len(b):
-        print(f"{old}: {len(a)} records before, {len(b)} after")
-        differing += abs(len(a) - len(b))
-    for x, y in zip(a, b):
-        for r in (x, y):
-            r.pop("elapsed_us", None)
-            r.pop("stats", None)
-        total += 1
-        contact += x.get("result") == "contact"
-        undecided += bool(x.get("undecided"))
-        if x != y:
-            differing += 1
-            if differing <= 5:
-                print(f"{old} pair {x.get('pair')}: differs\n  old {x}\n  new {y}")
-print(f"81-link records compared: {total} (contact: {contact}, undecided: {undecided}), differing: {differing}")
-sys.exit(1 if differing else 0)
-PY
+python3 "$(dirname "$0")/compare_record_files.py" "$out/*/*.old.jsonl" "81-link records" --undecided --full-paths || status=$?
 echo "files in $out"
 exit $status
