@@ -77,6 +77,29 @@ OrderedJson Bracket(const LinkBracket& b) {
   return j;
 }
 
+// An answer's fields, in this order: the same names and meaning in a
+// contact_event_t (an avatar against the scene) and a shared_entry_t (against
+// another entity); only the records' and brackets' types differ (Record's
+// and Bracket's overloads). docs/WEBSOCKET.md lists them once for both.
+template <class Answer>
+void AddAnswer(const Answer& a, OrderedJson* j) {
+  (*j)["result"] = static_cast<int>(a.result);
+  (*j)["result_name"] = ResultName(a.result);
+  (*j)["error"] = a.error;
+  (*j)["initially_colliding"] = a.initially_colliding != 0;
+  (*j)["undecided"] = a.undecided != 0;
+  (*j)["s_lo"] = a.s_lo;
+  (*j)["s_hi"] = a.s_hi;
+  (*j)["t_lo"] = a.t_lo;
+  (*j)["t_hi"] = a.t_hi;
+  OrderedJson contacts = OrderedJson::array();
+  for (const auto& c : a.contacts) contacts.push_back(Record(c));
+  (*j)["contacts"] = std::move(contacts);
+  OrderedJson links = OrderedJson::array();
+  for (const auto& b : a.links) links.push_back(Bracket(b));
+  (*j)["links"] = std::move(links);
+}
+
 OrderedJson Entry(const shared_entry_t& e) {
   OrderedJson j;
   j["entity"] = e.entity;
@@ -86,21 +109,7 @@ OrderedJson Entry(const shared_entry_t& e) {
                                                                          : "unknown";
   j["t_from"] = e.t_from;
   j["t_to"] = e.t_to;
-  j["result"] = static_cast<int>(e.result);
-  j["result_name"] = ResultName(e.result);
-  j["error"] = e.error;
-  j["initially_colliding"] = e.initially_colliding != 0;
-  j["undecided"] = e.undecided != 0;
-  j["s_lo"] = e.s_lo;
-  j["s_hi"] = e.s_hi;
-  j["t_lo"] = e.t_lo;
-  j["t_hi"] = e.t_hi;
-  OrderedJson contacts = OrderedJson::array();
-  for (const auto& c : e.contacts) contacts.push_back(Record(c));
-  j["contacts"] = std::move(contacts);
-  OrderedJson links = OrderedJson::array();
-  for (const auto& b : e.links) links.push_back(Bracket(b));
-  j["links"] = std::move(links);
+  AddAnswer(e, &j);
   j["waited_us"] = e.waited_us;
   j["ended_by_timeout"] = e.ended_by_timeout != 0;
   j["compute_us"] = e.compute_us;
@@ -149,6 +158,32 @@ void BracketFrom(const nlohmann::json& v, const std::string& where, LinkBracket*
   RecordFrom(f.Get("witness"), f.Path("witness"), &b->witness);
 }
 
+// Reads AddAnswer's fields into either message type, within the limits
+// (records and brackets by RecordFrom's and BracketFrom's overloads).
+template <class Answer>
+void AnswerFrom(const Fields& f, const WireLimits& L, Answer* a) {
+  a->result = static_cast<int8_t>(f.Int("result", kI8Min, kI8Max));
+  a->error = f.String("error", static_cast<size_t>(L.max_text_bytes));
+  a->initially_colliding = f.Bool("initially_colliding");
+  a->undecided = f.Bool("undecided");
+  a->s_lo = f.RealOrNull("s_lo");
+  a->s_hi = f.RealOrNull("s_hi");
+  a->t_lo = f.RealOrNull("t_lo");
+  a->t_hi = f.RealOrNull("t_hi");
+  const auto& contacts = f.Array("contacts", static_cast<size_t>(L.max_contacts));
+  a->contacts.resize(contacts.size());
+  for (size_t i = 0; i < contacts.size(); ++i) {
+    RecordFrom(contacts[i], f.Path("contacts") + "[" + std::to_string(i) + "]", &a->contacts[i]);
+  }
+  a->num_contacts = static_cast<int32_t>(contacts.size());
+  const auto& links = f.Array("links", static_cast<size_t>(L.max_links));
+  a->links.resize(links.size());
+  for (size_t i = 0; i < links.size(); ++i) {
+    BracketFrom(links[i], f.Path("links") + "[" + std::to_string(i) + "]", &a->links[i]);
+  }
+  a->num_links = static_cast<int32_t>(links.size());
+}
+
 void EntryFrom(const nlohmann::json& v, const std::string& where, const WireLimits& L,
                shared_entry_t* e) {
   const Fields f(v, where);
@@ -156,26 +191,7 @@ void EntryFrom(const nlohmann::json& v, const std::string& where, const WireLimi
   e->entity_kind = static_cast<int8_t>(f.Int("entity_kind", kI8Min, kI8Max));
   e->t_from = f.Int("t_from", -kAny, kAny);
   e->t_to = f.Int("t_to", -kAny, kAny);
-  e->result = static_cast<int8_t>(f.Int("result", kI8Min, kI8Max));
-  e->error = f.String("error", static_cast<size_t>(L.max_text_bytes));
-  e->initially_colliding = f.Bool("initially_colliding");
-  e->undecided = f.Bool("undecided");
-  e->s_lo = f.RealOrNull("s_lo");
-  e->s_hi = f.RealOrNull("s_hi");
-  e->t_lo = f.RealOrNull("t_lo");
-  e->t_hi = f.RealOrNull("t_hi");
-  const auto& contacts = f.Array("contacts", static_cast<size_t>(L.max_contacts));
-  e->contacts.resize(contacts.size());
-  for (size_t i = 0; i < contacts.size(); ++i) {
-    RecordFrom(contacts[i], f.Path("contacts") + "[" + std::to_string(i) + "]", &e->contacts[i]);
-  }
-  e->num_contacts = static_cast<int32_t>(contacts.size());
-  const auto& links = f.Array("links", static_cast<size_t>(L.max_links));
-  e->links.resize(links.size());
-  for (size_t i = 0; i < links.size(); ++i) {
-    BracketFrom(links[i], f.Path("links") + "[" + std::to_string(i) + "]", &e->links[i]);
-  }
-  e->num_links = static_cast<int32_t>(links.size());
+  AnswerFrom(f, L, e);
   e->waited_us = f.Int("waited_us", -kAny, kAny);
   e->ended_by_timeout = f.Bool("ended_by_timeout");
   e->compute_us = f.RealOrNull("compute_us");
@@ -277,21 +293,7 @@ OrderedJson ToJson(const contact_event_t& m) {
   j["pair"] = m.pair;
   j["utime0"] = m.utime0;
   j["utime1"] = m.utime1;
-  j["result"] = static_cast<int>(m.result);
-  j["result_name"] = ResultName(m.result);
-  j["error"] = m.error;
-  j["initially_colliding"] = m.initially_colliding != 0;
-  j["undecided"] = m.undecided != 0;
-  j["s_lo"] = m.s_lo;
-  j["s_hi"] = m.s_hi;
-  j["t_lo"] = m.t_lo;
-  j["t_hi"] = m.t_hi;
-  OrderedJson contacts = OrderedJson::array();
-  for (const auto& c : m.contacts) contacts.push_back(Record(c));
-  j["contacts"] = std::move(contacts);
-  OrderedJson links = OrderedJson::array();
-  for (const auto& b : m.links) links.push_back(Bracket(b));
-  j["links"] = std::move(links);
+  AddAnswer(m, &j);
   j["receive_utime"] = m.receive_utime;
   j["compute_us"] = m.compute_us;
   j["queue_us"] = m.queue_us;
@@ -448,26 +450,7 @@ void FromJson(const nlohmann::json& v, const WireLimits& L, contact_event_t* m) 
   m->pair = f.Int("pair", -kAny, kAny);
   m->utime0 = f.Int("utime0", -kAny, kAny);
   m->utime1 = f.Int("utime1", -kAny, kAny);
-  m->result = static_cast<int8_t>(f.Int("result", kI8Min, kI8Max));
-  m->error = f.String("error", static_cast<size_t>(L.max_text_bytes));
-  m->initially_colliding = f.Bool("initially_colliding");
-  m->undecided = f.Bool("undecided");
-  m->s_lo = f.RealOrNull("s_lo");
-  m->s_hi = f.RealOrNull("s_hi");
-  m->t_lo = f.RealOrNull("t_lo");
-  m->t_hi = f.RealOrNull("t_hi");
-  const auto& contacts = f.Array("contacts", static_cast<size_t>(L.max_contacts));
-  m->contacts.resize(contacts.size());
-  for (size_t i = 0; i < contacts.size(); ++i) {
-    RecordFrom(contacts[i], f.Path("contacts") + "[" + std::to_string(i) + "]", &m->contacts[i]);
-  }
-  m->num_contacts = static_cast<int32_t>(contacts.size());
-  const auto& links = f.Array("links", static_cast<size_t>(L.max_links));
-  m->links.resize(links.size());
-  for (size_t i = 0; i < links.size(); ++i) {
-    BracketFrom(links[i], f.Path("links") + "[" + std::to_string(i) + "]", &m->links[i]);
-  }
-  m->num_links = static_cast<int32_t>(links.size());
+  AnswerFrom(f, L, m);
   m->receive_utime = f.Int("receive_utime", -kAny, kAny);
   m->compute_us = f.RealOrNull("compute_us");
   m->queue_us = f.RealOrNull("queue_us");
