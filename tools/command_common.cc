@@ -1,5 +1,7 @@
 #include "tools/command_common.h"
 
+#include <spdlog/spdlog.h>
+
 #include <iostream>
 
 #include "core/avatar/skeleton.h"
@@ -29,6 +31,18 @@ void AddBackendFlags(CLI::App* app, BackendFlags* flags, const std::string& back
   app->add_option("--gpu-device", flags->gpu_device, "EGL device index for the GPU backend");
   app->add_flag("--require-hardware", flags->require_hardware,
                 "GPU backend: refuse software renderers (llvmpipe)");
+}
+
+void LogGpuWork(const gpu::Backend& backend, const gpu::DeviceDescent* descent) {
+  if (descent != nullptr) {
+    const gpu::DescentStats d = descent->stats();
+    spdlog::info(
+        "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
+        "pairs over budget; {}",
+        d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
+  } else if (backend.gpu()) {
+    spdlog::info("GPU: {}", backend.DispatchSummary());
+  }
 }
 
 void AddMaxLinksFlag(CLI::App* app, int* max_links) {

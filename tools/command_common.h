@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "core/gpu/backend.h"
+#include "core/gpu/device_descent.h"
 #include "tools/output_paths.h"
 
 namespace sweptccd {
@@ -37,6 +38,11 @@ constexpr int kMaxThreads = 1024;
 /// Adds --threads (worker threads answering the pairs, 1 to kMaxThreads;
 /// *threads should hold the default, DefaultThreadCount()).
 void AddThreadsFlag(CLI::App* app, int* threads);
+
+/// Logs (info) what the GPU did for the command: the device descent's
+/// counters and times when `descent` is not null, else the backend's
+/// dispatches when it is the GPU; nothing on the CPU backend.
+void LogGpuWork(const gpu::Backend& backend, const gpu::DeviceDescent* descent);
 
 /// Where a command writes its results (--output): standard output for an
 /// empty path, else the file. The constructor refuses (InputError) an output

@@ -148,15 +148,7 @@ int RunWorldCommand(const WorldCommandOptions& options) {
     }
     results.Finish();
     spdlog::info("{} records", records);
-    if (descent != nullptr) {
-      const gpu::DescentStats d = descent->stats();
-      spdlog::info(
-          "GPU device descent: {} batches, {} dispatches, {} intervals tested, {} cleared, {} "
-          "pairs over budget; {}",
-          d.batches, d.dispatches, d.items, d.cleared, d.over_budget, gpu::DescentTimes(d));
-    } else if (backend.gpu()) {
-      spdlog::info("GPU: {}", backend.DispatchSummary());
-    }
+    LogGpuWork(backend, descent.get());
     return 0;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", DisplayError(e.what()).c_str());
