@@ -12,7 +12,7 @@
 // microseconds); nothing is asserted about them.
 //
 //   build/bin/sweptccd_full_body_bench [--pairs N] [--rate HZ] [--clock wall|thread]
-//       [--scene NAME] [--clip NAME] [--only 16|on|off]
+//       [--scene NAME] [--clip NAME] [--only 16|on|off] [--lift M]
 //   build/bin/sweptccd_full_body_bench --convert SKEL16.json POSES16.jsonl OUT_DIR
 //
 // --clock thread times this thread's CPU time (CLOCK_THREAD_CPUTIME_ID),
@@ -21,6 +21,8 @@
 // --only runs one avatar (16 links, or 81 with groups on or off) and skips
 // the on/off answer check, so that callgrind (tools/bench_callgrind.sh's
 // --toggle-collect on CcdEngine::Query*) counts one avatar's instructions.
+// --lift M raises both avatars M metres above the scene's floor (e.g. 20:
+// pairs with nothing near, against the walk's feet near the floor).
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -127,6 +129,7 @@ int Main(int argc, char** argv) {
   if (argc == 5 && std::string(argv[1]) == "--convert") return Convert(argv[2], argv[3], argv[4]);
   int max_pairs = 600;
   double rate_hz = 120;
+  double lift_m = 0;
   std::string only_scene, only_clip, only;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
@@ -136,8 +139,10 @@ int Main(int argc, char** argv) {
     if (a == "--scene") only_scene = argv[i + 1];
     if (a == "--clip") only_clip = argv[i + 1];
     if (a == "--only") only = argv[i + 1];
+    if (a == "--lift") lift_m = std::atof(argv[i + 1]);
   }
   SWEPTCCD_CHECK(only.empty() || only == "16" || only == "on" || only == "off");
+  SWEPTCCD_CHECK(std::isfinite(lift_m));
   const bool run16 = only.empty() || only == "16";
   const bool run_on = only.empty() || only == "on";
   const bool run_off = only.empty() || only == "off";
@@ -168,7 +173,7 @@ int Main(int argc, char** argv) {
       std::vector<Pose> poses;
       for (size_t f = 0; f < clip.poses.size(); f += step) poses.push_back(clip.poses[f]);
       clip.poses = poses;
-      bench::PlaceClipOnFloor(&clip, 'y', sc.floor, sc.centre);
+      bench::PlaceClipOnFloor(&clip, 'y', sc.floor + lift_m, sc.centre);
       const full_body::FrameBuilder fb(set, clip.skeleton);
       // Calibrated on the first frame; the clip's clavicles move the
       // shoulder joints against the chest a little: a generous tolerance
@@ -243,8 +248,11 @@ int Main(int argc, char** argv) {
   std::printf(
       "Full-body avatar (XR_META_body_tracking_full_body, --hands full) vs the 16-link CMU "
       "avatar, %.0f Hz, same pairs, %s clock.\nFingers: PROCEDURALLY ANIMATED (reach, grasp, hold, "
-      "release; 3 s cycle), not captured.\n\n",
-      rate_hz, g_thread_clock ? "thread CPU" : "wall");
+      "release; 3 s cycle), not captured.\n%s\n",
+      rate_hz, g_thread_clock ? "thread CPU" : "wall",
+      lift_m != 0
+          ? ("Both avatars lifted " + std::to_string(lift_m) + " m above the floor.\n").c_str()
+          : "");
   std::printf(
       "| scene | clip | links | link groups | pairs | contact | undecided | refused | median us "
       "| p99 us | max us |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
