@@ -307,7 +307,8 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     : PairMotion(skeleton, pose0, pose1, model, storage, Ends::kAll) {}
 
 PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1,
-                       MotionModel model, Storage* storage, Ends ends)
+                       MotionModel model, Storage* storage, Ends ends,
+                       const std::vector<char>* deferred)
     : model_(model) {
   if (storage != nullptr) {
     links_ = std::move(storage->links);
@@ -317,7 +318,10 @@ PairMotion::PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& 
   }
   order_.clear();
   for (int i : skeleton.topological_order()) order_.push_back(LinkIndex(i));
-  Build(skeleton, pose0, pose1, ends);
+  SWEPTCCD_CHECK(deferred == nullptr ||
+                 (ends == Ends::kOnDemand && model == MotionModel::kArticulated &&
+                  static_cast<int>(deferred->size()) == skeleton.num_links()));
+  Build(skeleton, pose0, pose1, ends, deferred);
 }
 
 void PairMotion::Release(Storage* storage) {
@@ -359,7 +363,46 @@ void PairMotion::Release(Storage* storage) {
   m.motion_ready = true;
 }
 
-void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends) {
+[[gnu::always_inline]] inline void PairMotion::StartChild(LinkMotion* m, const LinkPose& x0,
+                                                          const LinkPose& x1, const LinkPose& k0,
+                                                          const LinkPose& k1) const {
+  m->p0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
+  m->p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
+  m->q0 = k0.q.conjugate() * x0.q;  // FinishMotion normalises them.
+  m->q1 = k1.q.conjugate() * x1.q;
+}
+
+// Upper bounds of NormHi and MaxNormHi (FinishMotion's): a norm rounded to
+// nearest is within 4 ulps of the exact one, theirs within 20 ulps above it
+// (1e-12 relative is far more); where squares underflow, their steps up from
+// 0 add at most 8 x 2^-1074 under the root, 7e-162 above it (the 1e-150).
+constexpr double kWide = 1.0 + 1e-12;
+
+[[gnu::always_inline]] inline void PairMotion::BoundChild(LinkMotion* motion) const {
+  LinkMotion& m = *motion;
+  m.motion_ready = false;
+  m.own_speed = std::sqrt((m.p1 - m.p0).squaredNorm()) * kWide + 1e-150;
+  m.lever = std::sqrt(std::max(m.p0.squaredNorm(), m.p1.squaredNorm())) * kWide + 1e-150;
+  const internal::LinkBounds& parent = links_[m.parent].bounds;
+  internal::FirstOrderBoundsUpperInline(internal::HalfAngleUpperInline(m.q0, m.q1), m.own_speed,
+                                        m.lever, &parent, &m.bounds.speed, &m.bounds.angular);
+  m.bounds.accel = m.bounds.angular_accel = std::numeric_limits<double>::quiet_NaN();
+}
+
+void PairMotion::BeginLink(LinkIndex link) {
+  LinkMotion& m = links_[link];
+  if (m.begun) return;
+  SWEPTCCD_CHECK(m.parent.is_valid() && links_[m.parent].begun && pose0_ != nullptr);
+  StartChild(&m, pose0_->links[link], pose1_->links[link], pose0_->links[m.parent],
+             pose1_->links[m.parent]);
+  BoundChild(&m);
+  m.begun = true;
+}
+
+void PairMotion::CheckLinkBegun(LinkIndex link) const { SWEPTCCD_CHECK(links_[link].begun); }
+
+void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends,
+                       const std::vector<char>* deferred) {
   const int n = skeleton.num_links();
   SWEPTCCD_CHECK(static_cast<int>(pose0.links.size()) == n);
   SWEPTCCD_CHECK(static_cast<int>(pose1.links.size()) == n);
@@ -374,25 +417,36 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
     m.a_L = link.a_L;
     m.b_L = link.b_L;
     m.extent = skeleton.extent(i);  // Hull(Norm(a), Norm(b)).hi()
+    m.begun = true;
     const LinkPose& x0 = pose0.links[i];
     const LinkPose& x1 = pose1.links[i];
+    scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(), m.extent});
     if (model_ == MotionModel::kArticulated && link.parent >= 0) {
       const LinkPose& k0 = pose0.links[link.parent];
       const LinkPose& k1 = pose1.links[link.parent];
       m.parent = LinkIndex(link.parent);
-      m.p0 = k0.q.toRotationMatrix().transpose() * (x0.p - k0.p);
-      m.p1 = k1.q.toRotationMatrix().transpose() * (x1.p - k1.p);
-      m.q0 = k0.q.conjugate() * x0.q;  // FinishMotion normalises them.
-      m.q1 = k1.q.conjugate() * x1.q;
+      // The offsets' scale from the world positions (|c| = |p - k|, never
+      // below a coordinate of c but for the rounding the 1e-12 covers), so
+      // that it does not depend on which links are deferred.
+      const double lever =
+          std::sqrt(std::max((x0.p - k0.p).squaredNorm(), (x1.p - k1.p).squaredNorm())) * kWide +
+          1e-150;
+      scale = std::max(scale, lever);
+      if (deferred != nullptr && (*deferred)[i] != 0) {
+        m.begun = false;
+        m.lever = lever;
+        continue;
+      }
+      StartChild(&m, x0, x1, k0, k1);
     } else {
       m.p0 = x0.p;
       m.p1 = x1.p;
       m.q0 = x0.q;
       m.q1 = x1.q;
     }
-    scale = std::max({scale, x0.p.cwiseAbs().maxCoeff(), x1.p.cwiseAbs().maxCoeff(),
-                      m.p0.cwiseAbs().maxCoeff(), m.p1.cwiseAbs().maxCoeff(), m.extent});
   }
+  pose0_ = deferred != nullptr ? &pose0 : nullptr;
+  pose1_ = deferred != nullptr ? &pose1 : nullptr;
   // Speed bounds, parents first (internal::LinkBoundsByIntervals). kOnDemand
   // finishes only the links that move on their own; the others get upper
   // bounds of their lever, own speed, speed and angular speed
@@ -409,19 +463,14 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
       FinishMotion(&m);
       continue;
     }
-    m.motion_ready = false;
-    // Upper bounds of NormHi and MaxNormHi (FinishMotion's): a norm rounded
-    // to nearest is within 4 ulps of the exact one, theirs within 20 ulps
-    // above it (1e-12 relative is far more); where squares underflow, their
-    // steps up from 0 add at most 8 x 2^-1074 under the root, 7e-162 above
-    // it (the 1e-150).
-    constexpr double kWide = 1.0 + 1e-12;
-    m.own_speed = std::sqrt((m.p1 - m.p0).squaredNorm()) * kWide + 1e-150;
-    m.lever = std::sqrt(std::max(m.p0.squaredNorm(), m.p1.squaredNorm())) * kWide + 1e-150;
-    const internal::LinkBounds& parent = links_[m.parent].bounds;
-    internal::FirstOrderBoundsUpperInline(internal::HalfAngleUpperInline(m.q0, m.q1), m.own_speed,
-                                          m.lever, &parent, &m.bounds.speed, &m.bounds.angular);
-    m.bounds.accel = m.bounds.angular_accel = std::numeric_limits<double>::quiet_NaN();
+    if (!m.begun) {  // Deferred: infinite bounds until BeginLink.
+      m.motion_ready = false;
+      m.own_speed = std::numeric_limits<double>::infinity();
+      m.bounds.speed = m.bounds.angular = std::numeric_limits<double>::infinity();
+      m.bounds.accel = m.bounds.angular_accel = std::numeric_limits<double>::quiet_NaN();
+      continue;
+    }
+    BoundChild(&m);
   }
   // Slack for the rounding of SegmentAt: each composition step loses a few
   // ulps of the magnitudes involved; 1e-10 relative is many orders above that.
@@ -447,11 +496,12 @@ void PairMotion::Build(const Skeleton& skeleton, const Pose& pose0, const Pose& 
 void PairMotion::CompleteMotion(LinkIndex link) {
   LinkMotion& m = links_[link];
   if (m.motion_ready) return;
-  SWEPTCCD_CHECK(!m.parent.is_valid() || links_[m.parent].motion_ready);
+  SWEPTCCD_CHECK(m.begun && (!m.parent.is_valid() || links_[m.parent].motion_ready));
   FinishMotion(&m);
 }
 
 [[gnu::always_inline]] inline double PairMotion::GrowthUpper(const LinkMotion& m) const {
+  if (!m.begun) return std::numeric_limits<double>::infinity();
   const double g = internal::FirstOrderGrowthOverPairInline(m.bounds.speed, m.bounds.angular,
                                                             m.extent, rounding_slack_);
   if (all_ready_ || m.motion_ready) return g;  // SweepRadius(link, 0, 1).

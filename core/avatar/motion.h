@@ -124,8 +124,26 @@ class PairMotion {
   /// offsets (offset) are computed for every link either way, with the same
   /// bits; so is everything else once finished.
   enum class Ends { kAll, kOnDemand };
+  /// `deferred` (kOnDemand with `articulated` only; null: none): by link,
+  /// non-zero for links whose motion is not even begun (QueryRun defers the
+  /// members of a top-level link group below its root, which a ball from
+  /// their bone lengths may clear: core/query/link_groups.h,
+  /// StaticGroupBall). A deferred link must have a motion parent, and its
+  /// descendants must be deferred too. Build computes only its lever (from
+  /// the world positions: lever()) and what the rounding slack and
+  /// coordinate scale read, the same for every link deferred or not; until
+  /// BeginLink nothing else of it may be read (offset() checks; its
+  /// PairGrowthUpper and OriginSpeedUpper are infinite). The poses must
+  /// outlive the motion while any link is deferred (BeginLink reads them).
   PairMotion(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, MotionModel model,
-             Storage* storage, Ends ends);
+             Storage* storage, Ends ends, const std::vector<char>* deferred = nullptr);
+  /// Begins a deferred link's motion as Build begins every other link's
+  /// (its offsets, relative rotations' products, own speed, lever and upper
+  /// bounds: the same bits as a motion that did not defer it). Its motion
+  /// parent must be begun. Nothing for a link already begun.
+  void BeginLink(LinkIndex link);
+  /// Whether the link's motion is begun (always, unless deferred).
+  bool LinkBegun(LinkIndex link) const { return links_[link].begun; }
   /// kOnDemand: composes the link's poses and segments at s = 0, 0.5 and 1
   /// (the same operations as kAll, so the same bits). Its motion parent's
   /// must be complete. Not const: call it before the motion is shared.
@@ -237,12 +255,15 @@ class PairMotion {
   /// Upper end of max(|c_0|, |c_1|): the link origin's offset from its motion
   /// parent's origin at both ends (SPEC 3's c, whose interpolation never
   /// leaves that ball); 0 for a link moving on its own. Before CompleteMotion
-  /// a slightly larger upper bound (1e-12 relative).
+  /// a slightly larger upper bound (1e-12 relative); for a deferred link not
+  /// begun, the same bound from the world positions, max(|p_0 - k_0|, |p_1 -
+  /// k_1|) (k the parent's origin: |c| = |R^T (p - k)| = |p - k|).
   double lever(LinkIndex link) const { return links_[link].lever; }
   /// SPEC 3's c at s = 0 (end 0) and s = 1 (end 1) for a link with a motion
   /// parent (its origin in the parent's frame, interpolated linearly
   /// between the two); the world position for a link moving on its own.
   const Eigen::Vector3d& offset(LinkIndex link, int end) const {
+    if (!links_[link].begun) CheckLinkBegun(link);
     return end == 0 ? links_[link].p0 : links_[link].p1;
   }
   /// Absolute slack (metres) added for floating-point rounding in SegmentAt.
@@ -276,6 +297,9 @@ class PairMotion {
     // Rotations normalised, angle, sines and bounds exact; until then
     // bounds.speed and bounds.angular are upper bounds of the exact ones.
     bool motion_ready = true;
+    // Offsets, products, own speed, lever and upper bounds computed (false
+    // only for a deferred link until BeginLink).
+    bool begun = true;
   };
   // PairGrowthUpper of the link moving by m.
   double GrowthUpper(const LinkMotion& m) const;
@@ -290,7 +314,16 @@ class PairMotion {
   void PosesAtInto(double s, LinkPose* X_WL) const;
 
   // Fills every field of links_ (storage may hold an earlier motion's).
-  void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends);
+  void Build(const Skeleton& skeleton, const Pose& pose0, const Pose& pose1, Ends ends,
+             const std::vector<char>* deferred);
+  // A child's offsets and the products of its relative rotations (Build's
+  // first loop, BeginLink).
+  void StartChild(LinkMotion* m, const LinkPose& x0, const LinkPose& x1, const LinkPose& k0,
+                  const LinkPose& k1) const;
+  // kOnDemand: a child's own speed, lever and upper bounds from its parent's
+  // (Build's second loop, BeginLink).
+  void BoundChild(LinkMotion* m) const;
+  void CheckLinkBegun(LinkIndex link) const;
   // The look-ups at s = 0, 0.5 and 1 read composed ends only; bounds and
   // compositions read complete motions only. One test of all_ready_ where
   // everything is (kAll), the link's flag otherwise.
@@ -309,6 +342,9 @@ class PairMotion {
   double rounding_slack_ = 0;
   double coordinate_scale_ = 0;
   bool all_ready_ = true;  // Built with kAll: every link's motion and ends done.
+  // The poses built from, while a link is deferred (BeginLink reads them).
+  const Pose* pose0_ = nullptr;
+  const Pose* pose1_ = nullptr;
   // Every link's pose at s = 0 (first n), 0.5 and 1 (PosesAt), so PoseAt at
   // those times is a look-up.
   std::vector<LinkPose> poses_at_ends_;

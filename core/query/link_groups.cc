@@ -48,6 +48,22 @@ LinkGroups::LinkGroups(const Skeleton& skeleton) {
     is_root_[l] = skeleton.link(l).parent >= 0 && subtree_size_[l] >= kMinLinks && !chain;
     num_groups_ += is_root_[l] ? 1 : 0;
   }
+  std::vector<double> rest(n, 0.0);  // Children first: the reach at rest.
+  for (int i = n - 1; i >= 0; --i) {
+    const LinkIndex l = preorder_[i];
+    rest[l] = std::max(rest[l], skeleton.extent(l) + skeleton.link(l).radius);
+    const int parent = skeleton.link(l).parent;
+    if (parent >= 0) rest[parent] = std::max(rest[parent], skeleton.extent(parent) + rest[l]);
+  }
+  std::vector<bool> top(n, false);
+  for (const LinkIndex l : preorder_) {  // Parents first.
+    bool held = false;
+    for (int k = skeleton.link(l).parent; k >= 0 && !held; k = skeleton.link(k).parent) {
+      held = top[k];
+    }
+    top[l] = is_root_[l] && !held && rest[l] <= kTopReachM;
+    if (top[l]) top_roots_.push_back(l);
+  }
 }
 
 namespace {
@@ -164,6 +180,43 @@ LinkCapsule GroupBallAtMidpoint(const PairMotion& motion, const Pose& pose0, con
                 8 * motion.rounding_slack() + BoxPad(motion.coordinate_scale());
   ball.link = centre;
   return ball;
+}
+
+LinkCapsule StaticGroupBall(const LinkGroups& groups, const Skeleton& skeleton, PairMotion* motion,
+                            const Pose& pose0, const Pose& pose1, LinkIndex root,
+                            double tolerance_m, std::vector<double>* stat) {
+  SWEPTCCD_CHECK(motion->model() == MotionModel::kArticulated && motion->LinkBegun(root));
+  std::vector<double>& r = *stat;
+  const LinkIndex* first = groups.begin(root);
+  const LinkIndex* last = groups.end(root);
+  for (const LinkIndex* m = first + 1; m != last; ++m) r[*m] = 0;
+  for (const LinkIndex* m = last - 1; m != first; --m) {  // Children first.
+    const LinkIndex j = *m;
+    r[j] = std::max(r[j], skeleton.extent(j) + skeleton.link(j).radius);
+    const LinkIndex k(skeleton.link(j).parent);
+    if (k != root) r[k] = std::max(r[k], motion->lever(j) + r[j]);
+  }
+  const std::vector<LinkIndex>& kids = groups.children(root);
+  SWEPTCCD_CHECK(!kids.empty());
+  LinkIndex d = kids[0];
+  for (const LinkIndex c : kids) {
+    if (motion->lever(c) + r[c] > motion->lever(d) + r[d]) d = c;
+  }
+  motion->BeginLink(d);
+  const Link& own = skeleton.link(root);
+  const Eigen::Vector3d& d0 = motion->offset(d, 0);
+  const Eigen::Vector3d& d1 = motion->offset(d, 1);
+  double radius =
+      std::max(Apart(d0, d1, own.a_L, own.a_L), Apart(d0, d1, own.b_L, own.b_L)) + own.radius;
+  for (const LinkIndex c : kids) {
+    const double apart =
+        c == d ? 0.0
+               : Apart(pose0.links[c].p, pose1.links[c].p, pose0.links[d].p, pose1.links[d].p);
+    radius = std::max(radius, apart + r[c]);
+  }
+  // The sums' and the unit quaternions' rounding (far below 1e-12 relative).
+  radius *= 1.0 + 1e-12;
+  return GroupBallAtMidpoint(*motion, pose0, pose1, d, radius, tolerance_m);
 }
 
 }  // namespace sweptccd::internal

@@ -39,6 +39,18 @@ class LinkGroups {
   const std::vector<LinkIndex>& preorder() const { return preorder_; }
   /// The children of `link`, in index order.
   const std::vector<LinkIndex>& children(LinkIndex link) const { return children_[link]; }
+  /// The outermost groups narrow enough for a ball to clear them: roots
+  /// whose subtree reaches at most kTopReachM at rest (from the root's
+  /// origin, each child's origin taken within its parent's extent: sum of
+  /// extents down a chain, plus the last radius; an estimate, which decides
+  /// only which groups QueryRun tries first) and that no such root holds,
+  /// in preorder: a forearm's (the hand), not the upper body's nor each
+  /// finger's. 0.6 m: on the full-body skeleton a forearm's group reaches
+  /// 0.44 m at rest and its ball (from a child of the root) about 0.3 m; the
+  /// groups above it reach 0.8 m and more, past what a ball may be
+  /// (QueryRun's 0.5 m), and gain nothing from being tried first.
+  static constexpr double kTopReachM = 0.6;
+  const std::vector<LinkIndex>& top_roots() const { return top_roots_; }
 
  private:
   std::vector<LinkIndex> preorder_;
@@ -46,6 +58,7 @@ class LinkGroups {
   std::vector<int> position_;      // By link: its place in preorder_.
   std::vector<int> subtree_size_;  // By link, itself included.
   std::vector<bool> is_root_;
+  std::vector<LinkIndex> top_roots_;
   int num_groups_ = 0;
 };
 
@@ -107,5 +120,32 @@ LinkCapsule GroupBall(const PairMotion& motion, LinkIndex centre, double radius,
 /// docs/DESIGN.md, "Hierarchical link bounds".
 LinkCapsule GroupBallAtMidpoint(const PairMotion& motion, const Pose& pose0, const Pose& pose1,
                                 LinkIndex centre, double radius, double tolerance_m);
+
+/// The ball of a top-level group from its members' bone lengths, which
+/// needs no member's motion begun below the root (issue 31: QueryRun defers
+/// them, PairMotion's `deferred`, and a quiet pair never begins them).
+/// Centred as GroupBallAtMidpoint at the child d of the root whose subtree
+/// reaches farthest (d's motion is begun here: its offsets and speed bound),
+/// radius R (+ GroupBallAtMidpoint's V_d / 2, tolerance and slacks), R an
+/// upper bound on the distance at every s from d's origin at s to any point
+/// of any member at the same s:
+/// - a member l below a child c of the root: |p_c(s) - p_d(s)| = |c_c(s) -
+///   c_d(s)| (both offsets in the root's frame, interpolated linearly, so
+///   at most the larger at s = 0 or 1, where it is the world |p_c - p_d|),
+///   then each link on the way down from c to l adds at most its lever
+///   (|c_j(s)| <= max(|c_j0|, |c_j1|) = the world |p_j - p_k| at an end),
+///   and l's capsule extent + radius: stat(c) = max(extent_c + radius_c,
+///   max over c's children j of lever_j + stat(j));
+/// - the root's own capsule: max over its segment ends e of |e - c_d(s)|
+///   (at s = 0 or 1, as OwnFromChild) + its radius.
+/// Every point of the group's swept volume is so within R + V_d / 2 of d's
+/// midpoint. It need not hold the members' whole-pair capsules (their
+/// first-order growth can be far wider than the motion): a group it clears
+/// may hold a link whose own capsules would have been searched, which a
+/// query then never descends (its exact swept volume meets nothing).
+/// *stat: scratch, by link (sized to the skeleton). `root` must be begun.
+LinkCapsule StaticGroupBall(const LinkGroups& groups, const Skeleton& skeleton, PairMotion* motion,
+                            const Pose& pose0, const Pose& pose1, LinkIndex root,
+                            double tolerance_m, std::vector<double>* stat);
 
 }  // namespace sweptccd::internal

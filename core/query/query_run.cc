@@ -41,7 +41,8 @@ QueryRun::QueryRun(const CcdEngine& engine, const Pose& pose0, const Pose& pose1
                   ? *motion
                   : own_motion_.emplace(
                         engine.skeleton(), pose0, pose1, options.motion, &buffers_->motion,
-                        use_groups_ ? PairMotion::Ends::kOnDemand : PairMotion::Ends::kAll)),
+                        use_groups_ ? PairMotion::Ends::kOnDemand : PairMotion::Ends::kAll,
+                        use_groups_ ? DeferredLinks() : nullptr)),
       target_(engine.skeleton(), engine.environment(), engine.filter()),
       bounds_(engine.skeleton(), motion_, SweptBounds::Tolerance(engine.environment(), motion_)),
       slicer_(pose0.utime, pose1.utime, options.eps_s),
@@ -73,6 +74,23 @@ QueryRun::~QueryRun() {
   FreeIfAbove(&b.queue, kKeptIntervals);
   FreeIfAbove(&b.reach, kKeptLinks);
   FreeIfAbove(&b.growth, kKeptLinks);
+  FreeIfAbove(&b.deferred, kKeptLinks);
+  FreeIfAbove(&b.stat, kKeptLinks);
+  FreeIfAbove(&b.holds_cleared, kKeptLinks);
+}
+
+const std::vector<char>* QueryRun::DeferredLinks() {
+  std::vector<char>& deferred = buffers_->deferred;
+  deferred.assign(num_links_, 0);
+  bool any = false;
+  for (const LinkIndex root : groups_.top_roots()) {
+    if (groups_.end(root) - groups_.begin(root) < options_.link_group_min_size) continue;
+    for (const LinkIndex* m = groups_.begin(root) + 1; m != groups_.end(root); ++m) {
+      deferred[*m] = 1;
+      any = true;
+    }
+  }
+  return any ? &deferred : nullptr;
 }
 
 QueryResult QueryRun::Run() {
@@ -120,16 +138,47 @@ QueryResult QueryRun::Run() {
 // capsules (inside the ball) would, so the answer is the same. The balls
 // are centred between two input poses (GroupBallAtMidpoint), so no test
 // composes a pose or finishes a motion; a cleared group's links never are.
+//
+// First each top-level group whose members' motion was deferred: its ball
+// from the bone lengths (StaticGroupBall), which begins no member but the
+// ball's centre; a group it does not clear has its members begun and is
+// tried as every other group is.
 void QueryRun::ClearGroups() {
   const Skeleton& skeleton = target_.skeleton();
+  PairMotion& motion = *own_motion_;
+  std::vector<char>& holds_cleared = buffers_->holds_cleared;
+  holds_cleared.clear();
+  for (const LinkIndex root : groups_.top_roots()) {
+    if (groups_.end(root) - groups_.begin(root) < options_.link_group_min_size) continue;
+    buffers_->stat.resize(num_links_);
+    const LinkCapsule ball = StaticGroupBall(groups_, skeleton, &motion, pose0_, pose1_, root,
+                                             bounds_.tolerance_m(), &buffers_->stat);
+    if (GroupBallClear(root, ball)) {
+      for (const LinkIndex* m = groups_.begin(root); m != groups_.end(root); ++m) {
+        group_cleared_[*m] = kGroup;
+      }
+      ++stats_.groups_cleared;
+      // The groups holding it cannot clear now (SubtreeReach gives its
+      // members, never begun, an infinite reach): not tried below.
+      if (holds_cleared.empty()) holds_cleared.assign(num_links_, 0);
+      for (int k = skeleton.link(root).parent; k >= 0; k = skeleton.link(k).parent) {
+        holds_cleared[k] = 1;
+      }
+      continue;
+    }
+    for (const LinkIndex* m = groups_.begin(root) + 1; m != groups_.end(root); ++m) {
+      motion.BeginLink(*m);  // Preorder: parents first.
+    }
+  }
   for (const LinkIndex l : groups_.preorder()) {
+    if (group_cleared_[l] != 0) continue;  // Its top-level group's ball cleared it.
     const int parent = skeleton.link(l).parent;
     if (parent >= 0 && group_cleared_[parent] != 0) {
       group_cleared_[l] = kGroup;
       continue;
     }
     if (groups_.IsRoot(l) && groups_.end(l) - groups_.begin(l) >= options_.link_group_min_size &&
-        TryGroup(l)) {
+        (holds_cleared.empty() || holds_cleared[l] == 0) && TryGroup(l)) {
       group_cleared_[l] = kGroup;
       ++stats_.groups_cleared;
     }

@@ -30,6 +30,9 @@ struct QueryBuffers {
   std::vector<double> reach;            // ClearGroups: SubtreeReach.
   std::vector<double> growth;           // Ditto.
   RootCandidates::Buffers loose_roots;  // QueryRun::CullLoose.
+  std::vector<char> deferred;           // DeferredLinks: the motion's.
+  std::vector<double> stat;             // ClearGroups: StaticGroupBall's.
+  std::vector<char> holds_cleared;      // ClearGroups: groups holding a cleared top group.
 };
 
 /// Runs one query. Single-use and single-threaded; holds references to the
@@ -51,6 +54,11 @@ class QueryRun {
   QueryResult Run();
 
  private:
+  // The members of top-level groups below their roots (LinkGroups::
+  // top_roots, those of options.link_group_min_size links and more), whose
+  // motion is deferred (PairMotion's `deferred`): in buffers_->deferred;
+  // null when there are none.
+  const std::vector<char>* DeferredLinks();
   // The phases, in order.
   void ClearGroups();
   void CullLoose();
