@@ -48,6 +48,7 @@
 #include <optional>
 #include <random>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <tuple>
@@ -120,13 +121,14 @@ int Write(const std::string& dir) {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n(0, 1);
   const int64_t start = 1'000'000, end = 2'500'000;
+  // A stream from `start` to `until` (0: `end`).
   auto arm = [&](const std::string& file, Eigen::Vector3d center, int64_t phase, int64_t period,
-                 int64_t shift = 0, ArmFilter keep = nullptr) {
+                 int64_t shift = 0, ArmFilter keep = nullptr, int64_t until = 0) {
     std::string text;
     std::map<std::string, std::string> kept;  // Per keep() file.
     Eigen::Vector3d p = center;
     double angle = 0;
-    for (int64_t t = start + phase; t <= end; t += period) {
+    for (int64_t t = start + phase; t <= (until > 0 ? until : end); t += period) {
       p += 0.02 * Eigen::Vector3d(n(rng), n(rng), n(rng)) + 0.1 * (center - p);
       angle += 0.15 * n(rng);
       const Eigen::Quaterniond q(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
@@ -169,14 +171,20 @@ int Write(const std::string& dir) {
   // (DIR/stream.jsonl), and what it sends of it for alice (--client-rate
   // alice=90) and bob (--client-rate bob=60 --client-phase-us bob=5000,
   // moved by --spacing 0.25 0.05 0), as DIR/sim_alice.jsonl and
-  // DIR/sim_bob.jsonl, named by DIR/sim_world.json.
+  // DIR/sim_bob.jsonl, named by DIR/sim_world.json. 3.5 s long (about 525
+  // pairs): `listen` compares at least 200 entries of pairs latest-wins did
+  // not merge, and a player or daemon stalled for 0.5 s on a loaded machine
+  // merges the ~75 pairs sent meanwhile (at 1.5 s, 223 pairs, 151-192 were left).
   Ticks alice_ticks(90, 0), bob_ticks(60, 5000);
-  arm("stream.jsonl", {0, 0, 0}, 0, 2'778, 20'000'000, [&](int64_t t) {
-    std::vector<std::pair<std::string, Eigen::Vector3d>> to;
-    if (alice_ticks.Takes(t)) to.push_back({"sim_alice.jsonl", Eigen::Vector3d::Zero()});
-    if (bob_ticks.Takes(t)) to.push_back({"sim_bob.jsonl", Eigen::Vector3d(0.25, 0.05, 0)});
-    return to;
-  });
+  arm(
+      "stream.jsonl", {0, 0, 0}, 0, 2'778, 20'000'000,
+      [&](int64_t t) {
+        std::vector<std::pair<std::string, Eigen::Vector3d>> to;
+        if (alice_ticks.Takes(t)) to.push_back({"sim_alice.jsonl", Eigen::Vector3d::Zero()});
+        if (bob_ticks.Takes(t)) to.push_back({"sim_bob.jsonl", Eigen::Vector3d(0.25, 0.05, 0)});
+        return to;
+      },
+      start + 3'500'000);
   // The filters are those of e2e_shared_world.sh's configuration.
   WriteText(dir + "/sim_world.json", R"({
   "avatars": [{"id": "alice", "skeleton": "arm.json", "poses": "sim_alice.jsonl",
@@ -378,10 +386,19 @@ std::string EnvDiff(const contact_event_t& c, const json& r) {
   return d;
 }
 
+// Each subscription holds kLcmQueueCapacity messages, as the client
+// library's do: with LCM's default (30) the reader thread drops what the
+// play's thread (sleeping between sends) has not taken yet. After a stopped
+// daemon caught up in a burst, LCM's copies of alice's messages numbered
+// fewer than the WebSocket's (267 against 269) and LCM clients' pairs were
+// "never published": inferred to be this reader's losses.
 void Subscribe(lcm::LCM& lcm, Receiver* rx) {
-  lcm.subscribe(kContactChannel, &Receiver::OnContact, rx);
-  lcm.subscribe(kSharedContactChannel, &Receiver::OnShared, rx);
-  lcm.subscribe(kRejectChannel, &Receiver::OnReject, rx);
+  for (lcm::Subscription* s : {lcm.subscribe(kContactChannel, &Receiver::OnContact, rx),
+                               lcm.subscribe(kSharedContactChannel, &Receiver::OnShared, rx),
+                               lcm.subscribe(kRejectChannel, &Receiver::OnReject, rx)}) {
+    if (s == nullptr) throw std::runtime_error("cannot subscribe to the daemon's channels");
+    s->setQueueCapacity(kLcmQueueCapacity);
+  }
 }
 
 // What a run must show: each avatar's last seq answered; the one ghost
