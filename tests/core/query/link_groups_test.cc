@@ -246,6 +246,27 @@ TEST(LinkGroups, SubtreesMatchTheParentWalk) {
   EXPECT_GT(groups, cases);  // Groups are common in these trees.
 }
 
+// Whether the member's whole-pair capsule pokes out of the ball.
+bool CapsuleOutside(const internal::SweptBounds& bounds, LinkIndex member,
+                    const LinkCapsule& ball) {
+  const LinkCapsule cap = bounds.Over(member, 0, 1);
+  return std::max((cap.a - ball.a).norm(), (cap.b - ball.a).norm()) + cap.radius > ball.radius;
+}
+
+// Whether the member's capsule at some sample (SPEC 3 poses of every link)
+// pokes out of the ball.
+bool SamplesOutside(const Skeleton& skeleton, const std::vector<std::vector<LinkPose>>& samples,
+                    LinkIndex member, const LinkCapsule& ball) {
+  const Link& link = skeleton.link(member);
+  bool out = false;
+  for (const auto& x : samples) {
+    const Vec3 a = x[member].p + x[member].q * link.a_L;
+    const Vec3 b = x[member].p + x[member].q * link.b_L;
+    out |= std::max((a - ball.a).norm(), (b - ball.a).norm()) + link.radius > ball.radius;
+  }
+  return out;
+}
+
 // The ball holds each member's whole-pair capsule and each member's sampled
 // motion; `shrink` < 1 narrows the ball (the twin must then fail somewhere).
 struct Holding {
@@ -290,16 +311,8 @@ Holding CheckBalls(uint64_t seed, int cases, double shrink, bool on_demand = fal
       ball.radius *= shrink;
       bool capsule_out = false, sample_out = false;
       for (const LinkIndex* m = groups.begin(r); m != groups.end(r); ++m) {
-        const LinkCapsule cap = bounds.Over(*m, 0, 1);
-        const double far = std::max((cap.a - ball.a).norm(), (cap.b - ball.a).norm());
-        capsule_out |= far + cap.radius > ball.radius;
-        const Link& link = rig.skeleton.link(*m);
-        for (const auto& x : samples) {
-          const Vec3 a = x[*m].p + x[*m].q * link.a_L;
-          const Vec3 b = x[*m].p + x[*m].q * link.b_L;
-          const double d = std::max((a - ball.a).norm(), (b - ball.a).norm()) + link.radius;
-          sample_out |= d > ball.radius;
-        }
+        capsule_out |= CapsuleOutside(bounds, *m, ball);
+        sample_out |= SamplesOutside(rig.skeleton, samples, *m, ball);
       }
       h.capsule_outside += capsule_out;
       h.sample_outside += sample_out;
@@ -389,16 +402,8 @@ Holding CheckMidpointBalls(uint64_t seed, int cases, double shrink) {
       ball.radius *= shrink;
       bool capsule_out = false, sample_out = false;
       for (const LinkIndex* m = groups.begin(r); m != groups.end(r); ++m) {
-        const LinkCapsule cap = bounds.Over(*m, 0, 1);
-        const double far = std::max((cap.a - ball.a).norm(), (cap.b - ball.a).norm());
-        capsule_out |= far + cap.radius > ball.radius;
-        const Link& link = rig.skeleton.link(*m);
-        for (const auto& x : samples) {
-          const Vec3 a = x[*m].p + x[*m].q * link.a_L;
-          const Vec3 b = x[*m].p + x[*m].q * link.b_L;
-          const double d = std::max((a - ball.a).norm(), (b - ball.a).norm()) + link.radius;
-          sample_out |= d > ball.radius;
-        }
+        capsule_out |= CapsuleOutside(bounds, *m, ball);
+        sample_out |= SamplesOutside(rig.skeleton, samples, *m, ball);
       }
       h.capsule_outside += capsule_out;
       h.sample_outside += sample_out;
@@ -781,16 +786,8 @@ StaticHolding CheckStaticBalls(uint64_t seed, int cases, double shrink) {
       ball.radius *= shrink;
       bool sample_out = false, capsule_out = false;
       for (const LinkIndex* m = groups.begin(r); m != groups.end(r); ++m) {
-        const Link& link = sk.link(*m);
-        for (const auto& x : samples) {
-          const Vec3 a = x[*m].p + x[*m].q * link.a_L;
-          const Vec3 b = x[*m].p + x[*m].q * link.b_L;
-          const double d = std::max((a - ball.a).norm(), (b - ball.a).norm()) + link.radius;
-          sample_out |= d > ball.radius;
-        }
-        const LinkCapsule cap = bounds.Over(*m, 0, 1);
-        capsule_out |=
-            std::max((cap.a - ball.a).norm(), (cap.b - ball.a).norm()) + cap.radius > ball.radius;
+        sample_out |= SamplesOutside(sk, samples, *m, ball);
+        capsule_out |= CapsuleOutside(bounds, *m, ball);
       }
       h.sample_outside += sample_out;
       h.capsule_outside += capsule_out;
